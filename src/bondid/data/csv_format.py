@@ -1,0 +1,318 @@
+"""The bondid CSV format for measured FRFs (conventions §3).
+
+```
+# bondid-frf: 1
+# quantity: receptance
+# operating_point: x=0.0 y=0.0
+freq_hz,x.x.re,x.x.im,x.y.re,x.y.im,...[,x.x.coh,...]
+```
+
+Optional metadata lines ``# outputs: x y z`` and ``# inputs: x y z`` (written by bondid) fix
+the joint order and keep joints whose channels are all missing; without them the order is
+that of first appearance in the header. Other ``#`` lines are comments. Numbers are written
+with Python's shortest round-trip ``repr``, so a value read back is bit-identical.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..atomic import write_text_atomic
+from ..exceptions import ChannelError, DataError
+from ..frf.quantity import QUANTITIES
+from ._common import (
+    FORMAT_VERSION,
+    check_frequencies,
+    check_joint_name,
+    format_operating_point,
+    parse_operating_point,
+    read_file_bytes,
+    written_channels,
+)
+from .measurement import FrfData
+
+_META_KEYS = ("bondid-frf", "quantity", "operating_point", "outputs", "inputs")
+_SUFFIXES = ("re", "im", "coh")
+
+
+def _decode(path: Path) -> str:
+    raw = read_file_bytes(path)
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise DataError(
+            f"{path}: not UTF-8 text (byte {exc.start}); save the CSV as UTF-8"
+        ) from None
+
+
+def _read_metadata(path: Path, lines: list[str]) -> tuple[dict[str, tuple[str, int]], int]:
+    """Metadata ``key -> (value, line number)`` and the index of the header line."""
+    meta: dict[str, tuple[str, int]] = {}
+    for n, line in enumerate(lines):
+        s = line.strip()
+        if not s:
+            continue
+        if not s.startswith("#"):
+            return meta, n
+        key, colon, value = s[1:].partition(":")
+        key = key.strip().lower()
+        if colon and key in _META_KEYS:
+            if key in meta:
+                raise DataError(
+                    f"{path}: line {n + 1}: metadata '{key}' given twice "
+                    f"(first on line {meta[key][1]}); give it once"
+                )
+            meta[key] = (value.strip(), n + 1)
+    if not meta and not any(line.strip() for line in lines):
+        raise DataError(f"{path}: empty file; expected '# bondid-frf: 1' and a header row")
+    raise DataError(
+        f"{path}: no header row; expected a line starting 'freq_hz,' after the '#' lines"
+    )
+
+
+def _parse_header(
+    path: Path, cells: list[str], lineno: int
+) -> tuple[list[tuple[str, str, str]], list[str], list[str]]:
+    """Columns ``(out, in, suffix)`` after ``freq_hz``, and outputs/inputs by first use."""
+    where = f"{path}: line {lineno} (header)"
+    if not cells or cells[0] != "freq_hz":
+        first = cells[0] if cells else ""
+        raise DataError(f"{where}: first column is {first!r}; it must be 'freq_hz'")
+    columns: list[tuple[str, str, str]] = []
+    seen: set[tuple[str, str, str]] = set()
+    outputs: list[str] = []
+    inputs: list[str] = []
+    for j, name in enumerate(cells[1:], start=2):
+        chan, dot, suffix = name.rpartition(".")
+        if not dot or suffix not in _SUFFIXES:
+            raise DataError(
+                f"{where}: column {j} {name!r}: expected OUT.IN.re, OUT.IN.im or OUT.IN.coh"
+            )
+        out, dot2, inp = chan.partition(".")
+        if not dot2:
+            raise ChannelError(
+                f"{where}: column {j} {name!r}: channel {chan!r} is not OUT.IN "
+                f"(e.g. x.y.{suffix})"
+            )
+        check_joint_name(out, f"{where}: column {j} {name!r}")
+        check_joint_name(inp, f"{where}: column {j} {name!r}")
+        key = (out, inp, suffix)
+        if key in seen:
+            raise DataError(f"{where}: column {j} {name!r} appears twice; give each column once")
+        seen.add(key)
+        columns.append(key)
+        if out not in outputs:
+            outputs.append(out)
+        if inp not in inputs:
+            inputs.append(inp)
+    if not columns:
+        raise DataError(f"{where}: no channel columns after 'freq_hz'; expected e.g. x.x.re,x.x.im")
+    for out, inp, suffix in columns:
+        need = {"re": ("im",), "im": ("re",), "coh": ("re", "im")}[suffix]
+        for other in need:
+            if (out, inp, other) not in seen:
+                raise DataError(
+                    f"{where}: column '{out}.{inp}.{suffix}' has no matching "
+                    f"'{out}.{inp}.{other}'; give .re and .im (and optionally .coh) together"
+                )
+    return columns, outputs, inputs
+
+
+def _joint_order(
+    path: Path, meta: dict[str, tuple[str, int]], key: str, used: list[str]
+) -> list[str]:
+    """Joint order from ``# outputs:``/``# inputs:`` if given, else first use in the header."""
+    if key not in meta:
+        return used
+    text, lineno = meta[key]
+    names = text.split()
+    where = f"{path}: line {lineno}"
+    for name in names:
+        check_joint_name(name, where)
+    if len(set(names)) != len(names):
+        raise DataError(f"{where}: '{key}' lists a joint twice; list each joint once")
+    missing = [n for n in used if n not in names]
+    if missing:
+        raise ChannelError(
+            f"{where}: '{key}' lacks {', '.join(missing)} used in the header; "
+            f"list every joint of the header"
+        )
+    return names
+
+
+def _parse_rows(
+    path: Path, rows: list[list[str]], linenos: list[int], header: list[str]
+) -> np.ndarray:
+    """Numbers of the data rows, shape ``(n_rows, n_columns)``; empty cells become NaN."""
+    ncol = len(header)
+    values = np.empty((len(rows), ncol))
+    for k, cells in enumerate(rows):
+        if len(cells) != ncol:
+            raise DataError(
+                f"{path}: line {linenos[k]} (data row {k + 1}): {len(cells)} cells, "
+                f"the header has {ncol} columns"
+            )
+        try:
+            values[k] = [float(c) for c in cells]
+        except ValueError:
+            for j, c in enumerate(cells):
+                if not c.strip():
+                    values[k, j] = np.nan
+                    continue
+                try:
+                    values[k, j] = float(c)
+                except ValueError:
+                    raise DataError(
+                        f"{path}: line {linenos[k]} (data row {k + 1}), column {header[j]!r}: "
+                        f"non-numeric value {c.strip()!r}; expected a number"
+                    ) from None
+    return values
+
+
+def read_csv(path: str | os.PathLike[str], *, drop_nan: bool = False) -> FrfData:
+    """Read a bondid CSV file of measured FRFs.
+
+    Args:
+        path: the ``.csv`` file.
+        drop_nan: drop frequency rows that hold a NaN (or empty) cell instead of raising.
+
+    Returns:
+        :class:`FrfData` with ``freq_hz`` ``(n_freq,)`` in Hz, ``H`` ``(n_out, n_in,
+        n_freq)`` complex in SI units of the file's quantity (NaN for absent channels), and
+        ``coherence`` ``(n_out, n_in, n_freq)`` (NaN where a channel has none) or None.
+
+    Raises:
+        DataError: malformed file, with the file, line and column in the message.
+        ChannelError: malformed channel names in the header.
+        OperatingPointError: malformed ``# operating_point`` line.
+    """
+    p = Path(path)
+    lines = _decode(p).splitlines()
+    meta, h = _read_metadata(p, lines)
+    if "bondid-frf" not in meta:
+        raise DataError(
+            f"{p}: missing '# bondid-frf: {FORMAT_VERSION}' line before the header row"
+        )
+    version, vline = meta["bondid-frf"]
+    if version != FORMAT_VERSION:
+        raise DataError(
+            f"{p}: line {vline}: unsupported format version {version!r}; valid: {FORMAT_VERSION}"
+        )
+    quantity = "receptance"
+    if "quantity" in meta:
+        quantity, qline = meta["quantity"]
+        if quantity not in QUANTITIES:
+            raise DataError(
+                f"{p}: line {qline}: unknown quantity {quantity!r}; valid: {', '.join(QUANTITIES)}"
+            )
+    op: dict[str, float] = {}
+    if "operating_point" in meta:
+        text, oline = meta["operating_point"]
+        op = parse_operating_point(text, f"{p}: line {oline}")
+
+    parsed = list(csv.reader(lines[h:]))
+    header = [c.strip() for c in parsed[0]]
+    columns, used_out, used_in = _parse_header(p, header, h + 1)
+    outputs = _joint_order(p, meta, "outputs", used_out)
+    inputs = _joint_order(p, meta, "inputs", used_in)
+    rows, linenos = [], []
+    for k, cells in enumerate(parsed[1:], start=h + 2):
+        if cells and any(c.strip() for c in cells):
+            rows.append(cells)
+            linenos.append(k)
+    if not rows:
+        raise DataError(f"{p}: no data rows after the header; expected one row per frequency")
+    values = _parse_rows(p, rows, linenos, header)
+
+    nan = np.isnan(values)
+    if drop_nan:
+        keep = ~nan.any(axis=1)
+        values, linenos = values[keep], [n for n, kp in zip(linenos, keep, strict=True) if kp]
+        if not linenos:
+            raise DataError(f"{p}: every data row holds a NaN; nothing left after dropping them")
+    elif nan.any():
+        k, j = np.argwhere(nan)[0]
+        raise DataError(
+            f"{p}: line {linenos[k]} (data row {k + 1}), column {header[j]!r}: NaN or empty "
+            f"value; give a number or read with drop_nan=True"
+        )
+    inf = np.isinf(values)
+    if inf.any():
+        k, j = np.argwhere(inf)[0]
+        raise DataError(
+            f"{p}: line {linenos[k]}, column {header[j]!r}: infinite value; expected a finite number"
+        )
+    freq = values[:, 0].copy()
+    check_frequencies(freq, str(p), [f"line {n}" for n in linenos])
+
+    n_f = freq.size
+    H = np.full((len(outputs), len(inputs), n_f), np.nan + 1j * np.nan)
+    has_coh = any(s == "coh" for _, _, s in columns)
+    coh = np.full(H.shape, np.nan) if has_coh else None
+    for j, (out, inp, suffix) in enumerate(columns, start=1):
+        a, b = outputs.index(out), inputs.index(inp)
+        col = values[:, j]
+        if suffix == "re":
+            H[a, b].real = col
+        elif suffix == "im":
+            H[a, b].imag = col
+        else:
+            bad = np.flatnonzero((col < 0) | (col > 1))
+            if bad.size:
+                k = int(bad[0])
+                raise DataError(
+                    f"{p}: line {linenos[k]}, column {header[j]!r}: coherence {col[k]!r} "
+                    f"outside 0..1"
+                )
+            assert coh is not None
+            coh[a, b] = col
+    return FrfData(freq, tuple(outputs), tuple(inputs), H, quantity, op, coh, str(p))
+
+
+def write_csv(data: FrfData, path: str | os.PathLike[str]) -> Path:
+    """Write ``data`` as a bondid CSV file, atomically, with full double precision.
+
+    Only channels with data at every frequency are written (channels NaN everywhere are
+    left out); coherence columns follow the FRF columns for channels that have one.
+
+    Args:
+        data: the FRFs (``H`` ``(n_out, n_in, n_freq)``, ``freq_hz`` in Hz).
+        path: the ``.csv`` file to write.
+
+    Returns:
+        The path written.
+
+    Raises:
+        ChannelError: a joint name contains '.', ',', '=', whitespace, ...
+        DataError: a channel is NaN at some frequencies only, or coherence is out of 0..1.
+        OperatingPointError: an operating-point name or value cannot be written.
+    """
+    where = str(path)
+    chans = written_channels(data, where)
+    op = format_operating_point(data.operating_point, where)
+    names = ["freq_hz"]
+    cols = [np.asarray(data.freq_hz, dtype=float)]
+    for a, b, _ in chans:
+        chan = f"{data.outputs[a]}.{data.inputs[b]}"
+        names += [f"{chan}.re", f"{chan}.im"]
+        cols += [data.H[a, b].real, data.H[a, b].imag]
+    for a, b, has_coh in chans:
+        if has_coh:
+            assert data.coherence is not None
+            names.append(f"{data.outputs[a]}.{data.inputs[b]}.coh")
+            cols.append(data.coherence[a, b])
+    table = np.column_stack(cols).tolist()
+    out = [
+        f"# bondid-frf: {FORMAT_VERSION}",
+        f"# quantity: {data.quantity}",
+        ("# operating_point: " + " ".join(op)).rstrip(),
+        "# outputs: " + " ".join(data.outputs),
+        "# inputs: " + " ".join(data.inputs),
+        ",".join(names),
+    ]
+    out += [",".join(map(repr, row)) for row in table]
+    return write_text_atomic(path, "\n".join(out) + "\n")

@@ -1,0 +1,92 @@
+"""Realistic measurement error for synthetic FRFs, with a matching coherence."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..exceptions import ConfigError, DataError
+
+
+def _complex_normal(rng: np.random.Generator, shape: tuple[int, ...]) -> np.ndarray:
+    """Circular complex Gaussian samples with E|e|^2 = 1."""
+    z = rng.standard_normal((2, *shape))
+    return (z[0] + 1j * z[1]) / math.sqrt(2.0)
+
+
+def add_measurement_noise(
+    H: np.ndarray,
+    freq_hz: np.ndarray,
+    *,
+    rel: float = 0.02,
+    floor_db: float | None = -60.0,
+    rng: np.random.Generator | int | None,
+    floor_ref: str = "channel",
+) -> tuple[np.ndarray, np.ndarray]:
+    """Add measurement error to exact FRFs and estimate the coherence it implies.
+
+    The error model is ``H_noisy = H (1 + rel·e1) + sigma·e2`` with ``e1``, ``e2``
+    independent circular complex Gaussians of unit variance, and ``sigma`` an additive
+    noise floor ``floor_db`` dB below the peak ``|H|`` of each channel (``floor_ref=
+    "channel"``) or of each output row (``floor_ref="output"``: one sensor noise for all
+    inputs, so weak cross-terms drown). Anti-resonances and weak channels are thus noisy.
+    The coherence is the signal-to-noise estimate ``gamma^2 = S / (S + N)`` with
+    ``S = |H|^2`` and ``N = rel^2 |H|^2 + sigma^2`` (0 where a channel is exactly zero).
+
+    Args:
+        H: exact FRF, complex, shape ``(n_out, n_in, n_freq)`` (any quantity, SI units).
+            NaN channels (absent) stay NaN.
+        freq_hz: frequencies, shape ``(n_freq,)``, Hz.
+        rel: relative error (standard deviation of ``|e1|`` times ``rel``), >= 0.
+        floor_db: noise floor in dB relative to the peak; None or -inf for no floor.
+        rng: a numpy Generator or a seed (same seed, same noise).
+        floor_ref: ``"channel"`` (default) or ``"output"``, the peak the floor refers to.
+
+    Returns:
+        ``(H_noisy, coherence)``: complex ``(n_out, n_in, n_freq)`` and real in 0..1 of
+        the same shape (NaN where ``H`` is NaN). With ``rel = 0`` and no floor, ``H_noisy``
+        equals ``H`` and the coherence is 1.
+    """
+    H = np.asarray(H, dtype=complex)
+    freq = np.asarray(freq_hz, dtype=float)
+    if H.ndim != 3 or freq.ndim != 1 or H.shape[2] != freq.size:
+        raise DataError(
+            f"add_measurement_noise: H has shape {H.shape} and freq_hz {freq.shape}; "
+            f"expected (n_out, n_in, n_freq) and (n_freq,)"
+        )
+    if not (math.isfinite(rel) and rel >= 0):
+        raise ConfigError(f"noise: relative error {rel!r} is invalid; give a finite value >= 0")
+    if floor_db is not None and (math.isnan(floor_db) or floor_db == math.inf):
+        raise ConfigError(f"noise: floor {floor_db!r} dB is invalid; give a finite value or None")
+    if floor_ref not in ("channel", "output"):
+        raise ConfigError(f"noise: floor_ref {floor_ref!r} is invalid; valid: channel, output")
+    gen = np.random.default_rng(rng)
+    absent = np.isnan(H)
+    no_floor = floor_db is None or floor_db == -math.inf
+    if rel == 0 and no_floor:
+        ones = np.ones(H.shape)
+        ones[absent] = np.nan
+        return H.copy(), ones
+
+    mag = np.where(absent, 0.0, np.abs(H))
+    if no_floor:
+        sigma = np.zeros(H.shape[:2] + (1,))
+    else:
+        assert floor_db is not None
+        peak = mag.max(axis=2, keepdims=True)
+        if floor_ref == "output":
+            peak = np.broadcast_to(peak.max(axis=1, keepdims=True), peak.shape)
+        sigma = peak * 10.0 ** (floor_db / 20.0)
+    e1 = _complex_normal(gen, H.shape)
+    e2 = _complex_normal(gen, H.shape)
+    H_noisy = H * (1.0 + rel * e1) + sigma * e2
+    S = mag**2
+    N = (rel**2) * S + sigma**2
+    total = S + N
+    with np.errstate(invalid="ignore", divide="ignore"):
+        coherence = np.where(total > 0, S / np.where(total > 0, total, 1.0), 0.0)
+    coherence = np.clip(coherence, 0.0, 1.0)
+    coherence[absent] = np.nan
+    H_noisy[absent] = np.nan + 1j * np.nan
+    return H_noisy, coherence

@@ -1,0 +1,54 @@
+"""The linearised machine at one operating point: :class:`LinearModel`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class LinearModel:
+    """M δq̈ + D δq̇ + K δq = B u,  y = C δq (velocity coordinates of the model).
+
+    Attributes:
+        M: mass matrix, ``(nv, nv)``, kg / kg·m².
+        K: stiffness (joint springs + gravity stiffness ∂g/∂q), ``(nv, nv)``.
+        D: damping, ``(nv, nv)``.
+        B: input matrix, ``(nv, n_in)``: input i is a generalised force on a joint.
+        C: output matrix, ``(n_out, nv)``: output i is a joint position.
+        dofs: joint name of each velocity coordinate, length ``nv``.
+        inputs: input (excited joint) names, length ``n_in``.
+        outputs: output (sensed joint) names, length ``n_out``.
+        q0: the configuration, ``(nq,)``.
+    """
+
+    M: np.ndarray
+    K: np.ndarray
+    D: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    dofs: tuple[str, ...]
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    q0: np.ndarray
+
+    @property
+    def nv(self) -> int:
+        return int(self.M.shape[0])
+
+    def state_space(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(A (2nv,2nv), B (2nv,n_in), C (n_out,2nv), D (n_out,n_in)) with x = [δq, δq̇]."""
+        n = self.nv
+        Minv = np.linalg.inv(self.M)
+        A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ self.K, -Minv @ self.D]])
+        Bs = np.vstack([np.zeros((n, self.B.shape[1])), Minv @ self.B])
+        Cs = np.hstack([self.C, np.zeros((self.C.shape[0], n))])
+        Ds = np.zeros((self.C.shape[0], self.B.shape[1]))
+        return A, Bs, Cs, Ds
+
+    def frf(self, freq_hz: np.ndarray, quantity: str = "receptance") -> np.ndarray:
+        """FRF ``(n_out, n_in, n_freq)`` at ``freq_hz`` (Hz); see :func:`bondid.frf.frf`."""
+        from ..frf.engine import frf
+
+        return frf(self.M, self.K, self.D, self.B, self.C, freq_hz, quantity)

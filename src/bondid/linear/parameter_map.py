@@ -1,0 +1,142 @@
+"""Named parameters (URDF form) → the values of an :class:`AffineModel`, with the Jacobian.
+
+A parameter vector ``p`` holds a chosen subset of the named parameters (``x_stage.mass``,
+``x_guide_rx.stiffness``, ...). The map to the affine model's values is
+
+* link parameters (mass m, CoM c, inertia about the CoM I_c) → π = [m, m·c, I_c + m(|c|²𝟙 − ccᵀ)]
+  (non-linear in (m, c), affine in I_c),
+* ``JOINT.stiffness`` / ``JOINT.damping`` → the spring / damper of that coordinate (identity).
+
+:meth:`ParameterMap.jacobian` gives the exact derivatives, so dH/dp follows by the chain rule.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..exceptions import ParameterError
+from ..model.document import UrdfDocument
+from ..model.parameters import COM_AXES, get_parameters, parameter_infos
+from .affine import AffineModel, pi_from_inertial
+
+# position of each URDF inertia component in Pinocchio's π (Ixx, Ixy, Iyy, Ixz, Iyz, Izz)
+_PI_SLOT = {"ixx": 4, "ixy": 5, "iyy": 6, "ixz": 7, "iyz": 8, "izz": 9}
+_I_ENTRY = {"ixx": (0, 0), "ixy": (0, 1), "iyy": (1, 1), "ixz": (0, 2), "iyz": (1, 2), "izz": (2, 2)}
+
+
+@dataclass(frozen=True)
+class _Slot:
+    kind: str  # mass / com / inertia / stiffness / damping
+    index: int  # body index or dof index
+    component: str | None
+
+
+def _pi_vector_to_inertial(pi: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    m = float(pi[0])
+    c = pi[1:4] / m
+    Io = np.array([[pi[4], pi[5], pi[7]], [pi[5], pi[6], pi[8]], [pi[7], pi[8], pi[9]]])
+    return m, c, Io - m * (c @ c * np.eye(3) - np.outer(c, c))
+
+
+class ParameterMap:
+    """Map a vector of named parameters onto an :class:`AffineModel` (same for every pose).
+
+    Args:
+        doc: the model the parameters are named in.
+        affine: any :class:`AffineModel` of ``doc`` (its ``bodies`` and ``dofs`` are used).
+        names: the free parameters, in vector order.
+    """
+
+    def __init__(self, doc: UrdfDocument, affine: AffineModel, names: Sequence[str]):
+        infos = {p.name: p for p in parameter_infos(doc)}
+        self.names: tuple[str, ...] = tuple(names)
+        self.slots: list[_Slot] = []
+        for n in self.names:
+            info = infos.get(n)
+            if info is None:
+                raise ParameterError(
+                    f"{doc.source or '<URDF>'}: unknown parameter {n!r}; see parameter_names()"
+                )
+            if info.is_inertial:
+                if info.owner not in affine.bodies:
+                    raise ParameterError(f"{n}: link {info.owner!r} does not move; its inertia has no effect")
+                self.slots.append(_Slot(info.kind, affine.bodies.index(info.owner), info.component))
+            else:
+                self.slots.append(_Slot(info.kind, affine.dofs.index(info.owner), None))
+        self.base_pi = affine.pi.copy()
+        self.base_stiffness = affine.stiffness.copy()
+        self.base_damping = affine.damping.copy()
+        self.p0 = get_parameters(doc, self.names)
+        self.nb = len(affine.bodies)
+        self.nv = affine.nv
+
+    @property
+    def size(self) -> int:
+        return len(self.names)
+
+    def _inertials(self, p: np.ndarray) -> list[tuple[float, np.ndarray, np.ndarray]]:
+        inert = [_pi_vector_to_inertial(pi) if pi[0] > 0 else (0.0, np.zeros(3), np.zeros((3, 3))) for pi in self.base_pi]
+        inert = [(m, c.copy(), I.copy()) for m, c, I in inert]
+        for s, v in zip(self.slots, p, strict=True):
+            if s.kind == "mass":
+                m, c, I = inert[s.index]
+                inert[s.index] = (float(v), c, I)
+            elif s.kind == "com":
+                inert[s.index][1][COM_AXES.index(str(s.component))] = v
+            elif s.kind == "inertia":
+                r, q = _I_ENTRY[str(s.component)]
+                inert[s.index][2][r, q] = inert[s.index][2][q, r] = v
+        return inert
+
+    def values(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(π ``(nb, 10)``, stiffness ``(nv,)``, damping ``(nv,)``) for parameters ``p``."""
+        p = np.asarray(p, dtype=float)
+        inert = self._inertials(p)
+        touched = {s.index for s in self.slots if s.kind in ("mass", "com", "inertia")}
+        pi = self.base_pi.copy()
+        for b in touched:
+            pi[b] = pi_from_inertial(*inert[b])
+        k = self.base_stiffness.copy()
+        d = self.base_damping.copy()
+        for s, v in zip(self.slots, p, strict=True):
+            if s.kind == "stiffness":
+                k[s.index] = v
+            elif s.kind == "damping":
+                d[s.index] = v
+        return pi, k, d
+
+    def jacobian(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Exact derivatives: dπ/dp ``(nb, 10, n_p)``, dk/dp ``(nv, n_p)``, dd/dp ``(nv, n_p)``."""
+        p = np.asarray(p, dtype=float)
+        inert = self._inertials(p)
+        dpi = np.zeros((self.nb, 10, self.size))
+        dk = np.zeros((self.nv, self.size))
+        dd = np.zeros((self.nv, self.size))
+        for col, s in enumerate(self.slots):
+            if s.kind == "stiffness":
+                dk[s.index, col] = 1.0
+                continue
+            if s.kind == "damping":
+                dd[s.index, col] = 1.0
+                continue
+            m, c, _ = inert[s.index]
+            g = np.zeros(10)
+            if s.kind == "mass":
+                S = c @ c * np.eye(3) - np.outer(c, c)
+                g[0] = 1.0
+                g[1:4] = c
+                g[4:] = [S[0, 0], S[0, 1], S[1, 1], S[0, 2], S[1, 2], S[2, 2]]
+            elif s.kind == "com":
+                a = COM_AXES.index(str(s.component))
+                e = np.zeros(3)
+                e[a] = 1.0
+                S = m * (2 * c[a] * np.eye(3) - np.outer(e, c) - np.outer(c, e))
+                g[1 + a] = m
+                g[4:] = [S[0, 0], S[0, 1], S[1, 1], S[0, 2], S[1, 2], S[2, 2]]
+            else:
+                g[_PI_SLOT[str(s.component)]] = 1.0
+            dpi[s.index, :, col] = g
+        return dpi, dk, dd

@@ -1,0 +1,38 @@
+"""The model layer: a URDF document, its named parameters, and structural edits."""
+
+from .authoring import find_joint_between, insert_parasitic_joint
+from .document import Spring, Transmission, UrdfDocument
+from .parameters import (
+    GROUPS,
+    ParameterInfo,
+    get_parameter,
+    get_parameters,
+    group_members,
+    link_inertial,
+    parameter_infos,
+    parameter_names,
+    select_parameters,
+    set_link_inertial,
+    set_parameter,
+    set_parameters,
+)
+
+__all__ = [
+    "GROUPS",
+    "ParameterInfo",
+    "Spring",
+    "Transmission",
+    "UrdfDocument",
+    "find_joint_between",
+    "get_parameter",
+    "get_parameters",
+    "group_members",
+    "insert_parasitic_joint",
+    "link_inertial",
+    "parameter_infos",
+    "parameter_names",
+    "select_parameters",
+    "set_link_inertial",
+    "set_parameter",
+    "set_parameters",
+]

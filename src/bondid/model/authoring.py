@@ -1,0 +1,123 @@
+"""Structural edits of a :class:`UrdfDocument`: insert a parasitic (compliant) joint.
+
+A parasitic joint Q relaxes the interface between two links. It is inserted on the child side
+of the existing joint J (primary or fixed) that connects them, through massless links::
+
+    P --J--> Q_link --Q (origin = pivot)--> C                      (pivot at C's origin)
+    P --J--> Q_link --Q (origin = pivot)--> Q_moving --Q_offset (fixed, −pivot)--> C
+
+so C keeps its placement and its parameters. Q gets a Gazebo spring and a damper.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..exceptions import ModelError
+from .document import UrdfDocument
+
+_DEFAULT_LIMIT = {"prismatic": 1e-3, "revolute": 1e-2}
+
+
+def find_joint_between(doc: UrdfDocument, parent: str, child: str) -> str:
+    """Name of the joint whose parent link is ``parent`` and child link is ``child``."""
+    for j in doc.robot.joints:
+        if j.parent == parent and j.child == child:
+            return str(j.name)
+    pairs = ", ".join(f"{j.parent}->{j.child}" for j in doc.robot.joints)
+    raise ModelError(
+        f"{doc.source or '<URDF>'}: no joint connects link {parent!r} to link {child!r};"
+        f" connected pairs: {pairs}"
+    )
+
+
+def insert_parasitic_joint(
+    doc: UrdfDocument,
+    name: str,
+    *,
+    after: str | None = None,
+    parent: str | None = None,
+    child: str | None = None,
+    kind: str = "revolute",
+    axis: Sequence[float] = (0.0, 0.0, 1.0),
+    pivot: Sequence[float] = (0.0, 0.0, 0.0),
+    stiffness: float = 0.0,
+    damping: float = 0.0,
+    limit: float | None = None,
+) -> str:
+    """Insert a compliant joint ``name`` after joint ``after`` (or between two links).
+
+    Args:
+        doc: the document, edited in place.
+        name: the new joint's name; also names the massless links ``name_link`` (and
+            ``name_moving`` with the fixed joint ``name_offset`` when ``pivot`` is not 0).
+        after: existing joint whose child side is relaxed. Alternatively give ``parent``
+            and ``child``, the two links it connects.
+        kind: ``"revolute"`` or ``"prismatic"``.
+        axis: joint axis in the child link's frame, shape (3,), normalised here.
+        pivot: point of the axis in the child link's frame, shape (3,), m.
+        stiffness: spring [N/m or N·m/rad], ≥ 0.
+        damping: damper [N·s/m or N·m·s/rad], ≥ 0.
+        limit: symmetric position limit (m or rad); default 1 mm or 10 mrad.
+
+    Returns:
+        The new joint's name.
+    """
+    import yourdfpy
+
+    where = doc.source or "<URDF>"
+    if kind not in _DEFAULT_LIMIT:
+        raise ModelError(f"{where}: parasitic joint {name!r}: kind {kind!r}; valid: revolute, prismatic")
+    if after is None:
+        if parent is None or child is None:
+            raise ModelError(f"{where}: insert {name!r}: give `after` or both `parent` and `child`")
+        after = find_joint_between(doc, parent, child)
+    existing = set(doc.link_names) | set(doc.joint_names)
+    new_names = {name, f"{name}_link", f"{name}_moving", f"{name}_offset"}
+    clash = sorted(new_names & existing)
+    if clash:
+        raise ModelError(f"{where}: cannot insert {name!r}: names already used: {', '.join(clash)}")
+    a = np.asarray(axis, dtype=float)
+    if a.shape != (3,) or not np.all(np.isfinite(a)) or np.linalg.norm(a) == 0:
+        raise ModelError(f"{where}: parasitic joint {name!r}: axis must be a non-zero 3-vector")
+    p = np.asarray(pivot, dtype=float)
+    if p.shape != (3,) or not np.all(np.isfinite(p)):
+        raise ModelError(f"{where}: parasitic joint {name!r}: pivot must be a finite 3-vector")
+    if stiffness < 0 or damping < 0:
+        raise ModelError(f"{where}: parasitic joint {name!r}: stiffness and damping must be ≥ 0")
+
+    host = doc.joint(after)
+    final_child = host.child
+    link_in = f"{name}_link"
+    host.child = link_in
+    doc.robot.links.append(yourdfpy.Link(name=link_in, inertial=None, visuals=[], collisions=[]))
+    lim = _DEFAULT_LIMIT[kind] if limit is None else float(limit)
+    T = np.eye(4)
+    T[:3, 3] = p
+    has_pivot = bool(np.any(p != 0.0))
+    q_child = f"{name}_moving" if has_pivot else final_child
+    doc.robot.joints.append(
+        yourdfpy.Joint(
+            name=name,
+            type=kind,
+            parent=link_in,
+            child=q_child,
+            origin=T,
+            axis=a / np.linalg.norm(a),
+            dynamics=yourdfpy.Dynamics(damping=float(damping), friction=None),
+            limit=yourdfpy.Limit(effort=1e6, velocity=1e3, lower=-lim, upper=lim),
+        )
+    )
+    if has_pivot:
+        doc.robot.links.append(yourdfpy.Link(name=q_child, inertial=None, visuals=[], collisions=[]))
+        back = np.eye(4)
+        back[:3, 3] = -p
+        doc.robot.joints.append(
+            yourdfpy.Joint(
+                name=f"{name}_offset", type="fixed", parent=q_child, child=final_child, origin=back
+            )
+        )
+    doc.set_stiffness(name, stiffness, reference=0.0)
+    return name

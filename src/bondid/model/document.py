@@ -1,0 +1,308 @@
+"""A URDF file held in memory for reading and authoring: :class:`UrdfDocument`.
+
+yourdfpy parses the kinematic tree (links, joints, inertials, geometry) but drops the
+elements bondid also relies on: ``<transmission>`` (actuators = FRF inputs) and Gazebo's
+``<gazebo reference="JOINT">`` extension (joint springs). This class keeps every top-level
+element yourdfpy does not model, verbatim, and writes it back, so nothing in a user's file is
+lost by a read → write round trip.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..atomic import refuse_overwrite, write_text_atomic
+from ..exceptions import ModelError
+
+MOVABLE_TYPES = ("revolute", "continuous", "prismatic")
+_YOURDFPY_TAGS = ("link", "joint", "material")
+
+
+@dataclass(frozen=True)
+class Transmission:
+    """One actuator: a generalised force on ``joint`` (an FRF input)."""
+
+    name: str
+    joint: str
+
+
+@dataclass(frozen=True)
+class Spring:
+    """A joint spring from Gazebo's URDF extension: torque = −stiffness·(q − reference)."""
+
+    stiffness: float
+    reference: float = 0.0
+
+
+class UrdfDocument:
+    """One URDF model in memory: yourdfpy's tree plus the extension elements it drops.
+
+    Use :meth:`load` / :meth:`from_string` to read, :meth:`to_string` / :meth:`write` to
+    write. Springs and transmissions are read from and written to the extension elements.
+    """
+
+    def __init__(self, urdf: object, extras: list[ET.Element], source: str | None = None):
+        self._urdf = urdf
+        self.extras = extras
+        self.source = source
+        self._check()
+
+    # -- reading ------------------------------------------------------------------------
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> UrdfDocument:
+        """Read a URDF file. Raises :class:`ModelError` naming the file on failure."""
+        p = Path(path)
+        try:
+            text = p.read_text(encoding="utf-8")
+        except OSError as exc:
+            raise ModelError(f"{p}: cannot read the URDF file ({exc.strerror})") from exc
+        return cls.from_string(text, source=str(p))
+
+    @classmethod
+    def from_string(cls, xml: str, source: str | None = None) -> UrdfDocument:
+        """Parse URDF text; ``source`` names it in error messages."""
+        import yourdfpy
+
+        where = source or "<URDF string>"
+        try:
+            root = ET.fromstring(xml)
+        except ET.ParseError as exc:
+            raise ModelError(f"{where}: not well-formed XML ({exc})") from exc
+        if root.tag != "robot":
+            raise ModelError(f"{where}: root element is <{root.tag}>, expected <robot>")
+        extras = [copy.deepcopy(el) for el in root if el.tag not in _YOURDFPY_TAGS]
+        core = ET.Element("robot", root.attrib)
+        core.extend(el for el in root if el.tag in _YOURDFPY_TAGS)
+        try:
+            import io
+
+            urdf = yourdfpy.URDF.load(
+                io.BytesIO(ET.tostring(core)),
+                build_scene_graph=False,
+                load_meshes=False,
+                filename_handler=yourdfpy.filename_handler_null,
+            )
+        except Exception as exc:  # yourdfpy raises assorted errors on bad files
+            raise ModelError(f"{where}: yourdfpy could not read the URDF ({exc})") from exc
+        return cls(urdf, extras, source)
+
+    def _check(self) -> None:
+        where = self.source or "<URDF string>"
+        links = {lk.name for lk in self.robot.links}
+        for j in self.robot.joints:
+            for end in (j.parent, j.child):
+                if end not in links:
+                    raise ModelError(
+                        f"{where}: joint {j.name!r} refers to link {end!r}, which does not exist"
+                    )
+        for t in self.transmissions:
+            if t.joint not in self.joint_names:
+                raise ModelError(
+                    f"{where}: transmission {t.name!r} names joint {t.joint!r}, which does not"
+                    f" exist; joints: {', '.join(self.movable_joint_names)}"
+                )
+        for name in self.springs:
+            if name not in self.joint_names:
+                raise ModelError(
+                    f"{where}: <gazebo reference={name!r}> sets a spring on a joint that does"
+                    " not exist"
+                )
+
+    # -- the tree -----------------------------------------------------------------------
+    @property
+    def robot(self):  # -> yourdfpy.Robot
+        """The yourdfpy ``Robot`` dataclass (links, joints, materials)."""
+        return self._urdf.robot  # type: ignore[attr-defined]
+
+    @property
+    def name(self) -> str:
+        return str(self.robot.name)
+
+    @property
+    def link_names(self) -> list[str]:
+        return [lk.name for lk in self.robot.links]
+
+    @property
+    def joint_names(self) -> list[str]:
+        return [j.name for j in self.robot.joints]
+
+    @property
+    def movable_joint_names(self) -> list[str]:
+        """Joints with one degree of freedom (revolute, continuous, prismatic), file order."""
+        return [j.name for j in self.robot.joints if j.type in MOVABLE_TYPES]
+
+    def link(self, name: str):  # -> yourdfpy.Link
+        for lk in self.robot.links:
+            if lk.name == name:
+                return lk
+        raise ModelError(
+            f"{self.source or '<URDF>'}: no link {name!r}; links: {', '.join(self.link_names)}"
+        )
+
+    def joint(self, name: str):  # -> yourdfpy.Joint
+        for j in self.robot.joints:
+            if j.name == name:
+                return j
+        raise ModelError(
+            f"{self.source or '<URDF>'}: no joint {name!r}; joints: {', '.join(self.joint_names)}"
+        )
+
+    def root_link(self) -> str:
+        children = {j.child for j in self.robot.joints}
+        roots = [n for n in self.link_names if n not in children]
+        if len(roots) != 1:
+            raise ModelError(f"{self.source or '<URDF>'}: expected one root link, found {roots}")
+        return roots[0]
+
+    def grounded_links(self) -> set[str]:
+        """Links rigidly attached to the root (through fixed joints only), root included."""
+        fixed: dict[str, list[str]] = {}
+        for j in self.robot.joints:
+            if j.type not in MOVABLE_TYPES:
+                fixed.setdefault(j.parent, []).append(j.child)
+        out, stack = set(), [self.root_link()]
+        while stack:
+            n = stack.pop()
+            out.add(n)
+            stack.extend(fixed.get(n, []))
+        return out
+
+    # -- extension elements: transmissions and springs ----------------------------------
+    @property
+    def transmissions(self) -> list[Transmission]:
+        """Actuators in file order; a transmission with several joints gives several."""
+        out = []
+        for el in self.extras:
+            if el.tag != "transmission":
+                continue
+            for jel in el.findall("joint"):
+                out.append(Transmission(el.get("name", ""), jel.get("name", "")))
+        return out
+
+    def _spring_element(self, joint: str) -> ET.Element | None:
+        for el in self.extras:
+            if el.tag == "gazebo" and el.get("reference") == joint:
+                if el.find("springStiffness") is not None:
+                    return el
+        return None
+
+    @property
+    def springs(self) -> dict[str, Spring]:
+        """Joint springs by joint name (joints without one are absent = stiffness 0)."""
+        out = {}
+        for el in self.extras:
+            if el.tag != "gazebo" or el.get("reference") is None:
+                continue
+            k_el = el.find("springStiffness")
+            if k_el is None:
+                continue
+            ref_el = el.find("springReference")
+            name = str(el.get("reference"))
+            try:
+                k = float(k_el.text or "")
+                ref = float(ref_el.text or "0") if ref_el is not None else 0.0
+            except ValueError as exc:
+                raise ModelError(
+                    f"{self.source or '<URDF>'}: <gazebo reference={name!r}> has a"
+                    f" non-numeric springStiffness/springReference ({exc})"
+                ) from exc
+            out[name] = Spring(k, ref)
+        return out
+
+    def stiffness(self, joint: str) -> float:
+        """Spring stiffness of ``joint`` [N/m or N·m/rad]; 0 when it has no spring."""
+        self.joint(joint)
+        s = self.springs.get(joint)
+        return 0.0 if s is None else s.stiffness
+
+    def set_stiffness(self, joint: str, value: float, reference: float | None = None) -> None:
+        """Set (or create) the Gazebo spring of ``joint``."""
+        self.joint(joint)
+        el = self._spring_element(joint)
+        if el is None:
+            el = ET.Element("gazebo", {"reference": joint})
+            ET.SubElement(el, "springStiffness")
+            ET.SubElement(el, "springReference").text = "0.0"
+            self.extras.append(el)
+        k_el = el.find("springStiffness")
+        assert k_el is not None
+        k_el.text = repr(float(value))
+        if reference is not None:
+            r_el = el.find("springReference")
+            if r_el is None:
+                r_el = ET.SubElement(el, "springReference")
+            r_el.text = repr(float(reference))
+
+    def damping(self, joint: str) -> float:
+        """Viscous damping of ``joint`` [N·s/m or N·m·s/rad]; 0 when absent."""
+        j = self.joint(joint)
+        if j.dynamics is None or j.dynamics.damping is None:
+            return 0.0
+        return float(j.dynamics.damping)
+
+    def set_damping(self, joint: str, value: float) -> None:
+        import yourdfpy
+
+        j = self.joint(joint)
+        if j.dynamics is None:
+            j.dynamics = yourdfpy.Dynamics(damping=float(value), friction=None)
+        else:
+            j.dynamics.damping = float(value)
+
+    def add_transmission(self, joint: str, name: str | None = None) -> None:
+        """Append an effort transmission on ``joint`` (a new FRF input, last in order)."""
+        self.joint(joint)
+        el = ET.Element("transmission", {"name": name or f"{joint}_trans"})
+        ET.SubElement(el, "type").text = "transmission_interface/SimpleTransmission"
+        jel = ET.SubElement(el, "joint", {"name": joint})
+        ET.SubElement(jel, "hardwareInterface").text = "hardware_interface/EffortJointInterface"
+        act = ET.SubElement(el, "actuator", {"name": f"{joint}_motor"})
+        ET.SubElement(act, "mechanicalReduction").text = "1"
+        self.extras.append(el)
+
+    # -- writing ------------------------------------------------------------------------
+    def to_string(self) -> str:
+        """The whole model as URDF text (pretty-printed, full double precision)."""
+        core = ET.fromstring(self._urdf.write_xml_string())  # type: ignore[attr-defined]
+        for el in self.extras:
+            core.append(copy.deepcopy(el))
+        ET.indent(core, space="  ")
+        return '<?xml version="1.0"?>\n' + ET.tostring(core, encoding="unicode") + "\n"
+
+    def write(self, path: str | os.PathLike[str], *, overwrite_source: bool = False) -> Path:
+        """Write the model atomically to ``path``.
+
+        Refuses to overwrite the file it was loaded from unless ``overwrite_source``.
+        """
+        if self.source is not None and not overwrite_source:
+            refuse_overwrite(path, [self.source])
+        return write_text_atomic(path, self.to_string())
+
+    def copy(self) -> UrdfDocument:
+        """A deep copy (edits to it leave this document untouched)."""
+        return UrdfDocument(copy.deepcopy(self._urdf), copy.deepcopy(self.extras), self.source)
+
+    def build_pinocchio_model(self):  # -> pinocchio.Model
+        """The Pinocchio model of this document (built from memory, no file written)."""
+        import pinocchio as pin
+
+        try:
+            return pin.buildModelFromXML(self.to_string())
+        except Exception as exc:
+            raise ModelError(
+                f"{self.source or '<URDF>'}: Pinocchio could not build the model ({exc})"
+            ) from exc
+
+
+def rotation_and_translation(T: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """Split a 4×4 homogeneous transform (None = identity) into (R (3,3), p (3,))."""
+    if T is None:
+        return np.eye(3), np.zeros(3)
+    T = np.asarray(T, dtype=float)
+    return T[:3, :3].copy(), T[:3, 3].copy()

@@ -1,0 +1,226 @@
+"""Named physical parameters of a model, read from and written to a :class:`UrdfDocument`.
+
+Names are stable and readable:
+
+=============================  ==========================================  ===============
+name                           meaning                                      unit
+=============================  ==========================================  ===============
+``LINK.mass``                  mass                                         kg
+``LINK.com.x`` (``.y``, ``.z``)  centre of mass in the link frame             m
+``LINK.inertia.ixx`` (...)     inertia about the CoM, link-frame axes       kg·m²
+``JOINT.stiffness``            Gazebo joint spring                          N/m, N·m/rad
+``JOINT.damping``              joint viscous damper                         N·s/m, N·m·s/rad
+=============================  ==========================================  ===============
+
+The inertia components are ``ixx ixy ixz iyy iyz izz``. A URDF ``<inertial>`` with a rotated
+origin is read correctly (its tensor is rotated into the link frame); writing a parameter
+stores the inertial with ``rpy = 0``.
+
+Groups: ``inertial`` (the 10 parameters of every moving link with an ``<inertial>``),
+``parasitic`` (stiffness and damping of every movable joint without a transmission),
+``joints`` (stiffness and damping of every movable joint), ``all`` (``inertial`` + ``joints``).
+"""
+
+from __future__ import annotations
+
+import fnmatch
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..exceptions import ParameterError
+from .document import UrdfDocument, rotation_and_translation
+
+COM_AXES = ("x", "y", "z")
+INERTIA_COMPONENTS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+_INERTIA_INDEX = {
+    "ixx": (0, 0),
+    "ixy": (0, 1),
+    "ixz": (0, 2),
+    "iyy": (1, 1),
+    "iyz": (1, 2),
+    "izz": (2, 2),
+}
+GROUPS = ("inertial", "parasitic", "joints", "all")
+
+
+@dataclass(frozen=True)
+class ParameterInfo:
+    """What a named parameter is: ``kind`` in mass/com/inertia/stiffness/damping."""
+
+    name: str
+    kind: str
+    owner: str
+    component: str | None
+    unit: str
+
+    @property
+    def is_inertial(self) -> bool:
+        return self.kind in ("mass", "com", "inertia")
+
+
+def _joint_units(kind: str) -> tuple[str, str]:
+    if kind == "prismatic":
+        return "N/m", "N*s/m"
+    return "N*m/rad", "N*m*s/rad"
+
+
+def parameter_infos(doc: UrdfDocument) -> list[ParameterInfo]:
+    """Every parameter of the document, links first (file order), then joints."""
+    out: list[ParameterInfo] = []
+    grounded = doc.grounded_links()
+    for lk in doc.robot.links:
+        if lk.inertial is None or lk.name in grounded:
+            continue
+        n = lk.name
+        out.append(ParameterInfo(f"{n}.mass", "mass", n, None, "kg"))
+        out += [ParameterInfo(f"{n}.com.{a}", "com", n, a, "m") for a in COM_AXES]
+        out += [
+            ParameterInfo(f"{n}.inertia.{c}", "inertia", n, c, "kg*m^2")
+            for c in INERTIA_COMPONENTS
+        ]
+    for j in doc.robot.joints:
+        if j.type not in ("revolute", "continuous", "prismatic"):
+            continue
+        ku, du = _joint_units(j.type)
+        out.append(ParameterInfo(f"{j.name}.stiffness", "stiffness", j.name, None, ku))
+        out.append(ParameterInfo(f"{j.name}.damping", "damping", j.name, None, du))
+    return out
+
+
+def parameter_names(doc: UrdfDocument) -> list[str]:
+    return [p.name for p in parameter_infos(doc)]
+
+
+def _info(doc: UrdfDocument, name: str) -> ParameterInfo:
+    for p in parameter_infos(doc):
+        if p.name == name:
+            return p
+    raise ParameterError(
+        f"{doc.source or '<URDF>'}: unknown parameter {name!r}; valid names look like"
+        " LINK.mass, LINK.com.x, LINK.inertia.ixy, JOINT.stiffness, JOINT.damping"
+        " (see `bondid.model.parameter_names`)"
+    )
+
+
+def link_inertial(doc: UrdfDocument, link: str) -> tuple[float, np.ndarray, np.ndarray]:
+    """(mass kg, CoM (3,) m, inertia about the CoM (3,3) kg·m²) in the link frame."""
+    lk = doc.link(link)
+    if lk.inertial is None:
+        raise ParameterError(f"{doc.source or '<URDF>'}: link {link!r} has no <inertial>")
+    R, p = rotation_and_translation(lk.inertial.origin)
+    I_raw = np.zeros((3, 3)) if lk.inertial.inertia is None else np.asarray(lk.inertial.inertia)
+    I_link = R @ I_raw @ R.T
+    return float(lk.inertial.mass or 0.0), p, 0.5 * (I_link + I_link.T)
+
+
+def set_link_inertial(
+    doc: UrdfDocument, link: str, mass: float, com: np.ndarray, inertia: np.ndarray
+) -> None:
+    """Write a link's inertial (origin rpy = 0, tensor in the link frame)."""
+    lk = doc.link(link)
+    if lk.inertial is None:
+        raise ParameterError(f"{doc.source or '<URDF>'}: link {link!r} has no <inertial>")
+    T = np.eye(4)
+    T[:3, 3] = np.asarray(com, dtype=float)
+    lk.inertial.origin = T
+    lk.inertial.mass = float(mass)
+    inertia = np.asarray(inertia, dtype=float)
+    lk.inertial.inertia = 0.5 * (inertia + inertia.T)
+
+
+def get_parameter(doc: UrdfDocument, name: str) -> float:
+    """The value of parameter ``name`` (SI units, see the module table)."""
+    info = _info(doc, name)
+    if info.kind == "stiffness":
+        return doc.stiffness(info.owner)
+    if info.kind == "damping":
+        return doc.damping(info.owner)
+    m, c, I = link_inertial(doc, info.owner)
+    if info.kind == "mass":
+        return m
+    if info.kind == "com":
+        return float(c[COM_AXES.index(str(info.component))])
+    r, s = _INERTIA_INDEX[str(info.component)]
+    return float(I[r, s])
+
+
+def set_parameter(doc: UrdfDocument, name: str, value: float) -> None:
+    """Set parameter ``name`` to ``value`` (SI units). Edits ``doc`` in place."""
+    info = _info(doc, name)
+    value = float(value)
+    if not np.isfinite(value):
+        raise ParameterError(f"{name}: value {value} is not finite")
+    if info.kind in ("stiffness", "damping", "mass") and value < 0:
+        raise ParameterError(f"{name}: value {value} is negative; valid: ≥ 0")
+    if info.kind == "stiffness":
+        doc.set_stiffness(info.owner, value)
+        return
+    if info.kind == "damping":
+        doc.set_damping(info.owner, value)
+        return
+    m, c, I = link_inertial(doc, info.owner)
+    if info.kind == "mass":
+        m = value
+    elif info.kind == "com":
+        c[COM_AXES.index(str(info.component))] = value
+    else:
+        r, s = _INERTIA_INDEX[str(info.component)]
+        I[r, s] = I[s, r] = value
+    set_link_inertial(doc, info.owner, m, c, I)
+
+
+def get_parameters(doc: UrdfDocument, names: Iterable[str]) -> np.ndarray:
+    """Values of ``names``, shape ``(len(names),)``."""
+    return np.array([get_parameter(doc, n) for n in names], dtype=float)
+
+
+def set_parameters(doc: UrdfDocument, values: dict[str, float]) -> None:
+    for n, v in values.items():
+        set_parameter(doc, n, v)
+
+
+def group_members(doc: UrdfDocument, group: str) -> list[str]:
+    """The parameter names of a group (see the module docstring)."""
+    infos = parameter_infos(doc)
+    driven = {t.joint for t in doc.transmissions}
+    if group == "inertial":
+        return [p.name for p in infos if p.is_inertial]
+    if group == "parasitic":
+        return [p.name for p in infos if not p.is_inertial and p.owner not in driven]
+    if group == "joints":
+        return [p.name for p in infos if not p.is_inertial]
+    if group == "all":
+        return [p.name for p in infos]
+    raise ParameterError(f"unknown parameter group {group!r}; valid: {', '.join(GROUPS)}")
+
+
+def select_parameters(
+    doc: UrdfDocument, free: Iterable[str], fixed: Iterable[str] = ()
+) -> list[str]:
+    """Resolve names, glob patterns and groups into parameter names (model order).
+
+    ``free`` and ``fixed`` items may be comma- or space-separated strings. ``fixed`` wins.
+    A pattern that matches nothing raises :class:`ParameterError`.
+    """
+    all_names = parameter_names(doc)
+
+    def expand(items: Iterable[str]) -> set[str]:
+        out: set[str] = set()
+        for item in items:
+            for token in item.replace(",", " ").split():
+                if token in GROUPS:
+                    out.update(group_members(doc, token))
+                    continue
+                hits = [n for n in all_names if fnmatch.fnmatchcase(n, token)]
+                if not hits:
+                    raise ParameterError(
+                        f"{doc.source or '<URDF>'}: {token!r} matches no parameter; use a name,"
+                        f" a glob (x_stage.*, *.stiffness) or a group ({', '.join(GROUPS)})"
+                    )
+                out.update(hits)
+        return out
+
+    chosen = expand(free) - expand(fixed)
+    return [n for n in all_names if n in chosen]

@@ -1,0 +1,293 @@
+"""Bode grids of FRF matrices: one magnitude-over-phase cell per channel ``OUT.IN``."""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..exceptions import ChannelError, DataError
+from ..frf.quantity import QUANTITIES
+from ._common import new_figure, save_png, style_axes
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from matplotlib.figure import Figure
+
+#: Colours of model curves, in order (measured data is drawn in grey/black).
+MODEL_COLORS: tuple[str, ...] = (
+    "#1f77b4",
+    "#d62728",
+    "#2ca02c",
+    "#ff7f0e",
+    "#9467bd",
+    "#17becf",
+    "#8c564b",
+    "#e377c2",
+)
+
+_KIND_STYLE: dict[str, dict[str, Any]] = {
+    "measured": {"color": "0.55", "linewidth": 2.4, "alpha": 0.7, "zorder": 2},
+    "reference": {"color": "0.55", "linewidth": 1.0, "linestyle": "--", "zorder": 2},
+    "model": {"linewidth": 1.5, "zorder": 3},
+}
+
+# response unit -> excitation unit (the generalised force dual), and the reverse
+_DUAL = {"m": "N", "rad": "N·m", "N": "m", "N·m": "rad", "N*m": "rad", "Nm": "rad"}
+_RESPONSE = {"m", "rad"}
+
+
+@dataclass
+class Curve:
+    """One FRF matrix to draw on the Bode grid.
+
+    Attributes:
+        label: legend text.
+        H: complex FRF, shape ``(n_out, n_in, n_freq)``, NaN for channels it lacks.
+        style: matplotlib ``Line2D`` keyword overrides (``color``, ``linewidth``, ...).
+        freq_hz: its own frequency grid, shape ``(n_freq,)``, Hz; None = the plot's grid.
+        kind: ``"measured"`` (thin grey line), ``"model"`` (coloured line) or
+            ``"reference"`` (grey dashed); only chooses the default style.
+    """
+
+    label: str
+    H: np.ndarray
+    style: dict[str, Any] = field(default_factory=dict)
+    freq_hz: np.ndarray | None = None
+    kind: str = "model"
+
+
+def _unit_pair(units: Mapping[str, Any], joint: str) -> tuple[str, str] | None:
+    """(response unit, excitation unit) of ``joint`` from a user ``units`` mapping."""
+    if joint not in units:
+        return None
+    val = units[joint]
+    if isinstance(val, tuple | list) and len(val) == 2:
+        return str(val[0]), str(val[1])
+    val = str(val)
+    if val in _RESPONSE:
+        return val, _DUAL[val]
+    if val in _DUAL:
+        return _DUAL[val], "N·m" if _DUAL[val] == "rad" else "N"
+    raise DataError(
+        f"units[{joint!r}] = {val!r} is not a unit; valid: 'm', 'rad', 'N', 'N·m' "
+        "or a (response, excitation) pair"
+    )
+
+
+def channel_unit(
+    units: Mapping[str, Any] | None, out: str, inp: str, quantity: str = "receptance"
+) -> str | None:
+    """The SI unit of channel ``out.inp`` of ``quantity``, e.g. ``'m/N'``, or None if unknown."""
+    if not units:
+        return None
+    ro = _unit_pair(units, out)
+    ri = _unit_pair(units, inp)
+    if ro is None or ri is None:
+        return None
+    num, den = ro[0], ri[1]
+    if quantity == "mobility":
+        num = f"({num}/s)"
+    elif quantity == "accelerance":
+        num = f"({num}/s²)"
+    if "·" in den or "*" in den:
+        den = f"({den})"
+    return f"{num}/{den}"
+
+
+def _wrap_phase_deg(freq: np.ndarray, H: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Phase in degrees in [-180, 180], with NaN breaks inserted at the ±180° jumps."""
+    ph = np.degrees(np.angle(H))
+    ph[~np.isfinite(H)] = np.nan
+    jumps = np.flatnonzero(np.abs(np.diff(ph)) > 180.0)
+    if jumps.size == 0:
+        return freq, ph
+    f_mid = np.sqrt(freq[jumps] * freq[jumps + 1])
+    return np.insert(freq, jumps + 1, f_mid), np.insert(ph, jumps + 1, np.nan)
+
+
+def magnitude_db(H: np.ndarray) -> np.ndarray:
+    """``20 log10 |H|`` in dB, NaN where ``H`` is NaN or exactly zero; same shape as ``H``."""
+    mag = np.abs(np.asarray(H))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        db = 20.0 * np.log10(np.where(mag > 0, mag, np.nan))
+    return db
+
+
+def _grid(
+    outputs: Sequence[str], inputs: Sequence[str], channels: Sequence[str] | None
+) -> tuple[int, int, list[tuple[int, int] | None]]:
+    """Rows, columns and the ``(i_out, i_in)`` shown in each cell (row-major)."""
+    if channels is None:
+        cells: list[tuple[int, int] | None] = [
+            (a, b) for a in range(len(outputs)) for b in range(len(inputs))
+        ]
+        return len(outputs), len(inputs), cells
+    picked: list[tuple[int, int] | None] = []
+    for name in channels:
+        out, _, inp = str(name).rpartition(".")
+        if out not in outputs or inp not in inputs:
+            valid = ", ".join(f"{o}.{i}" for o in outputs for i in inputs)
+            raise ChannelError(f"Bode plot: no channel {name!r}; valid: {valid}")
+        picked.append((list(outputs).index(out), list(inputs).index(inp)))
+    if not picked:
+        raise ChannelError("Bode plot: 'channels' is empty; give at least one OUT.IN")
+    ncols = 2 if len(picked) in (2, 4) else min(len(picked), 3)
+    nrows = math.ceil(len(picked) / ncols)
+    return nrows, ncols, picked
+
+
+def build_bode(
+    freq_hz: np.ndarray,
+    curves: Sequence[Curve],
+    *,
+    outputs: Sequence[str],
+    inputs: Sequence[str],
+    title: str | None = None,
+    quantity: str = "receptance",
+    units: Mapping[str, Any] | None = None,
+    channels: Sequence[str] | None = None,
+) -> Figure:
+    """Build the Bode grid figure (see :func:`plot_bode`) without saving it.
+
+    Each cell has two axes, magnitude above phase, so the figure holds ``2 × n_cells``
+    axes in row-major cell order (magnitude, phase, magnitude, phase, ...).
+    """
+    from matplotlib.lines import Line2D
+    from matplotlib.ticker import FixedLocator
+
+    if quantity not in QUANTITIES:
+        raise DataError(f"Bode plot: unknown quantity {quantity!r}; valid: {', '.join(QUANTITIES)}")
+    if not curves:
+        raise DataError("Bode plot: no curves given; pass at least one Curve")
+    f0 = np.asarray(freq_hz, dtype=float)
+    n_out, n_in = len(outputs), len(inputs)
+    data: list[tuple[np.ndarray, np.ndarray]] = []
+    for c in curves:
+        f = f0 if c.freq_hz is None else np.asarray(c.freq_hz, dtype=float)
+        H = np.asarray(c.H, dtype=complex)
+        if f.ndim != 1 or H.shape != (n_out, n_in, f.size):
+            raise DataError(
+                f"Bode plot: curve {c.label!r} has H shape {H.shape}, expected "
+                f"(n_out, n_in, n_freq) = {(n_out, n_in, f.size)}"
+            )
+        data.append((f, H))
+
+    styles: list[dict[str, Any]] = []
+    n_model = 0
+    for c in curves:
+        st = dict(_KIND_STYLE.get(c.kind, _KIND_STYLE["model"]))
+        if c.kind not in ("measured", "reference") and "color" not in c.style:
+            st["color"] = MODEL_COLORS[n_model % len(MODEL_COLORS)]
+            n_model += 1
+        st.update(c.style)
+        styles.append(st)
+
+    nrows, ncols, cells = _grid(outputs, inputs, channels)
+    fig = new_figure(max(6.5, 5.3 * ncols), max(4.8, 4.1 * nrows + 0.9))
+    fig.get_layout_engine().set(w_pad=0.06, h_pad=0.08, hspace=0.04, wspace=0.03)
+    outer = fig.add_gridspec(nrows, ncols)
+    fmin = min(float(np.nanmin(f)) for f, _ in data)
+    fmax = max(float(np.nanmax(f)) for f, _ in data)
+    share = None
+    for k, cell in enumerate(cells):
+        r, col = divmod(k, ncols)
+        sub = outer[r, col].subgridspec(2, 1, height_ratios=[3, 2], hspace=0.0)
+        ax_m = fig.add_subplot(sub[0], sharex=share)
+        share = share or ax_m
+        ax_p = fig.add_subplot(sub[1], sharex=share)
+        assert cell is not None
+        a, b = cell
+        name = f"{outputs[a]}.{inputs[b]}"
+        ax_m.set_title(name, fontsize=11, fontweight="bold", pad=4)
+        any_data = False
+        for (f, H), c, st in zip(data, curves, styles, strict=True):
+            h = H[a, b]
+            if not np.any(np.isfinite(h)):
+                continue
+            any_data = True
+            ax_m.plot(f, magnitude_db(h), label=c.label, **st)
+            fp, ph = _wrap_phase_deg(f, h)
+            ax_p.plot(fp, ph, label=c.label, **st)
+        ax_m.set_xscale("log")
+        ax_m.set_xlim(fmin, fmax)
+        ax_p.set_ylim(-195, 195)
+        ax_p.yaxis.set_major_locator(FixedLocator([-180, -90, 0, 90, 180]))
+        for ax in (ax_m, ax_p):
+            style_axes(ax)
+            ax.tick_params(labelsize=8.5)
+        ax_m.tick_params(labelbottom=False)
+        unit = channel_unit(units, outputs[a], inputs[b], quantity)
+        ax_m.set_ylabel(f"dB re 1 {unit}" if unit else "|H| [dB]", fontsize=9)
+        ax_p.set_ylabel("phase [°]", fontsize=9)
+        if r == nrows - 1 or k + ncols >= len(cells):
+            ax_p.set_xlabel("frequency [Hz]", fontsize=9.5)
+        if not any_data:
+            for ax in (ax_m, ax_p):
+                ax.set_facecolor("0.96")
+                ax.tick_params(labelleft=False)
+            ax_m.text(
+                0.5, 0.5, "no data", transform=ax_m.transAxes, ha="center", va="center",
+                fontsize=13, color="0.45", style="italic", gid="no-data",
+            )  # fmt: skip
+    handles = [Line2D([], [], **st) for st in styles]
+    fig.legend(
+        handles,
+        [c.label for c in curves],
+        loc="outside lower center",
+        ncols=min(len(curves), 6),
+        fontsize=10,
+        frameon=False,
+    )
+    if title:
+        fig.suptitle(title, fontsize=13)
+    return fig
+
+
+def plot_bode(
+    freq_hz: np.ndarray,
+    curves: Sequence[Curve],
+    *,
+    outputs: Sequence[str],
+    inputs: Sequence[str],
+    path: str | os.PathLike[str],
+    title: str | None = None,
+    quantity: str = "receptance",
+    units: Mapping[str, Any] | None = None,
+    channels: Sequence[str] | None = None,
+) -> Path:
+    """Draw FRF matrices as an ``n_out × n_in`` grid of Bode cells and save a PNG.
+
+    Args:
+        freq_hz: frequency grid, shape ``(n_freq,)``, Hz (curves may bring their own).
+        curves: the FRF matrices to overlay, each ``H`` of shape ``(n_out, n_in, n_freq)``.
+        outputs: response joint names (grid rows), length ``n_out``.
+        inputs: excited joint names (grid columns), length ``n_in``.
+        path: output ``.png`` file, written atomically.
+        title: figure title.
+        quantity: ``receptance``, ``mobility`` or ``accelerance`` (only labels the axes).
+        units: joint -> ``'m'`` / ``'rad'`` (or ``'N'`` / ``'N·m'``, or a
+            ``(response, excitation)`` pair) to label magnitudes as ``dB re 1 m/N``.
+        channels: optional subset ``['OUT.IN', ...]``, drawn compactly (≤ 3 cells per row).
+
+    Magnitude is ``20 log10 |H|`` (dB); phase is in degrees wrapped to [-180, 180].
+    A cell where no curve has data is shaded and marked "no data".
+
+    Returns:
+        ``path`` as a :class:`~pathlib.Path`.
+    """
+    fig = build_bode(
+        freq_hz,
+        curves,
+        outputs=outputs,
+        inputs=inputs,
+        title=title,
+        quantity=quantity,
+        units=units,
+        channels=channels,
+    )
+    return save_png(fig, path)

@@ -1,0 +1,102 @@
+"""Small models and example robots for the tests (built with bondid's authoring API)."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from bondid.model import UrdfDocument
+
+_BOX_INERTIA = 'ixx="1e-4" ixy="0" ixz="0" iyy="1e-4" iyz="0" izz="1e-4"'
+
+
+def _body(name: str, mass: float) -> str:
+    return (
+        f'<link name="{name}"><inertial><origin xyz="0 0 0"/><mass value="{mass!r}"/>'
+        f"<inertia {_BOX_INERTIA}/></inertial>"
+        f'<collision><geometry><box size="0.1 0.1 0.1"/></geometry></collision></link>'
+    )
+
+
+def _slider(name: str, parent: str, child: str, damping: float) -> str:
+    return (
+        f'<joint name="{name}" type="prismatic"><parent link="{parent}"/><child link="{child}"/>'
+        f'<axis xyz="1 0 0"/><limit lower="-1" upper="1" effort="100" velocity="1"/>'
+        f'<dynamics damping="{damping!r}"/></joint>'
+    )
+
+
+def _trans(joint: str) -> str:
+    return (
+        f'<transmission name="{joint}_trans"><type>transmission_interface/SimpleTransmission'
+        f'</type><joint name="{joint}"><hardwareInterface>hardware_interface/'
+        f"EffortJointInterface</hardwareInterface></joint></transmission>"
+    )
+
+
+def _spring(joint: str, k: float) -> str:
+    return (
+        f'<gazebo reference="{joint}"><springStiffness>{k!r}</springStiffness>'
+        f"<springReference>0</springReference></gazebo>"
+    )
+
+
+def one_mass(m: float, k: float, d: float) -> UrdfDocument:
+    """Seed eq. (4.1): one mass on a spring and damper to ground, force and sensor on it."""
+    xml = (
+        '<robot name="one_mass"><link name="ground"/>'
+        + _body("mass1", m)
+        + _slider("x1", "ground", "mass1", d)
+        + _trans("x1")
+        + _spring("x1", k)
+        + "</robot>"
+    )
+    return UrdfDocument.from_string(xml, source="<one_mass>")
+
+
+def two_mass_chain(m_a: float, m_b: float, k_a: float, d_a: float, k_b: float, d_b: float):
+    """ground --(k_a, d_a, joint `a`)--> body_a --(k_b, d_b, joint `b`, relative)--> body_b."""
+    xml = (
+        '<robot name="two_mass"><link name="ground"/>'
+        + _body("body_a", m_a)
+        + _body("body_b", m_b)
+        + _slider("a", "ground", "body_a", d_a)
+        + _slider("b", "body_a", "body_b", d_b)
+        + _trans("a")
+        + _trans("b")
+        + _spring("a", k_a)
+        + _spring("b", k_b)
+        + "</robot>"
+    )
+    return UrdfDocument.from_string(xml, source="<two_mass>")
+
+
+def robot_path(name: str) -> str:
+    import example_robot_data as erd
+
+    sub = {
+        "ur5": "ur_description/urdf/ur5_robot.urdf",
+        "panda": "panda_description/urdf/panda.urdf",
+    }[name]
+    return os.path.join(erd.getModelPath(sub), sub)
+
+
+def sprung_robot(name: str, seed: int = 0) -> UrdfDocument:
+    """An example-robot-data robot with a spring and damper on every joint and an actuator
+    on every joint that has none (all through the authoring API)."""
+    doc = UrdfDocument.load(robot_path(name))
+    rng = np.random.default_rng(seed)
+    driven = {t.joint for t in doc.transmissions}
+    for j in doc.movable_joint_names:
+        doc.set_stiffness(j, float(2e3 * (1 + rng.random())))
+        doc.set_damping(j, float(2.0 * (1 + rng.random())))
+        if j not in driven:
+            doc.add_transmission(j)
+    return doc
+
+
+def random_pose(doc: UrdfDocument, seed: int = 1) -> dict[str, float]:
+    rng = np.random.default_rng(seed)
+    return {j: float(0.02 * rng.standard_normal()) if doc.joint(j).type == "prismatic"
+            else float(0.5 * rng.standard_normal()) for j in doc.movable_joint_names}
