@@ -98,5 +98,9 @@ def sprung_robot(name: str, seed: int = 0) -> UrdfDocument:
 
 def random_pose(doc: UrdfDocument, seed: int = 1) -> dict[str, float]:
     rng = np.random.default_rng(seed)
-    return {j: float(0.02 * rng.standard_normal()) if doc.joint(j).type == "prismatic"
-            else float(0.5 * rng.standard_normal()) for j in doc.movable_joint_names}
+    return {
+        j: float(0.02 * rng.standard_normal())
+        if doc.joint(j).type == "prismatic"
+        else float(0.5 * rng.standard_normal())
+        for j in doc.movable_joint_names
+    }

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pinocchio as pin
 import pytest
+from models import robot_path, sprung_robot, two_mass_chain
 
 from bondid.exceptions import ModelError, ParameterError
 from bondid.model import (
@@ -15,14 +18,15 @@ from bondid.model import (
     select_parameters,
     set_parameter,
 )
-from models import robot_path, sprung_robot, two_mass_chain
 
 
 def _same_pinocchio_model(a, b, tol=1e-12):
     assert a.nq == b.nq and a.nv == b.nv and list(a.names) == list(b.names)
     for j in range(a.njoints):
         assert a.joints[j].shortname() == b.joints[j].shortname()
-        assert np.allclose(a.jointPlacements[j].homogeneous, b.jointPlacements[j].homogeneous, atol=tol)
+        assert np.allclose(
+            a.jointPlacements[j].homogeneous, b.jointPlacements[j].homogeneous, atol=tol
+        )
         assert np.allclose(
             a.inertias[j].toDynamicParameters(), b.inertias[j].toDynamicParameters(), atol=tol
         )
@@ -43,7 +47,7 @@ def test_unknown_elements_survive_a_round_trip(tmp_path):
     src = robot_path("ur5")
     doc = UrdfDocument.load(src)
     text = doc.to_string()
-    assert text.count("<transmission") == open(src).read().count("<transmission")
+    assert text.count("<transmission") == Path(src).read_text().count("<transmission")
 
 
 def test_writing_over_the_source_is_refused(tmp_path):
@@ -86,7 +90,7 @@ def test_selection_by_glob_group_and_fixed():
 
 
 def test_rotated_inertial_origin_is_read_in_the_link_frame():
-    xml = open(robot_path("ur5")).read()
+    xml = Path(robot_path("ur5")).read_text()
     doc = UrdfDocument.from_string(xml)
     lk = doc.link("upper_arm_link")
     R = pin.rpy.rpyToMatrix(0.3, -0.2, 0.1)
@@ -107,8 +111,14 @@ def test_inserted_parasitic_joint_keeps_the_child_in_place(pivot):
     doc = UrdfDocument.load(robot_path("ur5"))
     before = doc.build_pinocchio_model()
     insert_parasitic_joint(
-        doc, "elbow_rx", after="elbow_joint", kind="revolute", axis=(1, 0, 0), pivot=pivot,
-        stiffness=5e4, damping=3.0,
+        doc,
+        "elbow_rx",
+        after="elbow_joint",
+        kind="revolute",
+        axis=(1, 0, 0),
+        pivot=pivot,
+        stiffness=5e4,
+        damping=3.0,
     )
     after = doc.build_pinocchio_model()
     assert after.nv == before.nv + 1
@@ -137,7 +147,7 @@ def test_insert_rejects_bad_requests():
 def test_bad_files_name_the_file(tmp_path):
     p = tmp_path / "bad.urdf"
     p.write_text("<robot name='r'><link name='a'/><joint name='j' type='fixed'>")
-    with pytest.raises(ModelError, match="bad.urdf"):
+    with pytest.raises(ModelError, match=r"bad\.urdf"):
         UrdfDocument.load(p)
-    with pytest.raises(ModelError, match="missing.urdf"):
+    with pytest.raises(ModelError, match=r"missing\.urdf"):
         UrdfDocument.load(tmp_path / "missing.urdf")

@@ -5,13 +5,13 @@ from __future__ import annotations
 import control
 import numpy as np
 import pytest
+from models import one_mass, random_pose, sprung_robot, two_mass_chain
 
 from bondid.frf import convert_quantity, frf
 from bondid.frf.jacobian import frf_and_jacobian
 from bondid.linear import build_affine_model, linearise
 from bondid.linear.parameter_map import ParameterMap
 from bondid.model import select_parameters
-from models import one_mass, random_pose, sprung_robot, two_mass_chain
 
 FREQ = np.logspace(-1, 3.6, 400)
 TOL_CLOSED_FORM = 1e-12  # relative

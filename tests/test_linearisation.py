@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
+from models import random_pose, sprung_robot
 
 from bondid.linear import build_affine_model
 from bondid.linear.parameter_map import ParameterMap
 from bondid.model import select_parameters, set_parameter
-from models import random_pose, sprung_robot
 
 ROBOTS = ["ur5", "panda"]
 TOL_EXACT = 1e-12  # relative, "exact to round-off"
@@ -27,7 +27,7 @@ def _rel(a, b):
 
 
 def test_mass_matrix_matches_crba(robot):
-    doc, op, am = robot
+    doc, _op, am = robot
     model = doc.build_pinocchio_model()
     data = model.createData()
     M = pin.crba(model, data, am.q0)
@@ -38,7 +38,7 @@ def test_mass_matrix_matches_crba(robot):
 
 
 def test_gravity_stiffness_matches_pinocchio(robot):
-    doc, op, am = robot
+    doc, _op, am = robot
     model = doc.build_pinocchio_model()
     data = model.createData()
     G = pin.computeGeneralizedGravityDerivatives(model, data, am.q0)
@@ -49,7 +49,7 @@ def test_gravity_stiffness_matches_pinocchio(robot):
 def test_state_matrix_matches_aba_derivatives(robot):
     """[[0, I], [−M⁻¹K, −M⁻¹D]] against computeABADerivatives with springs and dampers as
     joint torques τ(q, v) = g(q0) − K_s (q − q_ref) − D v (so q̈ = 0 at the operating point)."""
-    doc, op, am = robot
+    doc, _op, am = robot
     model = doc.build_pinocchio_model()
     data = model.createData()
     q0 = am.q0
@@ -86,7 +86,7 @@ def test_affine_structure_exact_after_parameter_change(robot):
 
 
 def test_parameter_map_jacobian_matches_finite_differences(robot):
-    doc, op, am = robot
+    doc, _op, am = robot
     names = select_parameters(doc, ["all"])
     pmap = ParameterMap(doc, am, names)
     p0 = pmap.p0

@@ -95,8 +95,7 @@ def _parse_header(
         out, dot2, inp = chan.partition(".")
         if not dot2:
             raise ChannelError(
-                f"{where}: column {j} {name!r}: channel {chan!r} is not OUT.IN "
-                f"(e.g. x.y.{suffix})"
+                f"{where}: column {j} {name!r}: channel {chan!r} is not OUT.IN (e.g. x.y.{suffix})"
             )
         check_joint_name(out, f"{where}: column {j} {name!r}")
         check_joint_name(inp, f"{where}: column {j} {name!r}")
@@ -194,9 +193,7 @@ def read_csv(path: str | os.PathLike[str], *, drop_nan: bool = False) -> FrfData
     lines = _decode(p).splitlines()
     meta, h = _read_metadata(p, lines)
     if "bondid-frf" not in meta:
-        raise DataError(
-            f"{p}: missing '# bondid-frf: {FORMAT_VERSION}' line before the header row"
-        )
+        raise DataError(f"{p}: missing '# bondid-frf: {FORMAT_VERSION}' line before the header row")
     version, vline = meta["bondid-frf"]
     if version != FORMAT_VERSION:
         raise DataError(
@@ -244,7 +241,8 @@ def read_csv(path: str | os.PathLike[str], *, drop_nan: bool = False) -> FrfData
     if inf.any():
         k, j = np.argwhere(inf)[0]
         raise DataError(
-            f"{p}: line {linenos[k]}, column {header[j]!r}: infinite value; expected a finite number"
+            f"{p}: line {linenos[k]}, column {header[j]!r}: infinite value; "
+            f"expected a finite number"
         )
     freq = values[:, 0].copy()
     check_frequencies(freq, str(p), [f"line {n}" for n in linenos])

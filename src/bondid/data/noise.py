@@ -15,6 +15,23 @@ def _complex_normal(rng: np.random.Generator, shape: tuple[int, ...]) -> np.ndar
     return (z[0] + 1j * z[1]) / math.sqrt(2.0)
 
 
+def _response_level(mag: np.ndarray, freq: np.ndarray, octaves: float = 0.5) -> np.ndarray:
+    """Per output and frequency: the level of that sensor's strongest channel, smoothed over
+    ±``octaves`` (geometric mean), shape ``(n_out, 1, n_freq)``.
+
+    Excitation is shaped in a real test so each sensor's response stays in range; the sensor
+    noise then follows the response envelope, which fills in the anti-resonance dips.
+    """
+    level = np.log(np.maximum(mag.max(axis=1), 1e-300))  # (n_out, n_freq)
+    logf = np.log2(freq)
+    out = np.empty_like(level)
+    lo = np.searchsorted(logf, logf - octaves)
+    hi = np.searchsorted(logf, logf + octaves, side="right")
+    csum = np.concatenate([np.zeros((level.shape[0], 1)), np.cumsum(level, axis=1)], axis=1)
+    out = (csum[:, hi] - csum[:, lo]) / (hi - lo)
+    return np.exp(out)[:, None, :]
+
+
 def add_measurement_noise(
     H: np.ndarray,
     freq_hz: np.ndarray,
@@ -41,7 +58,10 @@ def add_measurement_noise(
         rel: relative error (standard deviation of ``|e1|`` times ``rel``), >= 0.
         floor_db: noise floor in dB relative to the peak; None or -inf for no floor.
         rng: a numpy Generator or a seed (same seed, same noise).
-        floor_ref: ``"channel"`` (default) or ``"output"``, the peak the floor refers to.
+        floor_ref: what the floor refers to: ``"channel"`` (default, its peak), ``"output"``
+            (the peak of the sensor's row) or ``"response"`` (the sensor's strongest channel
+            at each frequency, smoothed over ±½ octave: noise that follows the response
+            envelope, so weak cross-terms and anti-resonance dips are noisy).
 
     Returns:
         ``(H_noisy, coherence)``: complex ``(n_out, n_in, n_freq)`` and real in 0..1 of
@@ -59,8 +79,10 @@ def add_measurement_noise(
         raise ConfigError(f"noise: relative error {rel!r} is invalid; give a finite value >= 0")
     if floor_db is not None and (math.isnan(floor_db) or floor_db == math.inf):
         raise ConfigError(f"noise: floor {floor_db!r} dB is invalid; give a finite value or None")
-    if floor_ref not in ("channel", "output"):
-        raise ConfigError(f"noise: floor_ref {floor_ref!r} is invalid; valid: channel, output")
+    if floor_ref not in ("channel", "output", "response"):
+        raise ConfigError(
+            f"noise: floor_ref {floor_ref!r} is invalid; valid: channel, output, response"
+        )
     gen = np.random.default_rng(rng)
     absent = np.isnan(H)
     no_floor = floor_db is None or floor_db == -math.inf
@@ -71,12 +93,15 @@ def add_measurement_noise(
 
     mag = np.where(absent, 0.0, np.abs(H))
     if no_floor:
-        sigma = np.zeros(H.shape[:2] + (1,))
+        sigma = np.zeros((*H.shape[:2], 1))
     else:
         assert floor_db is not None
-        peak = mag.max(axis=2, keepdims=True)
-        if floor_ref == "output":
-            peak = np.broadcast_to(peak.max(axis=1, keepdims=True), peak.shape)
+        if floor_ref == "response":
+            peak = _response_level(mag, freq)
+        else:
+            peak = mag.max(axis=2, keepdims=True)
+            if floor_ref == "output":
+                peak = np.broadcast_to(peak.max(axis=1, keepdims=True), peak.shape)
         sigma = peak * 10.0 ** (floor_db / 20.0)
     e1 = _complex_normal(gen, H.shape)
     e2 = _complex_normal(gen, H.shape)

@@ -23,9 +23,7 @@ def omega(freq_hz: np.ndarray) -> np.ndarray:
     return 2.0 * np.pi * f
 
 
-def dynamic_stiffness(
-    M: np.ndarray, K: np.ndarray, D: np.ndarray, w: np.ndarray
-) -> np.ndarray:
+def dynamic_stiffness(M: np.ndarray, K: np.ndarray, D: np.ndarray, w: np.ndarray) -> np.ndarray:
     """Z(ω) = K − ω²M + jωD, shape ``(n_freq, nv, nv)``, complex; ``w`` in rad/s."""
     Z = np.empty((w.size, *M.shape), dtype=complex)
     Z.real[...] = K[None] - (w**2)[:, None, None] * M[None]
@@ -34,7 +32,10 @@ def dynamic_stiffness(
 
 
 def solve_columns(Z: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """X = Z⁻¹B for every frequency: Z ``(n_freq, nv, nv)``, B ``(nv, n_in)`` → ``(n_freq, nv, n_in)``."""
+    """X = Z⁻¹B for every frequency.
+
+    Z is ``(n_freq, nv, nv)``, B ``(nv, n_in)``; returns ``(n_freq, nv, n_in)``.
+    """
     try:
         X = np.linalg.solve(Z, np.broadcast_to(B.astype(complex), (Z.shape[0], *B.shape)))
     except np.linalg.LinAlgError as exc:

@@ -30,9 +30,7 @@ def quantity_factor(freq_hz: np.ndarray, quantity: str) -> np.ndarray:
     raise DataError(f"unknown quantity {quantity!r}; valid: {', '.join(QUANTITIES)}")
 
 
-def convert_quantity(
-    H: np.ndarray, freq_hz: np.ndarray, source: str, target: str
-) -> np.ndarray:
+def convert_quantity(H: np.ndarray, freq_hz: np.ndarray, source: str, target: str) -> np.ndarray:
     """Convert an FRF array ``(..., n_freq)`` from quantity ``source`` to ``target``.
 
     Args:

@@ -20,22 +20,17 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..consistency.pseudo_inertia import pi_from_urdf
 from ..exceptions import ModelError
 from ..model.document import UrdfDocument
 from ..model.parameters import link_inertial
 from .linear_model import LinearModel
 from .operating_point import configuration
 
+#: pi_from_inertial is the consistency layer's map (mass, CoM, I about CoM) → π.
+pi_from_inertial = pi_from_urdf
+
 _REF_PI = np.array([1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 1.0])
-
-
-def pi_from_inertial(mass: float, com: np.ndarray, inertia_c: np.ndarray) -> np.ndarray:
-    """Dynamic parameters (10,) about the frame origin from mass, CoM (3,), I about CoM (3,3)."""
-    c = np.asarray(com, dtype=float)
-    Io = np.asarray(inertia_c, dtype=float) + mass * (c @ c * np.eye(3) - np.outer(c, c))
-    return np.array(
-        [mass, *(mass * c), Io[0, 0], Io[0, 1], Io[1, 1], Io[0, 2], Io[1, 2], Io[2, 2]]
-    )
 
 
 @dataclass
@@ -139,7 +134,9 @@ def _transport_matrix(placement) -> np.ndarray:
     import pinocchio as pin
 
     def f(p: np.ndarray) -> np.ndarray:
-        return np.asarray(pin.Inertia.FromDynamicParameters(p).se3Action(placement).toDynamicParameters())
+        return np.asarray(
+            pin.Inertia.FromDynamicParameters(p).se3Action(placement).toDynamicParameters()
+        )
 
     base = f(_REF_PI)
     T = np.empty((10, 10))
@@ -179,12 +176,17 @@ def build_affine_model(
     for jid in range(1, model.njoints):
         jm = model.joints[jid]
         if jm.nv != 1:
-            raise ModelError(f"{where}: joint {names[jid]!r} has {jm.nv} DOF; bondid needs 1-DOF joints")
+            raise ModelError(
+                f"{where}: joint {names[jid]!r} has {jm.nv} DOF; bondid needs 1-DOF joints"
+            )
         dofs[jm.idx_v] = names[jid]
 
     def v_index(joint: str, role: str) -> int:
         if joint not in dofs:
-            raise ModelError(f"{where}: {role} joint {joint!r} is not a movable joint; movable: {', '.join(dofs)}")
+            raise ModelError(
+                f"{where}: {role} joint {joint!r} is not a movable joint;"
+                f" movable: {', '.join(dofs)}"
+            )
         return dofs.index(joint)
 
     inputs = tuple(t.joint for t in doc.transmissions)
@@ -205,9 +207,11 @@ def build_affine_model(
         damping[v_index(j, "damper")] = doc.damping(j)
 
     grounded = doc.grounded_links()
-    bodies = [lk.name for lk in doc.robot.links if lk.inertial is not None and lk.name not in grounded]
+    bodies = [
+        lk.name for lk in doc.robot.links if lk.inertial is not None and lk.name not in grounded
+    ]
     placements = _link_placements(model, bodies, where)
-    pi = np.array([pi_from_inertial(*link_inertial(doc, b)) for b in bodies]).reshape(-1, 10)
+    pi = np.array([pi_from_urdf(*link_inertial(doc, b)) for b in bodies]).reshape(-1, 10)
 
     # joint-frame bases: M columns from the torque regressor (gravity off), G by differencing
     data = model.createData()

@@ -17,14 +17,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..consistency.pseudo_inertia import pi_from_urdf, urdf_from_pi
 from ..exceptions import ParameterError
 from ..model.document import UrdfDocument
 from ..model.parameters import COM_AXES, get_parameters, parameter_infos
-from .affine import AffineModel, pi_from_inertial
+from .affine import AffineModel
 
 # position of each URDF inertia component in Pinocchio's π (Ixx, Ixy, Iyy, Ixz, Iyz, Izz)
 _PI_SLOT = {"ixx": 4, "ixy": 5, "iyy": 6, "ixz": 7, "iyz": 8, "izz": 9}
-_I_ENTRY = {"ixx": (0, 0), "ixy": (0, 1), "iyy": (1, 1), "ixz": (0, 2), "iyz": (1, 2), "izz": (2, 2)}
+_I_ENTRY = {
+    "ixx": (0, 0),
+    "ixy": (0, 1),
+    "iyy": (1, 1),
+    "ixz": (0, 2),
+    "iyz": (1, 2),
+    "izz": (2, 2),
+}
 
 
 @dataclass(frozen=True)
@@ -32,13 +40,6 @@ class _Slot:
     kind: str  # mass / com / inertia / stiffness / damping
     index: int  # body index or dof index
     component: str | None
-
-
-def _pi_vector_to_inertial(pi: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    m = float(pi[0])
-    c = pi[1:4] / m
-    Io = np.array([[pi[4], pi[5], pi[7]], [pi[5], pi[6], pi[8]], [pi[7], pi[8], pi[9]]])
-    return m, c, Io - m * (c @ c * np.eye(3) - np.outer(c, c))
 
 
 class ParameterMap:
@@ -62,7 +63,9 @@ class ParameterMap:
                 )
             if info.is_inertial:
                 if info.owner not in affine.bodies:
-                    raise ParameterError(f"{n}: link {info.owner!r} does not move; its inertia has no effect")
+                    raise ParameterError(
+                        f"{n}: link {info.owner!r} does not move; its inertia has no effect"
+                    )
                 self.slots.append(_Slot(info.kind, affine.bodies.index(info.owner), info.component))
             else:
                 self.slots.append(_Slot(info.kind, affine.dofs.index(info.owner), None))
@@ -78,11 +81,13 @@ class ParameterMap:
         return len(self.names)
 
     def _inertials(self, p: np.ndarray) -> list[tuple[float, np.ndarray, np.ndarray]]:
-        inert = [_pi_vector_to_inertial(pi) if pi[0] > 0 else (0.0, np.zeros(3), np.zeros((3, 3))) for pi in self.base_pi]
-        inert = [(m, c.copy(), I.copy()) for m, c, I in inert]
+        inert = [
+            urdf_from_pi(pi) if pi[0] > 0 else (0.0, np.zeros(3), np.zeros((3, 3)))
+            for pi in self.base_pi
+        ]
         for s, v in zip(self.slots, p, strict=True):
             if s.kind == "mass":
-                m, c, I = inert[s.index]
+                _, c, I = inert[s.index]
                 inert[s.index] = (float(v), c, I)
             elif s.kind == "com":
                 inert[s.index][1][COM_AXES.index(str(s.component))] = v
@@ -98,7 +103,7 @@ class ParameterMap:
         touched = {s.index for s in self.slots if s.kind in ("mass", "com", "inertia")}
         pi = self.base_pi.copy()
         for b in touched:
-            pi[b] = pi_from_inertial(*inert[b])
+            pi[b] = pi_from_urdf(*inert[b])
         k = self.base_stiffness.copy()
         d = self.base_damping.copy()
         for s, v in zip(self.slots, p, strict=True):

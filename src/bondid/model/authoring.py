@@ -69,7 +69,9 @@ def insert_parasitic_joint(
 
     where = doc.source or "<URDF>"
     if kind not in _DEFAULT_LIMIT:
-        raise ModelError(f"{where}: parasitic joint {name!r}: kind {kind!r}; valid: revolute, prismatic")
+        raise ModelError(
+            f"{where}: parasitic joint {name!r}: kind {kind!r}; valid: revolute, prismatic"
+        )
     if after is None:
         if parent is None or child is None:
             raise ModelError(f"{where}: insert {name!r}: give `after` or both `parent` and `child`")
@@ -111,7 +113,9 @@ def insert_parasitic_joint(
         )
     )
     if has_pivot:
-        doc.robot.links.append(yourdfpy.Link(name=q_child, inertial=None, visuals=[], collisions=[]))
+        doc.robot.links.append(
+            yourdfpy.Link(name=q_child, inertial=None, visuals=[], collisions=[])
+        )
         back = np.eye(4)
         back[:3, 3] = -p
         doc.robot.joints.append(

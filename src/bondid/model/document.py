@@ -187,9 +187,12 @@ class UrdfDocument:
 
     def _spring_element(self, joint: str) -> ET.Element | None:
         for el in self.extras:
-            if el.tag == "gazebo" and el.get("reference") == joint:
-                if el.find("springStiffness") is not None:
-                    return el
+            if (
+                el.tag == "gazebo"
+                and el.get("reference") == joint
+                and el.find("springStiffness") is not None
+            ):
+                return el
         return None
 
     @property

@@ -77,8 +77,7 @@ def parameter_infos(doc: UrdfDocument) -> list[ParameterInfo]:
         out.append(ParameterInfo(f"{n}.mass", "mass", n, None, "kg"))
         out += [ParameterInfo(f"{n}.com.{a}", "com", n, a, "m") for a in COM_AXES]
         out += [
-            ParameterInfo(f"{n}.inertia.{c}", "inertia", n, c, "kg*m^2")
-            for c in INERTIA_COMPONENTS
+            ParameterInfo(f"{n}.inertia.{c}", "inertia", n, c, "kg*m^2") for c in INERTIA_COMPONENTS
         ]
     for j in doc.robot.joints:
         if j.type not in ("revolute", "continuous", "prismatic"):

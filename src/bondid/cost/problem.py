@@ -1,0 +1,213 @@
+"""The FRF fitting problem: residuals and their exact Jacobian over several data sets.
+
+:class:`FrfProblem` ties a model, one or more measured data sets (each at its own operating
+point, so one linearisation per pose) and the cost options together. Its decision vector ``x``
+is whatever a *parameter model* maps onto the physical values; two exist:
+:class:`bondid.linear.parameter_map.ParameterMap` (named URDF parameters) and the fit's
+log-Cholesky map. A parameter model has ``size``, ``values(x) -> (π (nb,10), k (nv,), d (nv,))``
+and ``jacobian(x) -> (dπ (nb,10,n), dk (nv,n), dd (nv,n))``.
+
+The residual vector is scaled so that ``cost = ‖r‖²`` is the weighted mean square over the
+selected complex points (for ``complex_log`` that is ``db_rms²``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from ..data.io import check_against_model
+from ..data.measurement import FrfData
+from ..exceptions import ChannelError, ConfigError
+from ..frf.jacobian import frf_and_jacobian
+from ..linear.affine import AffineModel, build_affine_model
+from ..model.document import UrdfDocument
+from .residuals import check_kind, parts, residual, residual_jacobian, robust
+
+
+class ParameterModel(Protocol):
+    size: int
+
+    def values(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
+
+    def jacobian(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
+
+
+@dataclass
+class CostOptions:
+    """How model and measurement are compared.
+
+    Attributes:
+        kind: residual kind (see :mod:`bondid.cost.residuals`), default ``complex_log``.
+        norm: ``l2`` or ``l1`` (smooth pseudo-Huber, ``l1_delta`` in residual units).
+        bands: frequency bands (Hz) to use; None = all.
+        channels: ``OUT.IN`` names to use; None = every channel in the data.
+        channel_weights: extra weight per channel (default 1: the log residuals already
+            balance channels whose levels differ by 50 dB).
+        use_coherence: weight each point by the measured coherence γ² where present.
+    """
+
+    kind: str = "complex_log"
+    norm: str = "l2"
+    l1_delta: float = 1.0
+    bands: Sequence[tuple[float, float]] | None = None
+    channels: Sequence[str] | None = None
+    channel_weights: dict[str, float] = field(default_factory=dict)
+    use_coherence: bool = True
+
+    @property
+    def name(self) -> str:
+        return f"{self.kind}_{self.norm}"
+
+
+@dataclass
+class _Block:
+    data: FrfData
+    affine: AffineModel
+    freq_hz: np.ndarray  # frequencies used (n_fu,)
+    rows: np.ndarray  # (n_sel,) output index into data/model outputs
+    cols: np.ndarray  # (n_sel,) input index into the model inputs
+    fidx: np.ndarray  # (n_sel,) index into freq_hz
+    Hm: np.ndarray  # (n_sel,) measured
+    weight: np.ndarray  # (n_sel,) weights (unnormalised)
+    scale: np.ndarray  # (n_sel,) channel scale for linear_magnitude
+    channel: np.ndarray  # (n_sel,) channel name per point
+
+
+class FrfProblem:
+    """Residuals of a model against measured FRFs (one linearisation per data set)."""
+
+    def __init__(
+        self, doc: UrdfDocument, datasets: Sequence[FrfData], options: CostOptions | None = None
+    ):
+        self.doc = doc
+        self.options = options or CostOptions()
+        check_kind(self.options.kind, self.options.norm)
+        if not datasets:
+            raise ConfigError("no measured data given")
+        inputs = tuple(t.joint for t in doc.transmissions)
+        movable = doc.movable_joint_names
+        self.blocks: list[_Block] = []
+        for ds in datasets:
+            check_against_model(ds, inputs=inputs, outputs=movable, joints=movable)
+            affine = build_affine_model(doc, ds.operating_point, outputs=ds.outputs)
+            self.blocks.append(self._block(ds, affine))
+        total = sum(float(b.weight.sum()) for b in self.blocks)
+        if total <= 0:
+            raise ConfigError("the selected channels and bands leave no data to fit")
+        self._norm = 1.0 / np.sqrt(total)
+
+    @property
+    def affines(self) -> list[AffineModel]:
+        return [b.affine for b in self.blocks]
+
+    def _block(self, ds: FrfData, affine: AffineModel) -> _Block:
+        opt = self.options
+        where = ds.source or "<data>"
+        col_of = [affine.inputs.index(i) for i in ds.inputs]
+        chosen = np.array(ds.present)
+        if opt.channels is not None:
+            wanted = set(opt.channels)
+            unknown = wanted - {f"{o}.{i}" for o in ds.outputs for i in ds.inputs}
+            if unknown:
+                raise ChannelError(
+                    f"{where}: --channels names {', '.join(sorted(unknown))}, not in the data;"
+                    f" valid: {', '.join(ds.channels)}"
+                )
+            for ka, o in enumerate(ds.outputs):
+                for kb, i in enumerate(ds.inputs):
+                    chosen[ka, kb] &= f"{o}.{i}" in wanted
+        fmask = np.ones(ds.freq_hz.size, bool)
+        if opt.bands:
+            fmask = np.zeros(ds.freq_hz.size, bool)
+            for lo, hi in opt.bands:
+                fmask |= (ds.freq_hz >= lo) & (ds.freq_hz <= hi)
+        sel = chosen[:, :, None] & fmask[None, None, :] & np.isfinite(ds.H)
+        a, b, f = np.nonzero(sel)
+        used = np.unique(f)
+        fidx = np.searchsorted(used, f)
+        Hm = ds.H[a, b, f]
+        w = np.ones(a.size)
+        if opt.use_coherence and ds.coherence is not None:
+            coh = ds.coherence[a, b, f]
+            w = np.where(np.isfinite(coh), np.clip(coh, 0.0, 1.0), 1.0)
+        names = np.array([f"{ds.outputs[i]}.{ds.inputs[j]}" for i, j in zip(a, b, strict=True)])
+        for ch, cw in opt.channel_weights.items():
+            w = np.where(names == ch, w * float(cw), w)
+        scale = np.ones(a.size)
+        for ch in np.unique(names):
+            m = names == ch
+            scale[m] = np.sqrt(np.mean(np.abs(Hm[m]) ** 2))
+        return _Block(
+            ds, affine, ds.freq_hz[used], a, np.array(col_of)[b], fidx, Hm, w, scale, names
+        )
+
+    # -- evaluation -----------------------------------------------------------------------
+    @property
+    def n_residuals(self) -> int:
+        return parts(self.options.kind) * sum(b.Hm.size for b in self.blocks)
+
+    def model_frf(self, pmodel: ParameterModel, x: np.ndarray) -> list[np.ndarray]:
+        """Model FRF at each data set's used frequencies, ``(n_out, n_in_model, n_fu)`` each."""
+        values = pmodel.values(x)
+        return [b.affine.with_values(*values).linear_model().frf(b.freq_hz) for b in self.blocks]
+
+    def residual(self, pmodel: ParameterModel, x: np.ndarray) -> np.ndarray:
+        """Scaled residual vector ``(n_residuals,)``; ``cost = ‖r‖²``."""
+        out = []
+        for b, H in zip(self.blocks, self.model_frf(pmodel, x), strict=True):
+            Hs = H[b.rows, b.cols, b.fidx]
+            out.append(self._finish(b, residual(self.options.kind, Hs, b.Hm, b.scale))[0])
+        return np.concatenate(out)
+
+    def residual_and_jacobian(
+        self, pmodel: ParameterModel, x: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Residuals ``(n_r,)`` and exact Jacobian ``(n_r, pmodel.size)``."""
+        values = pmodel.values(x)
+        dpi, dk, dd = pmodel.jacobian(x)
+        rs, Js = [], []
+        for b in self.blocks:
+            H, J = frf_and_jacobian(b.affine.with_values(*values), b.freq_hz, dpi, dk, dd)
+            Hs = H[b.rows, b.cols, b.fidx]
+            dHs = J[b.rows, b.cols, b.fidx]
+            r = residual(self.options.kind, Hs, b.Hm, b.scale)
+            dr = residual_jacobian(self.options.kind, Hs, b.Hm, dHs, b.scale)
+            r2, dr2 = self._finish(b, r, dr)
+            rs.append(r2)
+            Js.append(dr2)
+        return np.concatenate(rs), np.concatenate(Js)
+
+    def _finish(self, b: _Block, r: np.ndarray, dr: np.ndarray | None = None):
+        sw = np.sqrt(b.weight) * self._norm
+        rt, drt = robust(r, self.options.norm, self.options.l1_delta)
+        out = (rt * sw).reshape(-1)
+        if dr is None:
+            return out, None
+        Jr = (dr * (drt * sw)[..., None]).reshape(-1, dr.shape[-1])
+        return out, Jr
+
+    def cost(self, pmodel: ParameterModel, x: np.ndarray) -> float:
+        r = self.residual(pmodel, x)
+        return float(r @ r)
+
+    # -- labels for per-channel / per-band breakdowns -------------------------------------
+    def residual_labels(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per residual entry: (data set index, channel name, frequency Hz), each ``(n_r,)``."""
+        k = parts(self.options.kind)
+        ds_i, ch, fr = [], [], []
+        for i, b in enumerate(self.blocks):
+            ds_i.append(np.tile(np.full(b.Hm.size, i), k))
+            ch.append(np.tile(b.channel, k))
+            fr.append(np.tile(b.freq_hz[b.fidx], k))
+        return np.concatenate(ds_i), np.concatenate(ch), np.concatenate(fr)
+
+
+def db_rms(Hs: np.ndarray, Hm: np.ndarray) -> float:
+    """The spec's gap figure: RMS over points of (20/ln10)·|ln(Hm/Hs)| (phase wrapped)."""
+    r = residual("complex_log", np.asarray(Hs), np.asarray(Hm))
+    finite = np.all(np.isfinite(r), axis=0)
+    return float(np.sqrt(np.mean(np.sum(r[:, finite] ** 2, axis=0))))

@@ -1,0 +1,152 @@
+"""Default bounds of the fitted parameters, and the link hulls they (and the fit) refer to.
+
+Relative bounds are ``value · (1 ± rel)`` around the model's value, with these refinements:
+
+* ``mass``: ``m (1 ± rel)``, lower bound at least 0.
+* ``com``: ``c ± rel · max(|c|, 0.1 ℓ)`` with ``ℓ`` the diagonal (m) of the link hull's bounding
+  box — a CoM near the link origin still gets room proportional to the body's size (without
+  geometry ``ℓ`` is taken as 0.1 m).
+* ``inertia``: ``I ± rel · max(|I|, 0.1 Ī)`` with ``Ī`` the mean principal moment of that link,
+  so that a product of inertia near 0 still gets room (the diagonal entries are ``I (1 ± rel)``).
+* ``stiffness`` / ``damping``: ``v (1 ± rel)`` and never below 0; a value of 0 gives
+  ``[0, +inf)`` (there is nothing to be relative to).
+
+``rel`` maps a kind (``mass``, ``com``, ``inertia``, ``stiffness``, ``damping``), a parameter name
+or a glob pattern (``x_stage.*``) to a fraction; the most specific entry wins (exact name, then
+glob, then kind). ``absolute`` maps names or globs to ``(lo, hi)`` in SI units and overrides the
+relative bounds.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import os
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from ..consistency.hull import Hull, link_hull, make_resolver
+from ..exceptions import ConfigError, ParameterError
+from ..model.document import UrdfDocument
+from ..model.parameters import ParameterInfo, get_parameter, link_inertial, parameter_infos
+
+#: Default relative half-width of the bounds, per parameter kind.
+DEFAULT_REL: dict[str, float] = {
+    "mass": 0.2,
+    "com": 0.5,
+    "inertia": 0.5,
+    "stiffness": 0.5,
+    "damping": 0.5,
+}
+
+_DEFAULT_LENGTH = 0.1  # m, length scale of a link without geometry
+
+
+def infos_by_name(doc: UrdfDocument, names: Sequence[str]) -> list[ParameterInfo]:
+    """The :class:`ParameterInfo` of each name, in order.
+
+    Raises:
+        ParameterError: a name the model does not have (the message lists valid forms).
+        ConfigError: a name given twice, or one that asks for a kinematic joint placement.
+    """
+    table = {p.name: p for p in parameter_infos(doc)}
+    out: list[ParameterInfo] = []
+    seen: set[str] = set()
+    where = doc.source or "<URDF>"
+    for n in names:
+        if n in seen:
+            raise ConfigError(f"{where}: parameter {n!r} is listed twice")
+        seen.add(n)
+        info = table.get(n)
+        if info is None:
+            if any(t in n.split(".") for t in ("origin", "xyz", "rpy", "placement")):
+                raise ConfigError(
+                    f"{where}: {n!r}: fitting kinematic joint placements is not supported "
+                    "(they enter M non-linearly); fit inertial, stiffness or damping parameters"
+                )
+            raise ParameterError(
+                f"{where}: unknown parameter {n!r}; valid names look like LINK.mass, "
+                "LINK.com.x, LINK.inertia.ixy, JOINT.stiffness, JOINT.damping "
+                "(see bondid.model.parameter_names / select_parameters)"
+            )
+        out.append(info)
+    return out
+
+
+def link_hulls(doc: UrdfDocument, links: Sequence[str]) -> dict[str, Hull | None]:
+    """Convex hull (link frame, m) of each link's collision geometry (None without geometry).
+
+    Meshes are resolved relative to the URDF's folder; ``package://`` URIs are not resolvable
+    here and raise :class:`bondid.exceptions.ModelError` from :func:`link_hull`.
+    """
+    base = os.path.dirname(os.path.abspath(doc.source)) if doc.source else os.getcwd()
+    resolve = make_resolver(base, {})
+    return {name: link_hull(doc.link(name), resolve, name=name) for name in links}
+
+
+def _rel_for(info: ParameterInfo, rel: Mapping[str, float]) -> float:
+    if info.name in rel:
+        return float(rel[info.name])
+    globs = [k for k in rel if k not in DEFAULT_REL and fnmatch.fnmatchcase(info.name, k)]
+    if globs:
+        return float(rel[max(globs, key=len)])
+    if info.kind in rel:
+        return float(rel[info.kind])
+    return DEFAULT_REL[info.kind]
+
+
+def default_bounds(
+    doc: UrdfDocument,
+    names: Sequence[str],
+    rel: Mapping[str, float] | None = None,
+    absolute: Mapping[str, tuple[float, float]] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper bounds ``(n,)``, ``(n,)`` (SI units) of the named parameters.
+
+    Args:
+        doc: the model whose current values the relative bounds are taken around.
+        names: parameter names (URDF form, e.g. ``x_stage.mass``), length ``n``.
+        rel: fraction per kind, name or glob (see the module docstring); missing kinds use
+            :data:`DEFAULT_REL`.
+        absolute: ``(lo, hi)`` per name or glob, overriding the relative bounds.
+
+    Raises:
+        ParameterError: unknown name. ConfigError: a negative fraction, or ``lo > hi``.
+    """
+    rel = dict(rel or {})
+    for k, v in rel.items():
+        if not np.isfinite(v) or v < 0:
+            raise ConfigError(f"bounds: relative width {v!r} for {k!r} is invalid; give >= 0")
+    infos = infos_by_name(doc, names)
+    hull_links = sorted({i.owner for i in infos if i.kind == "com"})
+    hulls = link_hulls(doc, hull_links)
+    lo = np.empty(len(infos))
+    hi = np.empty(len(infos))
+    for j, info in enumerate(infos):
+        v = get_parameter(doc, info.name)
+        r = _rel_for(info, rel)
+        if info.kind == "mass":
+            lo[j], hi[j] = max(0.0, v - r * abs(v)), v + r * abs(v)
+        elif info.kind == "com":
+            h = hulls[info.owner]
+            ell = h.size if h is not None else _DEFAULT_LENGTH
+            half = r * max(abs(v), 0.1 * ell)
+            lo[j], hi[j] = v - half, v + half
+        elif info.kind == "inertia":
+            _, _, I_c = link_inertial(doc, info.owner)
+            mean = float(np.trace(I_c)) / 3.0
+            half = r * max(abs(v), 0.1 * abs(mean))
+            lo[j], hi[j] = v - half, v + half
+        else:  # stiffness, damping
+            if v == 0.0:
+                lo[j], hi[j] = 0.0, np.inf
+            else:
+                lo[j], hi[j] = max(0.0, v - r * abs(v)), v + r * abs(v)
+    for key, (a, b) in (absolute or {}).items():
+        hits = [j for j, i in enumerate(infos) if fnmatch.fnmatchcase(i.name, key)]
+        if not hits:
+            raise ConfigError(f"bounds: {key!r} matches none of the fitted parameters")
+        if not a <= b:
+            raise ConfigError(f"bounds: {key!r} has lower {a!r} > upper {b!r}")
+        lo[hits], hi[hits] = float(a), float(b)
+    return lo, hi

@@ -1,0 +1,352 @@
+"""Study files: the settings of a fit in TOML, with the same meaning as the command line.
+
+A study file holds what ``python -m bondid.fit`` takes as options; options given on the
+command line override it. Relative paths (``model``, ``data``) are relative to the study file.
+Every section and key is optional::
+
+    model = "../urdf/bonder.urdf"            # --model
+    data = ["pose_a.csv", "pose_b.csv"]      # --data
+
+    [parameters]
+    free = ["parasitic", "x_stage.mass"]     # --free (names, globs, groups, "auto")
+    fixed = ["*.damping"]                    # --fixed (wins over free)
+
+    [bounds]                                 # --bound KEY=VALUE
+    mass = 0.3                               # a number: relative fraction of |value|
+    "x_stage.*" = 0.5                        # keys: a kind, a parameter name or a glob
+    "x_guide_ry.stiffness" = [1e3, 1e6]      # a pair: absolute [lo, hi] in SI units
+
+    [cost]
+    kind = "complex_log"                     # --cost
+    norm = "l2"                              # --norm
+    bands = [[1.0, 2000.0]]                  # --band (Hz)
+    channels = ["x.x", "y.y"]                # --channels
+    coherence = true                         # --no-coherence turns it off
+    [cost.channel_weights]
+    "x.x" = 2.0
+
+    [search]
+    multistart = 8                           # --multistart
+    seed = 0                                 # --seed
+    workers = 2                              # --workers
+    staged = true                            # --staged
+    max_iter = 200                           # --max-iter
+    [search.stage_bands]                     # staged fitting bands (Hz); default: from the modes
+    stiffness = [[1.0, 300.0]]
+    damping = [[350.0, 500.0], [800.0, 950.0]]
+    inertia = [[400.0, 4000.0]]
+
+Errors are :class:`~bondid.exceptions.ConfigError` naming the file, the key and what is valid.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..cost.residuals import NORMS, RESIDUAL_KINDS
+from ..exceptions import ConfigError
+
+#: Parameter kinds a bound key may name (besides names and globs).
+KINDS = ("mass", "com", "inertia", "stiffness", "damping")
+#: Stages of the staged fit, in the order they run.
+STAGES = ("stiffness", "damping", "inertia")
+
+_TOP_KEYS = ("model", "data", "parameters", "bounds", "cost", "search")
+_SECTION_KEYS = {
+    "parameters": ("free", "fixed"),
+    "cost": ("kind", "norm", "bands", "channels", "coherence", "channel_weights"),
+    "search": ("multistart", "seed", "workers", "staged", "max_iter", "stage_bands"),
+}
+
+Band = tuple[float, float]
+
+
+@dataclass
+class StudySettings:
+    """Every setting of a fit (defaults = the command line's defaults).
+
+    Attributes:
+        model: URDF path, or None (then ``--model`` must give it).
+        data: measured-data paths.
+        free, fixed: parameter names, globs or groups (``fixed`` wins).
+        rel_bounds: key (kind, name or glob) -> relative fraction of |value|.
+        abs_bounds: key (name or glob) -> (lo, hi), SI units.
+        cost, norm: residual kind and norm (see :mod:`bondid.cost.residuals`).
+        bands: frequency bands (Hz) to fit, None = all.
+        channels: ``OUT.IN`` channels to fit, None = all present.
+        channel_weights: extra weight per channel.
+        coherence: weight points by the measured coherence where present.
+        multistart: number of starts (1 = the URDF values only).
+        seed: seed of the Latin hypercube.
+        workers: parallel processes for the multistart.
+        staged: fit by bands first (stiffness, damping, inertia), then everything.
+        stage_bands: stage -> bands (Hz); a missing stage takes bands from the modes.
+        max_iter: IPOPT iteration limit per fit.
+        source: the study file, or None.
+    """
+
+    model: Path | None = None
+    data: list[Path] = field(default_factory=list)
+    free: list[str] = field(default_factory=lambda: ["parasitic"])
+    fixed: list[str] = field(default_factory=list)
+    rel_bounds: dict[str, float] = field(default_factory=dict)
+    abs_bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
+    cost: str = "complex_log"
+    norm: str = "l2"
+    bands: list[Band] | None = None
+    channels: list[str] | None = None
+    channel_weights: dict[str, float] = field(default_factory=dict)
+    coherence: bool = True
+    multistart: int = 1
+    seed: int = 0
+    workers: int = 2
+    staged: bool = False
+    stage_bands: dict[str, list[Band]] = field(default_factory=dict)
+    max_iter: int = 200
+    source: Path | None = None
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """The settings as plain JSON values (paths as strings)."""
+        return {
+            "study": None if self.source is None else str(self.source),
+            "model": None if self.model is None else str(self.model),
+            "data": [str(p) for p in self.data],
+            "free": list(self.free),
+            "fixed": list(self.fixed),
+            "bounds_relative": dict(self.rel_bounds),
+            "bounds_absolute": {k: list(v) for k, v in self.abs_bounds.items()},
+            "cost": self.cost,
+            "norm": self.norm,
+            "bands": None if self.bands is None else [list(b) for b in self.bands],
+            "channels": None if self.channels is None else list(self.channels),
+            "channel_weights": dict(self.channel_weights),
+            "coherence": self.coherence,
+            "multistart": self.multistart,
+            "seed": self.seed,
+            "workers": self.workers,
+            "staged": self.staged,
+            "stage_bands": {k: [list(b) for b in v] for k, v in self.stage_bands.items()},
+            "max_iter": self.max_iter,
+        }
+
+
+# -- value checks (shared with the command line) -----------------------------------------
+def _fail(where: str, key: str, msg: str) -> ConfigError:
+    return ConfigError(f"{where}: {key}: {msg}")
+
+
+def check_band(value: Any, where: str, key: str) -> Band:
+    """A band ``[f_lo, f_hi]`` in Hz with ``0 <= f_lo < f_hi``."""
+    ok = (
+        isinstance(value, list | tuple)
+        and len(value) == 2
+        and all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
+    )
+    if ok:
+        lo, hi = float(value[0]), float(value[1])
+        if math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi:
+            return lo, hi
+    raise _fail(where, key, f"{value!r} is not a band [F_LO, F_HI] in Hz with 0 <= F_LO < F_HI")
+
+
+def check_bands(value: Any, where: str, key: str) -> list[Band]:
+    if not isinstance(value, list) or not value:
+        raise _fail(where, key, f"{value!r} is not a non-empty list of [F_LO, F_HI] bands")
+    # a single band written flat: [1, 100]
+    if len(value) == 2 and all(isinstance(v, int | float) for v in value):
+        return [check_band(value, where, key)]
+    return [check_band(v, where, f"{key}[{i}]") for i, v in enumerate(value)]
+
+
+def check_choice(value: Any, valid: tuple[str, ...], where: str, key: str) -> str:
+    if not isinstance(value, str) or value not in valid:
+        raise _fail(where, key, f"{value!r} is not valid; valid: {', '.join(valid)}")
+    return value
+
+
+def check_int(value: Any, where: str, key: str, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise _fail(where, key, f"{value!r} is not an integer >= {minimum}")
+    return int(value)
+
+
+def check_bool(value: Any, where: str, key: str) -> bool:
+    if not isinstance(value, bool):
+        raise _fail(where, key, f"{value!r} is not true or false")
+    return value
+
+
+def check_names(value: Any, where: str, key: str) -> list[str]:
+    """A string (comma/space separated) or a list of strings -> list of tokens."""
+    items = [value] if isinstance(value, str) else value
+    if not isinstance(items, list) or not all(isinstance(v, str) for v in items):
+        raise _fail(where, key, f"{value!r} is not a string or a list of strings")
+    out: list[str] = []
+    for v in items:
+        out += [t for t in v.replace(",", " ").split() if t]
+    return out
+
+
+def check_bound(value: Any, where: str, key: str) -> float | tuple[float, float]:
+    """A relative fraction (> 0) or an absolute pair ``[lo, hi]`` (lo < hi)."""
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        v = float(value)
+        if math.isfinite(v) and v > 0:
+            return v
+    elif isinstance(value, list | tuple) and len(value) == 2:
+        if all(isinstance(v, int | float) and not isinstance(v, bool) for v in value):
+            lo, hi = float(value[0]), float(value[1])
+            if not (math.isnan(lo) or math.isnan(hi)) and lo < hi:
+                return lo, hi
+    raise _fail(
+        where,
+        key,
+        f"{value!r} is not a bound; valid: a relative fraction > 0 (0.2 = ±20 %) or an"
+        " absolute pair [LO, HI] with LO < HI",
+    )
+
+
+def parse_bound_option(text: str) -> tuple[str, float | tuple[float, float]]:
+    """``KEY=FRACTION`` or ``KEY=LO:HI`` (the ``--bound`` option) -> (key, bound)."""
+    key, sep, value = text.partition("=")
+    key = key.strip()
+    if not sep or not key:
+        raise ConfigError(f"--bound {text!r}: not KEY=FRACTION or KEY=LO:HI")
+    try:
+        parts = [float(v) for v in value.split(":")]
+    except ValueError:
+        raise ConfigError(f"--bound {text!r}: {value!r} is not FRACTION or LO:HI") from None
+    if len(parts) not in (1, 2):
+        raise ConfigError(f"--bound {text!r}: {value!r} is not FRACTION or LO:HI")
+    return key, check_bound(parts[0] if len(parts) == 1 else parts, "--bound", key)
+
+
+def add_bound(settings: StudySettings, key: str, bound: float | tuple[float, float]) -> None:
+    """Record a bound (relative or absolute) for ``key``, replacing any earlier one."""
+    settings.rel_bounds.pop(key, None)
+    settings.abs_bounds.pop(key, None)
+    if isinstance(bound, tuple):
+        settings.abs_bounds[key] = bound
+    else:
+        settings.rel_bounds[key] = bound
+
+
+# -- the file -----------------------------------------------------------------------------
+def _table(value: Any, where: str, key: str) -> Mapping[str, Any]:
+    if not isinstance(value, dict):
+        raise _fail(where, key, f"expected a table ([{key}]), got {type(value).__name__}")
+    return value
+
+
+def _check_keys(table: Mapping[str, Any], valid: tuple[str, ...], where: str, prefix: str) -> None:
+    for k in table:
+        if k not in valid:
+            name = f"{prefix}.{k}" if prefix else k
+            raise _fail(where, name, f"unknown key; valid: {', '.join(valid)}")
+
+
+def _path(value: Any, base: Path, where: str, key: str) -> Path:
+    if not isinstance(value, str) or not value:
+        raise _fail(where, key, f"{value!r} is not a file path")
+    p = Path(value)
+    return p if p.is_absolute() else base / p
+
+
+def load_study(path: str | os.PathLike[str]) -> StudySettings:
+    """Read and validate a study TOML file.
+
+    Raises:
+        ConfigError: unreadable file, TOML syntax error, unknown key or invalid value (the
+            message names the file, the key and the valid values).
+    """
+    p = Path(path)
+    where = str(p)
+    try:
+        raw = p.read_bytes()
+    except OSError as exc:
+        raise ConfigError(f"{where}: cannot read the study file ({exc.strerror})") from None
+    try:
+        doc = tomllib.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError:
+        raise ConfigError(f"{where}: not UTF-8 text; save the study file as UTF-8") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{where}: not valid TOML ({exc})") from None
+    return study_from_dict(doc, where=where, base=p.parent, source=p)
+
+
+def study_from_dict(
+    doc: Mapping[str, Any], *, where: str = "<study>", base: Path | None = None,
+    source: Path | None = None,
+) -> StudySettings:  # fmt: skip
+    """Validate a parsed study (a TOML mapping) into :class:`StudySettings`."""
+    base = Path(".") if base is None else base
+    s = StudySettings(source=source)
+    _check_keys(doc, _TOP_KEYS, where, "")
+    if "model" in doc:
+        s.model = _path(doc["model"], base, where, "model")
+    if "data" in doc:
+        items = [doc["data"]] if isinstance(doc["data"], str) else doc["data"]
+        if not isinstance(items, list) or not items:
+            raise _fail(where, "data", f"{doc['data']!r} is not a file path or a list of them")
+        s.data = [_path(v, base, where, f"data[{i}]") for i, v in enumerate(items)]
+
+    par = _table(doc.get("parameters", {}), where, "parameters")
+    _check_keys(par, _SECTION_KEYS["parameters"], where, "parameters")
+    if "free" in par:
+        s.free = check_names(par["free"], where, "parameters.free")
+        if not s.free:
+            raise _fail(where, "parameters.free", "empty; give names, globs or groups")
+    if "fixed" in par:
+        s.fixed = check_names(par["fixed"], where, "parameters.fixed")
+
+    bounds = _table(doc.get("bounds", {}), where, "bounds")
+    for key, value in bounds.items():
+        add_bound(s, key, check_bound(value, where, f"bounds.{key}"))
+
+    cost = _table(doc.get("cost", {}), where, "cost")
+    _check_keys(cost, _SECTION_KEYS["cost"], where, "cost")
+    if "kind" in cost:
+        s.cost = check_choice(cost["kind"], RESIDUAL_KINDS, where, "cost.kind")
+    if "norm" in cost:
+        s.norm = check_choice(cost["norm"], NORMS, where, "cost.norm")
+    if "bands" in cost:
+        s.bands = check_bands(cost["bands"], where, "cost.bands")
+    if "channels" in cost:
+        s.channels = check_names(cost["channels"], where, "cost.channels")
+        if not s.channels:
+            raise _fail(where, "cost.channels", "empty; give OUT.IN names such as x.x")
+    if "coherence" in cost:
+        s.coherence = check_bool(cost["coherence"], where, "cost.coherence")
+    if "channel_weights" in cost:
+        for ch, w in _table(cost["channel_weights"], where, "cost.channel_weights").items():
+            key = f"cost.channel_weights.{ch}"
+            if isinstance(w, bool) or not isinstance(w, int | float) or not w >= 0:
+                raise _fail(where, key, f"{w!r} is not a weight >= 0")
+            if ch.count(".") != 1:
+                raise _fail(where, key, "not a channel name OUT.IN such as x.y")
+            s.channel_weights[ch] = float(w)
+
+    search = _table(doc.get("search", {}), where, "search")
+    _check_keys(search, _SECTION_KEYS["search"], where, "search")
+    if "multistart" in search:
+        s.multistart = check_int(search["multistart"], where, "search.multistart", 1)
+    if "seed" in search:
+        s.seed = check_int(search["seed"], where, "search.seed", 0)
+    if "workers" in search:
+        s.workers = check_int(search["workers"], where, "search.workers", 1)
+    if "staged" in search:
+        s.staged = check_bool(search["staged"], where, "search.staged")
+    if "max_iter" in search:
+        s.max_iter = check_int(search["max_iter"], where, "search.max_iter", 0)
+    if "stage_bands" in search:
+        table = _table(search["stage_bands"], where, "search.stage_bands")
+        _check_keys(table, STAGES, where, "search.stage_bands")
+        for stage, bands in table.items():
+            s.stage_bands[stage] = check_bands(bands, where, f"search.stage_bands.{stage}")
+    return s
