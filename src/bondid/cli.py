@@ -31,7 +31,7 @@ def make_parser(prog: str, description: str) -> argparse.ArgumentParser:
 
 
 def add_model_args(p: argparse.ArgumentParser, *, data: bool = True, out: bool = True) -> None:
-    """The common options: --model, --data, --out, --quiet, --q."""
+    """The common options: --model, --data, --out, --quiet."""
     p.add_argument("--model", required=True, type=Path, help="the machine's URDF file")
     if data:
         p.add_argument(

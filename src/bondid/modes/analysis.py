@@ -15,9 +15,13 @@ eigenvectors are scaled). Each mode is listed once (one member of a conjugate pa
   largest magnitude is exactly 1 (real); entries in m or rad per the DOF's joint type;
 * ``participation`` (n_out, n_in): how strongly the mode shows in channel OUT.IN — the
   magnitude of the mode's own terms of the expansion above (both members of a pair) evaluated
-  at ``s = j·|Im λ|`` (for a real λ at ``s = 0``). For a lightly damped mode this is
-  ``≈ |R_r| / |Re λ_r|``: the height of its resonance peak in the receptance, in the
-  channel's units (m/N, rad/(N·m), ...). ``NaN`` for rigid-body modes (unbounded).
+  at ``s = jω_r``, ``ω_r = |Im λ|`` for a pair (its damped frequency) and ``|λ|`` for a real
+  λ (its corner frequency). For a lightly damped mode this is ``≈ |R_r| / |Re λ_r|``: the
+  height of its resonance peak in the receptance, in the channel's units (m/N, rad/(N·m),
+  ...). ``NaN`` for rigid-body modes (unbounded).
+* ``dominance`` (n_out, n_in): ``participation / |H(jω_r)|``, unit-free: ≈ 1 where the mode
+  makes the channel's response at its own frequency, ≪ 1 where it is invisible there. It can
+  exceed 1 when other modes cancel part of it. ``NaN`` for rigid modes and where H = 0.
 * ``energy_share`` (nv,): per-DOF share ``Re(φ̄_j (K φ)_j) / Re(φᴴ K φ)`` of the strain
   energy for vibrating modes, of the kinetic energy (M instead of K) for rigid and real
   modes; ``dominant_dof`` is the DOF with the largest share.
@@ -41,6 +45,9 @@ RIGID_RTOL = 1e-9
 REAL_RTOL = 1e-9
 """λ is real (not one of a conjugate pair) when |Im λ| ≤ REAL_RTOL · |λ|."""
 
+VISIBLE = 0.5
+"""The table lists the channels where a mode's dominance is at least this."""
+
 
 @dataclass(frozen=True)
 class Mode:
@@ -56,6 +63,7 @@ class Mode:
         shape: displacement mode shape ``(nv,)`` complex, largest entry = 1.
         residue: modal residue R ``(n_out, n_in)`` complex (FRF units / s).
         participation: ``(n_out, n_in)`` peak contribution (FRF units), NaN for rigid modes.
+        dominance: ``(n_out, n_in)`` participation / |H| at the mode's frequency (unit-free).
         energy_share: ``(nv,)`` energy share per DOF (strain or kinetic, see module doc).
         dominant_dof: name of the DOF with the largest energy share.
     """
@@ -68,6 +76,7 @@ class Mode:
     shape: np.ndarray
     residue: np.ndarray
     participation: np.ndarray
+    dominance: np.ndarray
     energy_share: np.ndarray
     dominant_dof: str
 
@@ -132,18 +141,18 @@ class ModalResult:
         """The mode table as plain text (one line per mode)."""
         lines = [
             f"{'#':>3} {'f [Hz]':>10} {'zeta':>7} {'Re λ [1/s]':>11} {'Im λ [1/s]':>11}"
-            f"  {'main DOF':<16} {'share':>5}  strongest channel"
+            f"  {'main DOF':<16} {'share':>5}  makes ≥50 % of |H| in"
         ]
         chans = self.channels
         for m in self.modes:
             zeta = "—" if m.zeta is None else f"{m.zeta:.4f}"
             share = m.energy_share[self.dofs.index(m.dominant_dof)]
-            part = m.participation.ravel()
-            if np.all(np.isnan(part)):
+            dom = m.dominance.ravel()
+            if np.all(np.isnan(dom)):
                 strongest = "— (rigid body)"
             else:
-                k = int(np.nanargmax(part))
-                strongest = f"{chans[k]} ({part[k]:.3g})"
+                seen = [c for c, v in zip(chans, dom, strict=True) if v >= VISIBLE]
+                strongest = " ".join(seen[:6]) + (" …" if len(seen) > 6 else "") or "—"
             lines.append(
                 f"{m.index:>3} {m.f_hz:>10.3f} {zeta:>7} {m.eigenvalue.real:>11.4g}"
                 f" {m.eigenvalue.imag:>11.4g}  {m.dominant_dof:<16} {share:>5.0%}  {strongest}"
@@ -167,10 +176,11 @@ class ModalResult:
                     "im": [float(v) for v in m.shape.imag],
                 },
                 "dominant_dof": m.dominant_dof,
-                "energy_share": {d: float(e) for d, e in zip(self.dofs, m.energy_share)},
-                "participation": {
-                    c: (None if math.isnan(v) else float(v)) for c, v in zip(chans, part)
+                "energy_share": {
+                    d: float(e) for d, e in zip(self.dofs, m.energy_share, strict=True)
                 },
+                "participation": _channel_dict(chans, part),
+                "dominance": _channel_dict(chans, m.dominance.ravel()),
             }
             if m.index in self.html:
                 entry["html"] = self.html[m.index]
@@ -183,8 +193,10 @@ class ModalResult:
             "outputs": list(self.outputs),
             "participation_definition": (
                 "|terms of mode r (both of a conjugate pair) of H(s) = sum R_r/(s - lambda_r)"
-                " at s = j|Im lambda_r||, R_r = C x_r y_r^H B / (y_r^H x_r); receptance units"
+                " at s = j w_r|, w_r = |Im lambda_r| (pair) or |lambda_r| (real),"
+                " R_r = C x_r y_r^H B / (y_r^H x_r); receptance units"
             ),
+            "dominance_definition": "participation / |H(j w_r)| (unit-free)",
             "shape_definition": (
                 "displacement part of the right eigenvector of the state matrix, scaled so"
                 " that its largest entry is 1; m or rad per DOF"
@@ -195,6 +207,10 @@ class ModalResult:
     def to_json(self) -> str:
         """:meth:`to_dict` as indented JSON text."""
         return json.dumps(self.to_dict(), indent=2) + "\n"
+
+
+def _channel_dict(chans: list[str], values: np.ndarray) -> dict[str, float | None]:
+    return {c: (None if math.isnan(v) else float(v)) for c, v in zip(chans, values, strict=True)}
 
 
 def _normalise(phi: np.ndarray) -> np.ndarray:
@@ -210,6 +226,15 @@ def _energy_share(phi: np.ndarray, W: np.ndarray) -> np.ndarray:
     e = np.real(np.conj(phi) * (W @ phi))
     total = float(e.sum())
     return e / total if abs(total) > 0 else np.zeros_like(e)
+
+
+def _receptance(lm: LinearModel, omega: float) -> np.ndarray:
+    """C (K − ω²M + jωD)⁻¹ B at one ω [rad/s] ``(n_out, n_in)``; NaN if singular."""
+    Z = lm.K - omega**2 * lm.M + 1j * omega * lm.D
+    try:
+        return lm.C @ np.linalg.solve(Z, lm.B)
+    except np.linalg.LinAlgError:
+        return np.full((lm.C.shape[0], lm.B.shape[1]), np.nan + 0j)
 
 
 def modal_analysis(
@@ -267,12 +292,17 @@ def modal_analysis(
             residue = np.outer(Cs @ x, np.conj(y) @ Bs) / denom
         if kind == "rigid":
             part = np.full(residue.shape, np.nan)
+            dom = part.copy()
         else:
-            s = 1j * abs(lr.imag)
+            w_r = abs(lr.imag) if kind == "vibration" else abs(lr)
+            s = 1j * w_r
             term = residue / (s - lr)
             if kind == "vibration":
                 term = term + np.conj(residue) / (s - np.conj(lr))
             part = np.abs(term)
+            h = np.abs(_receptance(lm, w_r))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                dom = np.where(h > 0, part / np.where(h > 0, h, 1.0), np.nan)
         phi = _normalise(x[:n])
         W = lm.K if kind == "vibration" else lm.M
         share = _energy_share(phi, W)
@@ -288,6 +318,7 @@ def modal_analysis(
                 shape=phi,
                 residue=residue,
                 participation=part,
+                dominance=dom,
                 energy_share=share,
                 dominant_dof=lm.dofs[int(np.argmax(share))],
             )

@@ -1,0 +1,38 @@
+"""``python -m bondid.report RESULTS_DIR [--out DIR]``: one self-contained HTML page.
+
+Gathers fit.json, sensitivity.json, diagnosis.json, modes.json and the PNG plots found in
+RESULTS_DIR (and its sub-folders) into ``report.html`` (in --out, default RESULTS_DIR).
+Exit 2 when the folder does not exist or holds nothing to report.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from ..cli import make_parser, run
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    p = make_parser("report", "One offline HTML page from a results folder.")
+    p.add_argument("results", type=Path, help="results folder (fit.json, modes.json, PNGs, ...)")
+    p.add_argument(
+        "--out", type=Path, default=None, help="folder for report.html (default: RESULTS)"
+    )
+    p.add_argument("--quiet", action="store_true", help="print nothing on success")
+    args = p.parse_args(argv)
+
+    def body() -> int:
+        from .build import build_report
+
+        path = build_report(args.results, args.out)
+        if not args.quiet:
+            print(f"wrote {path} ({path.stat().st_size / 1024:.0f} KiB)")
+        return 0
+
+    return run(body)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,238 @@
+"""The sections of the report, one function per result file (spec §4 keys only).
+
+Every function takes the parsed JSON (any shape: the files come from other commands and
+possibly other versions) and returns HTML; unexpected shapes degrade to a note, never raise.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from .html import esc, fmt, generic_json, key_values, note, table
+
+FIT_SUMMARY_KEYS = ("status", "cost_name", "cost_initial", "cost_final", "iterations", "wall_s")
+
+
+def _num(v: Any) -> float | None:
+    return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else None
+
+
+def _records(v: Any) -> list[Mapping[str, Any]]:
+    return [r for r in v if isinstance(r, Mapping)] if isinstance(v, list) else []
+
+
+def fit_section(fit: Any) -> str:
+    """Fit summary (status, costs) and the parameter table of ``fit.json``."""
+    if not isinstance(fit, Mapping):
+        return note("fit.json is not a JSON object; skipped")
+    summary = {k: fit.get(k) for k in FIT_SUMMARY_KEYS if k in fit}
+    c0, c1 = _num(fit.get("cost_initial")), _num(fit.get("cost_final"))
+    if c0 and c1 is not None and c0 > 0:
+        summary["cost_final / cost_initial"] = c1 / c0
+    for k, v in fit.items():
+        if k not in summary and k != "parameters" and not isinstance(v, (Mapping, list)):
+            summary[k] = v
+    out = [key_values(summary)]
+    params = _records(fit.get("parameters"))
+    if params:
+        rows, flagged = [], []
+        for i, p in enumerate(params):
+            ini, fitted = _num(p.get("initial")), _num(p.get("fitted"))
+            lo, hi, std = _num(p.get("lower")), _num(p.get("upper")), _num(p.get("std"))
+            change = (fitted / ini - 1) if ini and fitted is not None else None
+            rel_std = abs(std / fitted) if std is not None and fitted else None
+            at_bound = fitted is not None and any(
+                b is not None and math.isfinite(b) and abs(fitted - b) <= 1e-6 * max(abs(b), 1e-12)
+                for b in (lo, hi)
+            )
+            if at_bound:
+                flagged.append(i)
+            rows.append(
+                [
+                    esc(p.get("name", "?")),
+                    fmt(ini),
+                    fmt(fitted),
+                    fmt(lo),
+                    fmt(hi),
+                    fmt(std),
+                    "—" if rel_std is None else f"{100 * rel_std:.3g} %",
+                    "—" if change is None else f"{100 * change:+.3g} %",
+                    "at bound" if at_bound else "",
+                ]
+            )
+        out.append("<h3>Parameters</h3>")
+        out.append(
+            table(
+                [
+                    "name",
+                    "initial",
+                    "fitted",
+                    "lower",
+                    "upper",
+                    "std",
+                    "std / fitted",
+                    "change",
+                    "",
+                ],
+                rows,
+                left=(0, 8),
+                flagged=flagged,
+            )
+        )
+        if flagged:
+            out.append(note(f"{len(flagged)} parameter(s) ended at a bound (highlighted)."))
+    else:
+        out.append(note("fit.json has no parameter list"))
+    return "".join(out)
+
+
+def diagnosis_section(diag: Any) -> str:
+    """Verdict, gap tables (overall, by channel, by band, modes) and candidates."""
+    if not isinstance(diag, Mapping):
+        return note("diagnosis.json is not a JSON object; skipped")
+    out = []
+    verdict = diag.get("verdict")
+    if isinstance(verdict, Mapping):
+        eff = verdict.get("effect", "?")
+        loc = verdict.get("location")
+        closed = _num(verdict.get("gap_closed"))
+        text = f"Verdict: <b>{esc(eff)}</b>"
+        if loc:
+            text += f" at <b>{esc(loc)}</b>"
+        if closed is not None:
+            text += f" — closes {100 * closed:.1f} % of the gap"
+        out.append(f'<p class="verdict">{text}</p>')
+    else:
+        out.append(note("no verdict in diagnosis.json"))
+    gap = diag.get("gap")
+    if isinstance(gap, Mapping):
+        db = _num(gap.get("db_rms"))
+        if db is not None:
+            out.append(f"<p>Model–measurement gap: <b>{db:.3g} dB rms</b> (all channels).</p>")
+        by_ch = gap.get("by_channel")
+        if isinstance(by_ch, Mapping) and by_ch:
+            out.append("<h3>Gap by channel</h3>")
+            out.append(table(["channel", "dB rms"], [[esc(k), fmt(v)] for k, v in by_ch.items()]))
+        bands = _records(gap.get("by_band"))
+        if bands:
+            out.append("<h3>Gap by band</h3>")
+            out.append(
+                table(
+                    ["f_lo [Hz]", "f_hi [Hz]", "dB rms"],
+                    [
+                        [fmt(b.get("f_lo_hz")), fmt(b.get("f_hi_hz")), fmt(b.get("db_rms"))]
+                        for b in bands
+                    ],
+                    left=(),
+                )
+            )
+        modes = _records(gap.get("modes"))
+        if modes:
+            out.append("<h3>Modes: measured vs model</h3>")
+            out.append(
+                table(
+                    ["measured [Hz]", "model [Hz]", "status"],
+                    [
+                        [
+                            fmt(m.get("f_measured_hz")),
+                            fmt(m.get("f_model_hz")),
+                            esc(m.get("status", "")),
+                        ]
+                        for m in modes
+                    ],
+                    left=(2,),
+                    flagged=[i for i, m in enumerate(modes) if m.get("status") != "paired"],
+                )
+            )
+    cands = _records(diag.get("candidates"))
+    if cands:
+        out.append("<h3>Candidates (best first)</h3>")
+        out.append(
+            table(
+                [
+                    "effect",
+                    "location",
+                    "parameters",
+                    "dB rms after",
+                    "gap closed",
+                    "held-out dB rms after",
+                    "score",
+                ],
+                [
+                    [
+                        esc(c.get("effect", "?")),
+                        fmt(c.get("location")),
+                        fmt(c.get("parameters")),
+                        fmt(c.get("db_rms_after")),
+                        "—"
+                        if _num(c.get("gap_closed")) is None
+                        else f"{100 * float(c['gap_closed']):.1f} %",
+                        fmt(c.get("heldout_db_rms_after")),
+                        fmt(c.get("score")),
+                    ]
+                    for c in cands
+                ],
+                left=(0, 1, 2),
+            )
+        )
+    return "".join(out)
+
+
+def sensitivity_section(sens: Any) -> str:
+    """``sensitivity.json`` rendered generically (its keys are not fixed by the spec)."""
+    return generic_json(sens)
+
+
+def modes_section(modes: Any, modes_dir: Path, out_dir: Path) -> str:
+    """The mode table with relative links to the animation pages found next to modes.json."""
+    if not isinstance(modes, Mapping):
+        return note("modes.json is not a JSON object; skipped")
+    out = []
+    op = modes.get("operating_point")
+    if isinstance(op, Mapping):
+        text = ", ".join(f"{k} = {fmt(v)}" for k, v in op.items()) or "neutral (q = 0)"
+        out.append(f"<p>Operating point: {text}.</p>")
+    scene = modes_dir / "modes.html"
+    if scene.is_file():
+        out.append(
+            f'<p>Mode scene: <a href="{esc(_rel(scene, out_dir))}">modes.html</a>'
+            " (Meshcat, opens offline).</p>"
+        )
+    entries = _records(modes.get("modes"))
+    if not entries:
+        return "".join(out) + note("modes.json has no mode list")
+    fitted = modes.get("fitted")
+    fmodes = _records(fitted.get("modes")) if isinstance(fitted, Mapping) else []
+    header = ["#", "f [Hz]", "ζ", "kind", "main DOF"]
+    if fmodes:
+        header.append("fitted f [Hz]")
+    header.append("animation")
+    rows = []
+    for i, m in enumerate(entries):
+        row = [
+            fmt(m.get("index", i + 1)),
+            fmt(m.get("f_hz"), 6),
+            fmt(m.get("zeta")),
+            esc(m.get("kind", "")),
+            esc(m.get("dominant_dof", "")),
+        ]
+        if fmodes:
+            row.append(fmt(fmodes[i].get("f_hz"), 6) if i < len(fmodes) else "—")
+        link = m.get("html")
+        if isinstance(link, str) and (modes_dir / link).is_file():
+            row.append(f'<a href="{esc(_rel(modes_dir / link, out_dir))}">{esc(link)}</a>')
+        elif isinstance(link, str):
+            row.append(esc(f"{link} (missing)"))
+        else:
+            row.append("")
+        rows.append(row)
+    out.append(table(header, rows, left=(3, 4, len(header) - 1)))
+    return "".join(out)
+
+
+def _rel(target: Path, out_dir: Path) -> str:
+    return Path(os.path.relpath(target.resolve(), out_dir.resolve())).as_posix()

@@ -1,0 +1,166 @@
+"""The offline report: spec keys become tables, PNGs are embedded, nothing is fetched."""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import re
+from pathlib import Path
+
+import pytest
+from models import one_mass
+
+from bondid.linear import build_affine_model
+from bondid.modes import modal_analysis
+from bondid.report.__main__ import main as report_main
+
+FIT = {
+    "status": "Solve_Succeeded",
+    "cost_initial": 12.5,
+    "cost_final": 0.125,
+    "cost_name": "db_rms_squared",
+    "iterations": 17,
+    "wall_s": 3.2,
+    "parameters": [
+        {
+            "name": "x_stage.mass",
+            "initial": 1.67,
+            "fitted": 1.71,
+            "lower": 0.5,
+            "upper": 5.0,
+            "std": 0.01,
+        },
+        {
+            "name": "x_guide_ty.stiffness",
+            "initial": 5e7,
+            "fitted": 1e8,
+            "lower": 1e6,
+            "upper": 1e8,
+            "std": None,
+        },
+    ],
+}
+DIAGNOSIS = {
+    "gap": {
+        "db_rms": 4.2,
+        "by_channel": {"x.x": 3.1, "y.y": 5.0},
+        "by_band": [
+            {"f_lo_hz": 1.0, "f_hi_hz": 100.0, "db_rms": 0.4},
+            {"f_lo_hz": 100.0, "f_hi_hz": 4000.0, "db_rms": 6.6},
+        ],
+        "modes": [
+            {"f_measured_hz": 480.0, "f_model_hz": None, "status": "missing"},
+            {"f_measured_hz": 12.4, "f_model_hz": 12.5, "status": "paired"},
+        ],
+    },
+    "candidates": [
+        {
+            "effect": "soft_mounts",
+            "location": "base",
+            "parameters": {"k_z": 3.1e6},
+            "db_rms_after": 0.9,
+            "gap_closed": 0.786,
+            "heldout_db_rms_after": 1.1,
+            "score": 0.7,
+        },
+        {
+            "effect": "sensor_delay",
+            "location": "x.x",
+            "parameters": {"tau_s": 2e-5},
+            "db_rms_after": 3.9,
+            "gap_closed": 0.07,
+            "heldout_db_rms_after": 4.0,
+            "score": 0.05,
+        },
+    ],
+    "verdict": {"effect": "soft_mounts", "location": "base", "gap_closed": 0.786},
+}
+
+
+def _png(color: tuple[int, int, int]) -> bytes:
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.new("RGB", (8, 6), color).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def _run(argv) -> int:
+    try:
+        return report_main([str(a) for a in argv])
+    except SystemExit as exc:
+        return int(exc.code or 0)
+
+
+@pytest.fixture
+def results(tmp_path: Path) -> Path:
+    res = tmp_path / "results"
+    (res / "fit").mkdir(parents=True)
+    (res / "fit" / "fit.json").write_text(json.dumps(FIT))
+    (res / "fit" / "bode_x.x.png").write_bytes(_png((255, 0, 0)))
+    (res / "fit" / "convergence.png").write_bytes(_png((0, 255, 0)))
+    (res / "sensitivity.json").write_text(
+        json.dumps({"parameters": ["x_stage.mass"], "channels": ["x.x"], "identifiable": True})
+    )
+    (res / "sensitivity_heatmap.png").write_bytes(_png((0, 0, 255)))
+    (res / "diagnosis.json").write_text(json.dumps(DIAGNOSIS))
+    (res / "residual_map.png").write_bytes(_png((9, 9, 9)))
+    lm = build_affine_model(one_mass(2.0, 8e3, 4.0), {}).linear_model()
+    modal = modal_analysis(lm, {})
+    modal.html[1] = "mode_01.html"
+    (res / "modes").mkdir()
+    (res / "modes" / "modes.json").write_text(modal.to_json())
+    (res / "modes" / "mode_01.html").write_text("<html></html>")
+    (res / "modes" / "modes.html").write_text("<html></html>")
+    return res
+
+
+def test_report_has_tables_images_and_no_network(results: Path, tmp_path: Path):
+    out = tmp_path / "out"
+    assert _run([results, "--out", out, "--quiet"]) == 0
+    page = (out / "report.html").read_text(encoding="utf-8")
+    # fit summary and parameter table, the at-bound row flagged
+    assert "Solve_Succeeded" in page and "x_guide_ty.stiffness" in page
+    assert re.search(r'<tr class="flag"><td class="l">x_guide_ty\.stiffness', page)
+    assert "0.01" in page  # cost ratio 0.125 / 12.5
+    # diagnosis: verdict, gap tables, candidates
+    assert "Verdict: <b>soft_mounts</b> at <b>base</b>" in page and "78.6 %" in page
+    assert '<td class="l">y.y</td><td>5</td>' in page
+    assert "6.6" in page and "missing" in page and "sensor_delay" in page
+    # sensitivity rendered generically
+    assert "identifiable" in page
+    # modes: the frequency of the one-mass model and relative links to the animations
+    f_hz = (8e3 / 2.0) ** 0.5 / (2 * 3.141592653589793)
+    assert f"{f_hz:.6g}" in page
+    assert 'href="../results/modes/mode_01.html"' in page
+    assert 'href="../results/modes/modes.html"' in page
+    # every PNG embedded byte for byte
+    blobs = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', page)
+    pngs = sorted(p.read_bytes() for p in results.rglob("*.png"))
+    assert sorted(base64.b64decode(b) for b in blobs) == pngs
+    # offline: nothing external
+    assert "http://" not in page and "https://" not in page
+    assert "<script" not in page and "<link" not in page and "@import" not in page
+
+
+def test_report_missing_parts_noted(tmp_path: Path):
+    res = tmp_path / "r"
+    res.mkdir()
+    (res / "fit.json").write_text("{not json")
+    (res / "plot.png").write_bytes(_png((1, 2, 3)))
+    assert _run([res]) == 0  # default --out: the results folder itself
+    page = (res / "report.html").read_text(encoding="utf-8")
+    assert "could not read fit.json" in page
+    assert "diagnosis.json not found" in page and "modes.json not found" in page
+    assert "Other plots" in page and page.count("data:image/png;base64,") == 1
+
+
+def test_report_bad_input_exit_2(tmp_path: Path, capsys):
+    assert _run([tmp_path / "nope"]) == 2
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert _run([empty]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2 and all(line.startswith("bad input:") for line in err)
+    assert not (empty / "report.html").exists()
