@@ -29,7 +29,8 @@ from .residuals import check_kind, parts, residual, residual_jacobian, robust
 
 
 class ParameterModel(Protocol):
-    size: int
+    @property
+    def size(self) -> int: ...
 
     def values(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
 

@@ -1,0 +1,121 @@
+"""``python -m bondid.sensitivity``: which parameters the data determine, band by band.
+
+Prints a short summary (top parameters per band, the aggregate by parameter kind, the
+recommended subset with expected std, the number of identifiable combinations, the sweep)
+and with ``--out DIR`` writes ``sensitivity.json`` and PNG maps there. Exit codes: 0 success,
+2 bad input, 1 failed computation.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+
+def _scales(text: str):
+    import argparse
+
+    from .sweep import default_scales
+
+    try:
+        lo, hi, step = (float(v) for v in text.split(":"))
+        return default_scales(lo, hi, step)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(
+            f"--scales {text!r} is not LO:HI:STEP (0 ≤ LO < HI)"
+        ) from exc
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    from .. import cli
+
+    p = cli.make_parser(
+        "sensitivity",
+        "Local sensitivities per band and channel, identifiability (recommended subset) and "
+        "the one-at-a-time sweep of the seed report (Algorithm 1).",
+    )
+    cli.add_model_args(p)
+    p.add_argument("--free", nargs="+", default=["all"], help="parameters: names, globs, groups")
+    p.add_argument("--fixed", nargs="+", default=[], help="parameters to leave out (wins)")
+    p.add_argument("--band", action="append", type=cli.parse_band, default=None,
+                   help="F_LO:F_HI in Hz (repeatable): analysis bands, and only these frequencies"
+                   " are used; default: automatic bands around the modes")  # fmt: skip
+    p.add_argument("--channels", nargs="+", default=None, help="channels OUT.IN to use")
+    p.add_argument("--cost", default="complex_log", help="residual kind (default complex_log)")
+    p.add_argument(
+        "--max-rel-std", type=float, default=0.1,
+        help="largest expected relative std of a recommended parameter (0.1 = 10 %%)",
+    )  # fmt: skip
+    p.add_argument(
+        "--noise", type=float, default=None,
+        help="noise std per residual part (dB for complex_log); default: from the data",
+    )  # fmt: skip
+    p.add_argument("--no-sweep", action="store_true", help="skip the one-at-a-time sweep")
+    p.add_argument("--scales", type=_scales, default=None, help="sweep LO:HI:STEP (0.5:1.5:0.1)")
+    p.add_argument("--workers", type=int, default=2, help="processes for the sweep (default 2)")
+    args = p.parse_args(argv)
+
+    def body() -> int:
+        from ..atomic import refuse_overwrite
+        from ..cost import CostOptions
+        from ..data.for_model import load_datasets
+        from ..model.document import UrdfDocument
+        from . import output
+        from ._common import make_setup
+        from .identifiability import analyse_identifiability
+        from .local import analyse_local, linearise_cost
+        from .sweep import run_sweep
+
+        t_start = time.perf_counter()
+        doc = UrdfDocument.load(args.model)
+        inputs = [args.model, *args.data]
+        if args.out is not None:
+            for name in [*output.PNG_NAMES.values(), "sensitivity.json"]:
+                refuse_overwrite(args.out / name, inputs)
+        datasets = load_datasets(doc, args.data)
+        channels = cli.split_names(args.channels) or None
+        options = CostOptions(kind=args.cost, bands=args.band, channels=channels)
+        setup = make_setup(doc, datasets, options, cli.split_names(args.free),
+                           cli.split_names(args.fixed))  # fmt: skip
+        lin = linearise_cost(setup)
+        t0 = time.perf_counter()
+        local = analyse_local(lin, args.band)
+        t1 = time.perf_counter()
+        ident = analyse_identifiability(lin, max_rel_std=args.max_rel_std, noise=args.noise)
+        t2 = time.perf_counter()
+        sweep = None
+        if not args.no_sweep:
+            prog = cli.Progress("sweep", setup.n_params, quiet=args.quiet)
+            sweep = run_sweep(setup, args.scales, workers=args.workers,
+                              progress=lambda n, name: prog.update(n, name))  # fmt: skip
+            prog.close(f"{setup.n_params} parameters")
+        print(
+            f"{doc.name}: {setup.n_params} parameters, {len(datasets)} data set(s), "
+            f"{setup.problem.n_residuals} residuals ({options.name})"
+        )
+        for line in output.summary_lines(local, ident, sweep, cost_kind=options.kind):
+            print(line)
+        if args.out is not None:
+            timing: dict[str, float | None] = {
+                "jacobian_s": lin.wall_s,
+                "local_s": t1 - t0,
+                "identifiability_s": t2 - t1,
+                "sweep_s": None if sweep is None else sweep.wall_s,
+                "total_s": time.perf_counter() - t_start,
+            }
+            content = output.result_dict(
+                local, ident, sweep, model=str(args.model), data=[str(d) for d in args.data],
+                cost_name=options.name, n_residuals=setup.problem.n_residuals, timing=timing,
+            )  # fmt: skip
+            path = output.write_json(Path(args.out) / "sensitivity.json", content)
+            pngs = output.write_plots(Path(args.out), local, sweep, title=doc.name)
+            print(f"wrote {path} and {len(pngs)} PNG file(s) in {args.out}")
+        return 0
+
+    return cli.run(body)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,276 @@
+"""Results of ``python -m bondid.sensitivity``: ``sensitivity.json``, PNG maps and a summary.
+
+JSON numbers that are not finite (an unidentifiable std, a skipped sweep step) are ``null``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import textwrap
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..atomic import write_text_atomic
+from .identifiability import Identifiability
+from .local import LocalSensitivity
+from .sweep import SweepResult
+
+#: PNG files written under ``--out``.
+PNG_NAMES = {
+    "bands": "sensitivity_bands.png",
+    "channels": "sensitivity_channels.png",
+    "sweep": "sweep.png",
+    "sweep_directions": "sweep_directions.png",
+}
+#: Normalised sensitivities below this are drawn as this value on the log colour scale.
+MAP_FLOOR = 1e-3
+
+
+def _num(x: Any) -> Any:
+    """Arrays → nested lists; non-finite floats → None."""
+    if isinstance(x, np.ndarray):
+        return [_num(v) for v in x.tolist()] if x.ndim else _num(x.item())
+    if isinstance(x, list | tuple):
+        return [_num(v) for v in x]
+    if isinstance(x, dict):
+        return {k: _num(v) for k, v in x.items()}
+    if isinstance(x, float | np.floating):
+        v = float(x)
+        return v if np.isfinite(v) else None
+    if isinstance(x, np.integer):
+        return int(x)
+    return x
+
+
+def _feature(f: Any) -> dict[str, Any]:
+    return {"f_hz": f.f_hz, "zeta": f.zeta, "kind": f.kind, "channel": f.channel}
+
+
+def result_dict(
+    local: LocalSensitivity,
+    ident: Identifiability,
+    sweep: SweepResult | None,
+    *,
+    model: str,
+    data: Sequence[str],
+    cost_name: str,
+    n_residuals: int,
+    timing: dict[str, float | None],
+) -> dict[str, Any]:
+    """The content of ``sensitivity.json`` (plain Python types, JSON-ready)."""
+    idx = {n: i for i, n in enumerate(ident.names)}
+    params = []
+    for i, n in enumerate(local.names):
+        j = idx.get(n)
+        params.append(
+            {
+                "name": n,
+                "kind": local.kinds[i],
+                "scale": local.scale[i],
+                "zero_nominal": n in local.zero_nominal,
+                "overall": local.overall[i],
+                "gradient": local.gradient[i],
+                "std_alone": None if j is None else ident.std_alone[j],
+                "std_all": None if j is None else ident.std_all[j],
+                "recommended": n in ident.subset_std,
+            }
+        )
+    bands = [
+        {
+            "label": b.label,
+            "f_lo_hz": b.f_lo_hz,
+            "f_hi_hz": b.f_hi_hz,
+            "class": b.cls,
+            "user": b.user,
+            "features": [_feature(f) for f in b.features],
+            "top": [{"name": n, "sensitivity": v} for n, v in local.top(k, 5)],
+        }
+        for k, b in enumerate(local.bands)
+    ]
+    by_kind = {
+        c: {
+            g: {
+                "share": local.by_kind.share[c][g],
+                "rms": local.by_kind.rms[c][g],
+                "max": local.by_kind.max[c][g],
+                "top": local.by_kind.top[c][g],
+            }
+            for g in local.by_kind.share[c]
+        }
+        for c in local.classes
+    }
+    out: dict[str, Any] = {
+        "model": model,
+        "data": list(data),
+        "cost_name": cost_name,
+        "cost_nominal": local.cost,
+        "n_residuals": n_residuals,
+        "units": {
+            "sensitivity": "RMS residual change per unit relative parameter change "
+            "(dB per 100 % for complex_log); parameters with nominal 0: per reference "
+            "magnitude `scale`",
+            "std": "expected standard deviation relative to `scale`",
+            "sweep": "cost = mean square residual (dB² for complex_log)",
+        },
+        "parameters": params,
+        "features": [_feature(f) for f in local.features],
+        "bands": bands,
+        "band_sensitivity": {"values": local.band_sens, "normalised": local.band_norm},
+        "channels": list(local.channels),
+        "channel_sensitivity": {"values": local.channel_sens, "normalised": local.channel_norm},
+        "directions": list(local.directions),
+        "direction_sensitivity": local.direction_sens,
+        "classes": list(local.classes),
+        "by_kind": by_kind,
+        "identifiability": {
+            "noise": ident.noise_residual,
+            "noise_estimated": ident.noise_estimated,
+            "max_rel_std": ident.max_rel_std,
+            "singular_values": ident.singular_values,
+            "n_identifiable": ident.n_identifiable,
+            "n_parameters": len(ident.names),
+            "combinations": [
+                {"sigma": c.sigma, "std": c.std, "pinned": c.pinned, "terms": c.terms}
+                for c in ident.combinations
+            ],
+            "pivot_order": [ident.names[i] for i in ident.pivot_order],
+            "recommended": [{"name": n, "std": s} for n, s in ident.subset_std.items()],
+        },
+        "sweep": None,
+        "timing": timing,
+    }
+    if sweep is not None:
+        out["sweep"] = {
+            "parameters": list(sweep.names),
+            "scales": sweep.scales,
+            "values": sweep.values,
+            "costs": sweep.costs,
+            "directions": list(sweep.directions),
+            "direction_costs": sweep.direction_costs,
+            "cost_nominal": sweep.cost_nominal,
+            "direction_nominal": sweep.direction_nominal,
+            "zero_nominal": list(sweep.zero_nominal),
+            "wall_s": sweep.wall_s,
+            "workers": sweep.workers,
+        }
+    return _num(out)
+
+
+def write_json(path: str | os.PathLike[str], content: dict[str, Any]) -> Path:
+    return write_text_atomic(path, json.dumps(content, indent=1, allow_nan=False) + "\n")
+
+
+def write_plots(
+    out_dir: Path, local: LocalSensitivity, sweep: SweepResult | None, *, title: str
+) -> list[Path]:
+    """Heat maps (parameter × band, parameter × channel) and the sweep plots; returns paths."""
+    from ..plots import plot_heatmap, plot_sweep
+
+    written = []
+    label = f"sensitivity / largest in the column (log, floored at {MAP_FLOOR:g})"
+    written.append(
+        plot_heatmap(
+            np.maximum(local.band_norm, MAP_FLOOR),
+            row_labels=local.names,
+            col_labels=[b.label for b in local.bands],
+            path=out_dir / PNG_NAMES["bands"],
+            title=f"{title}: parameter × band (R = resonances, A = anti-resonances)",
+            cbar_label=label,
+            log=True,
+        )
+    )
+    written.append(
+        plot_heatmap(
+            np.maximum(local.channel_norm, MAP_FLOOR),
+            row_labels=local.names,
+            col_labels=list(local.channels),
+            path=out_dir / PNG_NAMES["channels"],
+            title=f"{title}: parameter × channel",
+            cbar_label=label,
+            log=True,
+        )
+    )
+    if sweep is not None:
+        written.append(
+            plot_sweep(
+                sweep.scales,
+                sweep.costs,
+                param_names=sweep.names,
+                path=out_dir / PNG_NAMES["sweep"],
+                title=f"{title}: cost, one parameter at a time (Algorithm 1)",
+            )
+        )
+        written.append(
+            plot_sweep(
+                sweep.scales,
+                sweep.direction_costs,
+                param_names=sweep.names,
+                path=out_dir / PNG_NAMES["sweep_directions"],
+                title=f"{title}: cost per response direction (Algorithm 1)",
+                direction_names=[f"response {d}" for d in sweep.directions],
+                top=10,
+            )
+        )
+    return written
+
+
+def summary_lines(
+    local: LocalSensitivity,
+    ident: Identifiability,
+    sweep: SweepResult | None,
+    *,
+    top: int = 3,
+    cost_kind: str = "complex_log",
+) -> list[str]:
+    """A short human summary."""
+    unit = "per 100 % change"
+    unit_r = "dB" if cost_kind == "complex_log" or cost_kind == "log_magnitude" else ""
+    lines = [f"nominal cost {local.cost:.4g}; Jacobian {local.jacobian_s:.2f} s"]
+    lines.append(f"top parameters per band (RMS residual change {unit}):")
+    for k, b in enumerate(local.bands):
+        tops = ", ".join(f"{n} {v:.3g}" for n, v in local.top(k, top) if np.isfinite(v))
+        lines.append(f"  {b.label:<30s} {tops or '(no data in band)'}")
+    lines.append("by kind and band class (share of squared sensitivity; strongest parameter):")
+    for c in local.classes:
+        parts = [
+            f"{g} {local.by_kind.share[c][g]:.0%} ({local.by_kind.top[c][g]})"
+            for g in local.by_kind.share[c]
+        ]
+        lines.append(f"  {c:<10s} " + ", ".join(parts))
+    noise_src = "estimated from the data" if ident.noise_estimated else "given"
+    lines.append(
+        f"identifiable combinations: {ident.n_identifiable} of {len(ident.names)} "
+        f"(expected relative std ≤ {ident.max_rel_std:g}; noise {ident.noise_residual:.3g} "
+        f"{unit_r} per residual part, {noise_src})"
+    )
+    lines.append(f"recommended subset ({len(ident.subset)}), expected relative std:")
+    items = [f"{n} {v:.2%}" for n, v in sorted(ident.subset_std.items(), key=lambda t: t[1])]
+    lines += textwrap.wrap(", ".join(items), width=96, initial_indent="  ", subsequent_indent="  ")
+    left = [n for n in ident.names if n not in ident.subset_std]
+    if left:
+        lines.append(f"not recommended ({len(left)}), std if freed alone:")
+        idx = {n: i for i, n in enumerate(ident.names)}
+        items = [f"{n} {ident.std_alone[idx[n]]:.3g}" for n in left]
+        lines += textwrap.wrap(
+            ", ".join(items), width=96, initial_indent="  ", subsequent_indent="  "
+        )
+    weak = [c for c in ident.combinations if not c.pinned][-3:]
+    if weak:
+        lines.append("least determined combinations:")
+        lines += [f"  std {c.std:.3g}: {c.label}" for c in reversed(weak)]
+    if sweep is not None:
+        order = np.argsort(-np.nan_to_num(sweep.spread(), nan=-1.0))[:5]
+        lines.append(
+            f"sweep ({len(sweep.names)} parameters × {sweep.scales.size} scales, "
+            f"{sweep.workers} processes, {sweep.wall_s:.1f} s); largest cost range: "
+            + ", ".join(f"{sweep.names[i]} {sweep.spread()[i]:.3g}" for i in order)
+        )
+        if sweep.zero_nominal:
+            lines.append(
+                "  swept over an absolute range (nominal 0): " + ", ".join(sweep.zero_nominal)
+            )
+    return lines
