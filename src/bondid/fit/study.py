@@ -199,11 +199,14 @@ def check_bound(value: Any, where: str, key: str) -> float | tuple[float, float]
         v = float(value)
         if math.isfinite(v) and v > 0:
             return v
-    elif isinstance(value, list | tuple) and len(value) == 2:
-        if all(isinstance(v, int | float) and not isinstance(v, bool) for v in value):
-            lo, hi = float(value[0]), float(value[1])
-            if not (math.isnan(lo) or math.isnan(hi)) and lo < hi:
-                return lo, hi
+    elif (
+        isinstance(value, list | tuple)
+        and len(value) == 2
+        and all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
+    ):
+        lo, hi = float(value[0]), float(value[1])
+        if not (math.isnan(lo) or math.isnan(hi)) and lo < hi:
+            return lo, hi
     raise _fail(
         where,
         key,

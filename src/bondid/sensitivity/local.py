@@ -69,7 +69,7 @@ def linearise_cost(setup: Setup) -> Linearisation:
     """One exact Jacobian at the nominal parameters (``setup.pmap.p0``)."""
     t0 = time.perf_counter()
     pm, p0 = setup.pmap, setup.pmap.p0
-    r, J = setup.problem.residual_and_jacobian(pm, p0)  # type: ignore[arg-type]
+    r, J = setup.problem.residual_and_jacobian(pm, p0)
     Js = J * setup.scale[None, :]
     if not (np.all(np.isfinite(r)) and np.all(np.isfinite(Js))):
         raise ComputationError("sensitivity: the residual or its Jacobian is not finite")

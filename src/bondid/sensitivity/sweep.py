@@ -95,7 +95,7 @@ def _costs_for(i: int, values: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]
             continue
         x = setup.pmap.p0.copy()
         x[i] = v
-        r = setup.problem.residual(setup.pmap, x)  # type: ignore[arg-type]  # see Setup.pmap
+        r = setup.problem.residual(setup.pmap, x)
         r2 = r * r
         total[j] = r2.sum()
         for d, m in enumerate(masks):
@@ -129,7 +129,7 @@ def run_sweep(
     n_p = setup.n_params
     costs = np.full((n_p, s.size), np.nan)
     dcosts = np.full((len(directions), n_p, s.size), np.nan)
-    r0 = setup.problem.residual(setup.pmap, setup.pmap.p0)  # type: ignore[arg-type]
+    r0 = setup.problem.residual(setup.pmap, setup.pmap.p0)
     r02 = r0 * r0
     nominal = float(r02.sum())
     dnom = np.array([setup.mean_square(r02, m) for m in masks])
