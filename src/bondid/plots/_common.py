@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 from ..atomic import atomic_path
 from ..exceptions import ConfigError
@@ -19,7 +19,12 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 DEFAULT_DPI = 130
 
 
-def new_figure(width_in: float, height_in: float, *, layout: str | None = "constrained") -> Figure:
+def new_figure(
+    width_in: float,
+    height_in: float,
+    *,
+    layout: Literal["constrained", "tight"] | None = "constrained",
+) -> Figure:
     """A new matplotlib ``Figure`` of ``width_in`` × ``height_in`` inches with an Agg canvas."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure

@@ -189,7 +189,9 @@ def build_bode(
 
     nrows, ncols, cells = _grid(outputs, inputs, channels)
     fig = new_figure(max(6.5, 5.3 * ncols), max(4.8, 4.1 * nrows + 0.9))
-    fig.get_layout_engine().set(w_pad=0.06, h_pad=0.08, hspace=0.04, wspace=0.03)
+    engine = fig.get_layout_engine()
+    if engine is not None:
+        engine.set(w_pad=0.06, h_pad=0.08, hspace=0.04, wspace=0.03)  # type: ignore[call-arg]
     outer = fig.add_gridspec(nrows, ncols)
     fmin = min(float(np.nanmin(f)) for f, _ in data)
     fmax = max(float(np.nanmax(f)) for f, _ in data)

@@ -28,7 +28,7 @@ def as_runs(costs: np.ndarray | Sequence[Sequence[float]] | Sequence[float]) -> 
             return [np.asarray(row, dtype=float) for row in costs]
         raise DataError(f"convergence plot: costs has {costs.ndim} dimensions; expected 1 or 2")
     items = list(costs)
-    if items and all(np.ndim(c) == 0 for c in items):
+    if items and all(np.ndim(np.asarray(c)) == 0 for c in items):
         return [np.asarray(items, dtype=float)]
     runs = [np.asarray(c, dtype=float).ravel() for c in items]
     if not runs or any(r.size == 0 for r in runs):
@@ -50,9 +50,7 @@ def build_convergence(
         raise DataError(
             f"convergence plot: {len(labels)} labels for {len(runs)} runs; give one per run"
         )
-    finals = np.array(
-        [r[np.isfinite(r)][-1] if np.any(np.isfinite(r)) else np.inf for r in runs]
-    )
+    finals = np.array([r[np.isfinite(r)][-1] if np.any(np.isfinite(r)) else np.inf for r in runs])
     best = int(np.argmin(finals))
     positive = all(np.all(r[np.isfinite(r)] > 0) for r in runs)
     many = len(runs) > LEGEND_MAX_RUNS
@@ -67,7 +65,9 @@ def build_convergence(
         if many:
             ax.plot(it, r, color="0.6", linewidth=0.9, alpha=0.8, label="_nolegend_")
         else:
-            ax.plot(it, r, color=f"C{k % 10}", linewidth=1.4, label=name, marker="." * (r.size < 40))
+            ax.plot(
+                it, r, color=f"C{k % 10}", linewidth=1.4, label=name, marker="." * (r.size < 40)
+            )
     if len(runs) > 1:
         r = runs[best]
         name = labels[best] if labels is not None else f"run {best + 1}"

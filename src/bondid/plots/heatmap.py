@@ -77,9 +77,7 @@ def build_heatmap(
     longest_col = max((len(s) for s in col_labels), default=1)
     rotate = longest_col > 4 and n_cols > 3
     width = 2.4 + 0.0095 * fs * longest_row + max(3.5, 0.62 * n_cols)
-    height = (
-        1.3 + (0.012 * fs * longest_col if rotate else 0.3) + max(2.5, n_rows * fs * 0.024)
-    )
+    height = 1.3 + (0.012 * fs * longest_col if rotate else 0.3) + max(2.5, n_rows * fs * 0.024)
     fig = new_figure(min(width, 22.0), min(height, 30.0))
     ax = fig.add_subplot()
     im = ax.imshow(
@@ -90,7 +88,7 @@ def build_heatmap(
     if rotate:
         for lab in ax.get_xticklabels():
             lab.set_rotation(40)
-            lab.set_ha("right")
+            lab.set_horizontalalignment("right")
             lab.set_rotation_mode("anchor")
     ax.set_xticks(np.arange(n_cols + 1) - 0.5, minor=True)
     ax.set_yticks(np.arange(n_rows + 1) - 0.5, minor=True)

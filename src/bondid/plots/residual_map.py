@@ -96,7 +96,7 @@ def build_residual_map(
                 ha="center", va="bottom", fontsize=8.5, color="0.2", clip_on=False,
             )  # fmt: skip
         ax.set_xlim(lo_f, hi_f)
-    for k in np.flatnonzero(~np.any(np.isfinite(r), axis=1)):
+    for k in np.flatnonzero(~np.any(np.isfinite(r), axis=1)).tolist():
         ax.text(
             0.5, k + 0.5, "no data", transform=ax.get_yaxis_transform(),
             ha="center", va="center", fontsize=fs, color="0.35", style="italic",
