@@ -99,7 +99,7 @@ def test_bode_missing_channel_and_subset(tmp_path: Path) -> None:
     axes = fig.get_axes()
     assert len(axes) == 4 and [axes[0].get_title(), axes[2].get_title()] == ["y.y", "x.x"]
     assert axes[0].get_lines()[0].get_xdata().size == F[::3].size
-    with pytest.raises(ChannelError, match="z.x"):
+    with pytest.raises(ChannelError, match=r"z\.x"):
         build_bode(F, [other], outputs=OUT, inputs=OUT, channels=["z.x"])
     with pytest.raises(DataError, match="shape"):
         build_bode(F, [Curve("bad", H[:, :, :10])], outputs=OUT, inputs=OUT)

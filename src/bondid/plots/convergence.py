@@ -66,14 +66,19 @@ def build_convergence(
             ax.plot(it, r, color="0.6", linewidth=0.9, alpha=0.8, label="_nolegend_")
         else:
             ax.plot(
-                it, r, color=f"C{k % 10}", linewidth=1.4, label=name, marker="." * (r.size < 40)
+                it,
+                r,
+                color=f"C{k % 10}",
+                linewidth=1.4,
+                label=name,
+                marker="." if r.size < 40 else "",
             )
     if len(runs) > 1:
         r = runs[best]
         name = labels[best] if labels is not None else f"run {best + 1}"
         ax.plot(
             np.arange(r.size), r, color="black" if many else f"C{best % 10}", linewidth=2.4,
-            label=f"{name} (best)", zorder=4, marker="." * (r.size < 40),
+            label=f"{name} (best)", zorder=4, marker="." if r.size < 40 else "",
         )  # fmt: skip
     if many:
         ax.plot([], [], color="0.6", linewidth=0.9, label=f"other {len(runs) - 1} runs")
