@@ -1,0 +1,117 @@
+"""The plugin interface of the candidate effects: :class:`Effect`, :class:`Candidate`.
+
+An *effect* is a kind of physics the nominal model may miss (``joint_compliance``,
+``flexible_base``, ...). For a given model it proposes one :class:`Candidate` per location.
+A candidate says how it augments the model and which new parameters it brings:
+
+* a *structural* candidate edits a copy of the URDF (:meth:`Effect.augment`): new joints,
+  links, springs, dampers. Each new parameter then sets one or several named URDF parameters
+  linearly (``members``: ``URDF value = factor · parameter``), so tied parameters (one shear
+  stiffness for every segment of a lumped chain, one vertical stiffness per foot) stay one
+  number and the augmented model stays an ordinary URDF that can be written and inspected;
+* a *modifier* candidate leaves the URDF alone and multiplies the model FRF by a factor
+  ``G(ω; θ)`` per channel (``sensor_delay``, ``actuator_lag``): :meth:`Effect.modifier`
+  returns ``G`` ``(n_out, n_in, n_f)`` and its exact derivatives ``(n_out, n_in, n_f, n_θ)``.
+
+Every new parameter is positive and refitted on a log scale within its bounds. ``scan`` is the
+exponent with which it follows a common scale factor in the coarse 1-D scan that picks the
+refit's starting point (0 = not scanned; 1 = proportional; 0.5 = with the square root, e.g. a
+damping that keeps the damping ratio while a stiffness is scanned).
+
+Adding an effect is one file: subclass :class:`Effect`, set ``name`` and ``description``,
+implement :meth:`~Effect.candidates` (and :meth:`~Effect.augment` or :meth:`~Effect.modifier`),
+and decorate the class with :func:`bondid.diagnose.effects.register`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ...model.document import UrdfDocument
+
+
+@dataclass(frozen=True)
+class NewParameter:
+    """One parameter a candidate adds.
+
+    Attributes:
+        name: readable name, e.g. ``stiffness`` or ``tau_s`` (unique in the candidate).
+        initial: starting value (SI), > 0.
+        lower, upper: bounds (SI), ``0 < lower ≤ initial ≤ upper``.
+        unit: SI unit text.
+        members: ``((URDF parameter name, factor), ...)``: the URDF values it sets
+            (structural candidates); empty for modifier parameters.
+        scan: exponent in the starting-point scan (see the module docstring).
+    """
+
+    name: str
+    initial: float
+    lower: float
+    upper: float
+    unit: str
+    members: tuple[tuple[str, float], ...] = ()
+    scan: float = 0.0
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One effect at one location.
+
+    Attributes:
+        effect: the effect's name (spec table: ``joint_compliance`` ...).
+        location: where (``"x_stage->y_stage:tz"``, ``"base"``, ``"x"``, ``"all"``) or None.
+        parameters: the new parameters (see :class:`NewParameter`).
+        spec: effect-specific data needed by :meth:`Effect.augment` / :meth:`Effect.modifier`
+            (plain values only, so a candidate pickles to a worker process).
+        scan_grid: factors of the starting-point scan (empty = no scan).
+        description: one line for humans.
+    """
+
+    effect: str
+    location: str | None
+    parameters: tuple[NewParameter, ...]
+    spec: dict[str, Any] = field(default_factory=dict)
+    scan_grid: tuple[float, ...] = ()
+    description: str = ""
+
+    @property
+    def label(self) -> str:
+        return f"{self.effect}@{self.location}" if self.location else self.effect
+
+
+class Effect:
+    """Base class of an effect plugin (see the module docstring)."""
+
+    #: spec name of the effect
+    name: str = ""
+    #: one line for ``--help``
+    description: str = ""
+    #: True when the effect multiplies the FRF instead of editing the URDF
+    is_modifier: bool = False
+
+    def candidates(self, doc: UrdfDocument) -> list[Candidate]:
+        """One candidate per location where this effect could act on ``doc``."""
+        raise NotImplementedError
+
+    def augment(self, doc: UrdfDocument, candidate: Candidate) -> UrdfDocument:
+        """A copy of ``doc`` with the effect built in at the candidate's initial values."""
+        return doc.copy()
+
+    def modifier(
+        self,
+        candidate: Candidate,
+        values: np.ndarray,
+        freq_hz: np.ndarray,
+        outputs: tuple[str, ...],
+        inputs: tuple[str, ...],
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """FRF factor ``G`` ``(n_out, n_in, n_f)`` and ``dG/dθ`` ``(n_out, n_in, n_f, n_θ)``.
+
+        ``values`` ``(n_θ,)`` are the candidate's parameters in order, SI units.
+        """
+        n = len(candidate.parameters)
+        shape = (len(outputs), len(inputs), np.size(freq_hz))
+        return np.ones(shape, complex), np.zeros((*shape, n), complex)

@@ -1,0 +1,98 @@
+"""``joint_compliance``: a compliant DOF (spring + damper) at an interface and axis that has none.
+
+Every interface between two bodies (:func:`~.topology.interfaces`) × every axis ``tx ty tz rx
+ry rz`` (child-body frame) along which its chain does not move yet is one candidate, located
+``"PARENT->CHILD:AXIS"``. The DOF is inserted with
+:func:`bondid.model.insert_parasitic_joint` after the interface's last joint, so the child
+body keeps its placement and its parameters; a rotational DOF pivots about the interface's
+bearing centre (the mean of its existing parasitic pivots; the child's CoM when it has none).
+New parameters: the joint's stiffness and damping. The start puts its mode at 300 Hz with 3 %
+damping (from the DOF's effective inertia); the starting-point scan moves it from 15 Hz to
+12 kHz keeping the damping ratio.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...model.authoring import insert_parasitic_joint
+from ...model.document import UrdfDocument
+from . import register
+from .base import Candidate, Effect, NewParameter
+from .topology import axis_vector, effective_inertia, interfaces
+
+F_REF_HZ = 300.0
+ZETA = 0.03
+SCAN_HZ = tuple(float(f) for f in np.geomspace(15.0, 12000.0, 70))
+
+
+def joint_name(parent: str, child: str, axis: str) -> str:
+    return f"{child}_compliance_{axis}"
+
+
+@register
+class JointCompliance(Effect):
+    name = "joint_compliance"
+    description = "a compliant DOF at an interface x axis that has none (every one tried)"
+
+    def candidates(self, doc: UrdfDocument) -> list[Candidate]:
+        out = []
+        for itf in interfaces(doc):
+            for axis in itf.missing:
+                kind, vec = axis_vector(axis)
+                pivot = itf.pivot(doc) if kind == "revolute" else np.zeros(3)
+                jname = joint_name(itf.parent, itf.child, axis)
+                spec = {
+                    "after": itf.last_joint,
+                    "joint": jname,
+                    "kind": kind,
+                    "axis": [float(x) for x in vec],
+                    "pivot": [float(x) for x in pivot],
+                }
+                probe = self._insert(doc, spec, 1.0, 0.0)
+                m = effective_inertia(probe, jname)
+                w = 2 * np.pi * F_REF_HZ
+                k0 = m * w**2
+                d0 = 2 * ZETA * np.sqrt(k0 * m)
+                unit_k = "N/m" if kind == "prismatic" else "N*m/rad"
+                unit_d = "N*s/m" if kind == "prismatic" else "N*m*s/rad"
+                params = (
+                    NewParameter(
+                        "stiffness", k0, k0 * (3.0 / F_REF_HZ) ** 2, k0 * (40000 / F_REF_HZ) ** 2,
+                        unit_k, ((f"{jname}.stiffness", 1.0),), scan=1.0,
+                    ),
+                    NewParameter(
+                        "damping", d0, d0 * 1e-3, d0 * 1e3, unit_d,
+                        ((f"{jname}.damping", 1.0),), scan=0.5,
+                    ),
+                )  # fmt: skip
+                out.append(
+                    Candidate(
+                        self.name,
+                        f"{itf.parent}->{itf.child}:{axis}",
+                        params,
+                        spec,
+                        tuple((f / F_REF_HZ) ** 2 for f in SCAN_HZ),
+                        f"{kind} DOF along {axis} between {itf.parent} and {itf.child}",
+                    )
+                )
+        return out
+
+    @staticmethod
+    def _insert(doc: UrdfDocument, spec: dict, k: float, d: float) -> UrdfDocument:
+        new = doc.copy()
+        insert_parasitic_joint(
+            new,
+            spec["joint"],
+            after=spec["after"],
+            kind=spec["kind"],
+            axis=spec["axis"],
+            pivot=spec["pivot"],
+            stiffness=k,
+            damping=d,
+        )
+        return new
+
+    def augment(self, doc: UrdfDocument, candidate: Candidate) -> UrdfDocument:
+        k, d = (p.initial for p in candidate.parameters)
+        return self._insert(doc, candidate.spec, k, d)

@@ -1,0 +1,431 @@
+"""The diagnosis refit engine: bounded least squares over log-scaled, possibly tied parameters.
+
+A refit *variable* ``v > 0`` is refitted as ``u = ln v`` within its bounds. It either sets
+named URDF parameters linearly (``URDF value = factor · v`` for each of its ``members``; one
+variable may set several, e.g. one shear stiffness for every segment of a lumped chain, or one
+scale for a link's whole inertia tensor) or it is a parameter of an FRF *modifier* (a delay or
+a lag, see :class:`bondid.diagnose.effects.base.Effect`). The model FRF of data set ``b`` is
+
+    H_b(ω; v) = G(ω; θ) ⊙ C Z(ω; v)⁻¹ B,      Z = K − ω²M + jωD,
+
+and the residual is the spec's complex-log error in dB (``cost = ‖r‖²`` = the weighted mean
+square, weights = coherence when present). Its Jacobian is exact: for a variable acting on
+joint springs/dampers only, ``∂H/∂v = −Y diag(∂k + jω∂d) X`` (``X = Z⁻¹B``, ``Y = CZ⁻¹``),
+for one acting on link inertials ``−Y (∂K_g − ω²∂M) X`` with the affine bases of
+:class:`bondid.linear.affine.AffineModel`, and ``H ∂G/∂θ`` for modifier parameters.
+The optimiser is SciPy's trust-region reflective least squares with that Jacobian.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..cost.problem import CostOptions, FrfProblem
+from ..cost.residuals import residual, residual_jacobian
+from ..data.measurement import FrfData
+from ..exceptions import ComputationError, ConfigError
+from ..frf.engine import dynamic_stiffness, omega
+from ..linear.parameter_map import ParameterMap
+from ..model.document import UrdfDocument
+from ..model.parameters import get_parameter, parameter_infos
+
+#: The modifier callback: (values (n_θ,), freq_hz, outputs, inputs) -> (G, dG).
+ModifierFn = Callable[
+    [np.ndarray, np.ndarray, tuple[str, ...], tuple[str, ...]], tuple[np.ndarray, np.ndarray]
+]
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One refit variable (see the module docstring).
+
+    Attributes:
+        name: readable name.
+        initial, lower, upper: start and bounds (SI), ``0 < lower ≤ upper``.
+        members: ``((URDF parameter name, factor), ...)``; empty for a modifier parameter.
+        modifier: index into the modifier's parameter vector, or None.
+        unit: SI unit text.
+        log: refit on a log scale (default); False = linear (CoM, products of inertia), where
+            ``lower`` may be ≤ 0.
+    """
+
+    name: str
+    initial: float
+    lower: float
+    upper: float
+    members: tuple[tuple[str, float], ...] = ()
+    modifier: int | None = None
+    unit: str = ""
+    log: bool = True
+
+
+def nominal_variables(
+    doc: UrdfDocument, names: Sequence[str], reference: UrdfDocument | None = None
+) -> list[Variable]:
+    """Refit variables for named nominal parameters, starting at ``doc``'s values.
+
+    Masses, joint stiffnesses and dampers with a positive value become one log-scaled variable
+    each (bounds: mass ×/÷ 2, stiffness ×/÷ 3, damping ×/÷ 5); any inertia component of a link
+    makes one variable scaling its principal moments (ixx, iyy, izz) together (×/÷ 2); CoM
+    coordinates (± max(50 %, 1 cm)) and products of inertia (± max(50 %, 5 % of the mean
+    moment)) named in ``names`` are linear variables. Zero-valued springs are left out.
+    Bounds are taken around the values of ``reference`` (default ``doc``), so refits started
+    from different points share one box.
+    """
+    ref = doc if reference is None else reference
+    infos = {p.name: p for p in parameter_infos(doc)}
+    out: list[Variable] = []
+    scaled: list[str] = []
+    for n in names:
+        info = infos.get(n)
+        if info is None:
+            raise ConfigError(f"{doc.source or '<URDF>'}: unknown parameter {n!r}")
+        if info.kind == "inertia":
+            if info.owner not in scaled:
+                scaled.append(info.owner)
+            continue
+        if info.kind == "com":
+            v, c = get_parameter(doc, n), get_parameter(ref, n)
+            half = max(0.5 * abs(c), COM_HALF_WIDTH)
+            lo, hi = min(c - half, v), max(c + half, v)
+            out.append(Variable(n, v, lo, hi, ((n, 1.0),), unit=info.unit, log=False))
+            continue
+        v, c = get_parameter(doc, n), get_parameter(ref, n)
+        if v <= 0 or c <= 0 or not np.isfinite(v):
+            continue
+        f = {"mass": 2.0, "stiffness": 3.0, "damping": 5.0}[info.kind]
+        lo, hi = min(c / f, v), max(c * f, v)
+        out.append(Variable(n, v, lo, hi, ((n, 1.0),), unit=info.unit))
+    for link in scaled:
+        members = tuple(
+            (f"{link}.inertia.{comp}", get_parameter(doc, f"{link}.inertia.{comp}"))
+            for comp in ("ixx", "iyy", "izz")
+        )
+        out.append(Variable(f"{link}.inertia_scale", 1.0, 0.5, 2.0, members, unit="1"))
+        mean = float(np.mean([abs(f) for _, f in members]))
+        for comp in ("ixy", "ixz", "iyz"):
+            n = f"{link}.inertia.{comp}"
+            if n not in names:
+                continue
+            v, r = get_parameter(doc, n), get_parameter(ref, n)
+            half = max(0.5 * abs(r), 0.05 * mean)
+            lo, hi = min(r - half, v), max(r + half, v)
+            out.append(Variable(n, v, lo, hi, ((n, 1.0),), unit="kg*m^2", log=False))
+    return out
+
+
+#: smallest half-width of the CoM bounds in the refit [m]
+COM_HALF_WIDTH = 0.01
+
+
+@dataclass
+class RefitOutcome:
+    """Result of :meth:`Refit.solve`: values ``(n,)``, cost, std ``(n,)``, status text."""
+
+    values: np.ndarray
+    cost: float
+    std: np.ndarray
+    nfev: int
+    status: str
+
+
+class Refit:
+    """Residuals and exact Jacobian of a model with refit variables on data sets.
+
+    Args:
+        doc: the (augmented) model; variables' members must be its parameters.
+        datasets: measured FRFs in receptance.
+        variables: the refit variables (nominal and new).
+        modifier: optional FRF modifier callback (values of the modifier variables in the
+            order of their ``modifier`` index).
+        options: cost options (complex-log, coherence weights by default).
+    """
+
+    def __init__(
+        self,
+        doc: UrdfDocument,
+        datasets: Sequence[FrfData],
+        variables: Sequence[Variable],
+        *,
+        modifier: ModifierFn | None = None,
+        options: CostOptions | None = None,
+    ):
+        self.doc = doc
+        self.variables = list(variables)
+        self.problem = FrfProblem(doc, datasets, options or CostOptions())
+        if self.problem.options.kind != "complex_log":
+            raise ConfigError("the diagnosis refit uses the complex_log residual")
+        order = [p.name for p in parameter_infos(doc)]
+        named = sorted({m for v in self.variables for m, _ in v.members}, key=order.index)
+        self.pmap = ParameterMap(doc, self.problem.affines[0], named)
+        n_var = len(self.variables)
+        self.T = np.zeros((len(named), n_var))
+        for k, var in enumerate(self.variables):
+            for m, fac in var.members:
+                self.T[named.index(m), k] += fac
+        self.mod_idx = [k for k, v in enumerate(self.variables) if v.modifier is not None]
+        self.modifier = modifier
+        if self.mod_idx and modifier is None:
+            raise ConfigError("modifier variables given without a modifier")
+        self.is_log = np.array([v.log for v in self.variables], bool)
+        self.lower = self._to_u(np.array([v.lower for v in self.variables]))
+        self.upper = self._to_u(np.array([v.upper for v in self.variables]))
+        self.u0 = np.clip(
+            self._to_u(np.array([v.initial for v in self.variables])), self.lower, self.upper
+        )
+        total = sum(float(b.weight.sum()) for b in self.problem.blocks)
+        self._norm = 1.0 / np.sqrt(total)
+        self._cache: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+
+    # -- model ------------------------------------------------------------------------------
+    def _to_u(self, v: np.ndarray) -> np.ndarray:
+        v = np.asarray(v, float)
+        return np.where(self.is_log, np.log(np.where(self.is_log, v, 1.0)), v)
+
+    def values(self, u: np.ndarray) -> np.ndarray:
+        """Variable values (SI) at ``u``."""
+        u = np.asarray(u, float)
+        return np.where(self.is_log, np.exp(np.where(self.is_log, u, 0.0)), u)
+
+    def _mod_values(self, v: np.ndarray) -> np.ndarray:
+        out = np.zeros(len(self.mod_idx))
+        for k in self.mod_idx:
+            out[int(self.variables[k].modifier)] = v[k]  # type: ignore[arg-type]
+        return out
+
+    def _matrices(self, block, values):  # type: ignore[no-untyped-def]
+        aff = block.affine.with_values(*values)
+        return aff, aff.mass_matrix(), aff.stiffness_matrix(), aff.damping_matrix()
+
+    def frf(self, u: np.ndarray, freq_hz: np.ndarray | None = None) -> list[np.ndarray]:
+        """Model FRF per data set ``(n_out, n_in_model, n_f)`` on ``freq_hz`` (default: the
+        frequencies each data set uses)."""
+        v = self.values(u)
+        values = self.pmap.values(self.T @ v)
+        mv = self._mod_values(v)
+        out = []
+        for b in self.problem.blocks:
+            f = b.freq_hz if freq_hz is None else np.asarray(freq_hz, float)
+            aff, M, K, D = self._matrices(b, values)
+            Z = dynamic_stiffness(M, K, D, omega(f))
+            X = _solve(Z, aff.B)
+            H = np.einsum("on,fni->oif", aff.C, X)
+            if self.modifier is not None:
+                G, _ = self.modifier(mv, f, aff.outputs, aff.inputs)
+                H = H * G
+            out.append(H)
+        return out
+
+    def residual(self, u: np.ndarray) -> np.ndarray:
+        """Scaled residuals ``(n_r,)``; ``‖r‖²`` = weighted mean square complex-log error."""
+        rs = []
+        for b, H in zip(self.problem.blocks, self.frf(u), strict=True):
+            Hs = H[b.rows, b.cols, b.fidx]
+            r = residual("complex_log", Hs, b.Hm)
+            rs.append((r * (np.sqrt(b.weight) * self._norm)).reshape(-1))
+        out = np.concatenate(rs)
+        if not np.all(np.isfinite(out)):
+            raise ComputationError("the refit model gives non-finite FRF values")
+        return out
+
+    def cost(self, u: np.ndarray) -> float:
+        r = self.residual(u)
+        return float(r @ r)
+
+    def residual_and_jacobian(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Residuals ``(n_r,)`` and the exact Jacobian ``(n_r, n_var)`` w.r.t. ``u = ln v``."""
+        u = np.asarray(u, float)
+        if self._cache is not None and np.array_equal(self._cache[0], u):
+            return self._cache[1], self._cache[2]
+        v = self.values(u)
+        named = self.T @ v
+        values = self.pmap.values(named)
+        dpi, dk, dd = self.pmap.jacobian(named)
+        dv = np.where(self.is_log, v, 1.0)
+        Tv = self.T * dv[None, :]
+        dpi_v = dpi @ Tv if dpi.size else np.zeros((dpi.shape[0], 10, len(v)))
+        dk_v, dd_v = dk @ Tv, dd @ Tv
+        dense = [k for k in range(len(v)) if np.any(dpi_v[:, :, k] != 0)]
+        mv = self._mod_values(v)
+        rs, Js = [], []
+        for b in self.problem.blocks:
+            aff, M, K, D = self._matrices(b, values)
+            w = omega(b.freq_hz)
+            Z = dynamic_stiffness(M, K, D, w)
+            X = _solve(Z, aff.B)  # (f, n, n_in)
+            Yt = _solve(np.swapaxes(Z, 1, 2), aff.C.T)  # (f, n, n_out)
+            Xs = X[b.fidx, :, b.cols]  # (s, n)
+            Ys = Yt[b.fidx, :, b.rows]  # (s, n)
+            ws = w[b.fidx]
+            Hs = np.einsum("sn,sn->s", aff.C[b.rows], Xs)
+            YX = Ys * Xs
+            dH = -(YX @ dk_v + 1j * ws[:, None] * (YX @ dd_v))  # (s, n_var)
+            for k in dense:
+                Mp = np.einsum("bc,bcij->ij", dpi_v[:, :, k], aff.M_basis)
+                Kp = np.einsum("bc,bcij->ij", dpi_v[:, :, k], aff.G_basis)
+                dH[:, k] -= np.sum((Ys @ Kp) * Xs, axis=1) - ws**2 * np.sum((Ys @ Mp) * Xs, axis=1)
+            if self.modifier is not None:
+                G, dG = self.modifier(mv, b.freq_hz, aff.outputs, aff.inputs)
+                Gs = G[b.rows, b.cols, b.fidx]
+                dGs = dG[b.rows, b.cols, b.fidx]  # (s, n_mod)
+                dH = dH * Gs[:, None]
+                for k in self.mod_idx:
+                    dH[:, k] = Hs * dGs[:, int(self.variables[k].modifier)] * dv[k]  # type: ignore[arg-type]
+                Hs = Hs * Gs
+            sw = np.sqrt(b.weight) * self._norm
+            r = residual("complex_log", Hs, b.Hm) * sw
+            J = residual_jacobian("complex_log", Hs, b.Hm, dH) * sw[None, :, None]
+            rs.append(r.reshape(-1))
+            Js.append(J.reshape(-1, len(v)))
+        r_all, J_all = np.concatenate(rs), np.concatenate(Js)
+        if not (np.all(np.isfinite(r_all)) and np.all(np.isfinite(J_all))):
+            raise ComputationError("the refit model gives non-finite FRF values or derivatives")
+        self._cache = (u.copy(), r_all, J_all)
+        return r_all, J_all
+
+    # -- solving ------------------------------------------------------------------------------
+    def solve(
+        self,
+        u0: np.ndarray | None = None,
+        *,
+        free: Sequence[int] | None = None,
+        max_nfev: int = 40,
+    ) -> tuple[np.ndarray, RefitOutcome]:
+        """Bounded least squares from ``u0`` (default: the initial values).
+
+        Args:
+            u0: start ``(n_var,)`` in log units.
+            free: indices of the variables to move (default all); the others stay at ``u0``.
+            max_nfev: SciPy's function-evaluation limit.
+
+        Returns:
+            ``(u, outcome)``: the solution in log units and its :class:`RefitOutcome`.
+        """
+        from scipy.optimize import least_squares
+
+        u_start = np.clip(self.u0 if u0 is None else np.asarray(u0, float), self.lower, self.upper)
+        idx = np.arange(len(self.variables)) if free is None else np.asarray(list(free), int)
+        if idx.size == 0:
+            r = self.residual(u_start)
+            return u_start, RefitOutcome(
+                self.values(u_start), float(r @ r), np.full(0, np.nan), 1, ""
+            )
+
+        def full(z: np.ndarray) -> np.ndarray:
+            u = u_start.copy()
+            u[idx] = z
+            return u
+
+        lo, hi = self.lower[idx], self.upper[idx]
+        z0 = np.clip(u_start[idx], lo + 1e-12, hi - 1e-12) if np.all(hi > lo) else u_start[idx]
+        res = least_squares(
+            lambda z: self.residual_and_jacobian(full(z))[0],
+            z0,
+            jac=lambda z: self.residual_and_jacobian(full(z))[1][:, idx],
+            bounds=(lo, hi),
+            method="trf",
+            x_scale=1.0,
+            ftol=1e-7,
+            xtol=1e-7,
+            gtol=1e-8,
+            max_nfev=max_nfev,
+        )
+        u = full(res.x)
+        r, J = self.residual_and_jacobian(u)
+        return u, RefitOutcome(
+            self.values(u), float(r @ r), self.std(r, J, u), int(res.nfev), str(res.message)
+        )
+
+    def std(self, r: np.ndarray, J: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Standard deviation of each variable ``(n_var,)`` [SI] from the Jacobian at ``u``:
+        ``cov(u) = ‖r‖²/(N − p)·(JᵀJ)⁺``; ``std(v) = v·std(u)`` for log variables."""
+        n, p = J.shape
+        if n <= p:
+            return np.full(p, np.nan)
+        JtJ = J.T @ J
+        scale = np.sqrt(np.maximum(np.diag(JtJ), 1e-300))
+        cov = np.linalg.pinv(JtJ / np.outer(scale, scale), rcond=1e-12) / np.outer(scale, scale)
+        var_u = np.diag(cov) * float(r @ r) / (n - p)
+        v = self.values(u)
+        return np.where(self.is_log, v, 1.0) * np.sqrt(np.maximum(var_u, 0.0))
+
+    def scan(self, u0: np.ndarray, exponents: np.ndarray, grid: Sequence[float]) -> np.ndarray:
+        """Start point from a 1-D scan: ``u = u0 + exponents·ln s`` for ``s`` in ``grid``
+        (clipped to the bounds); returns the best ``u`` (``u0`` included)."""
+        best_u, best_c = np.asarray(u0, float), self._safe_cost(u0)
+        for s in grid:
+            u = np.clip(u0 + np.asarray(exponents) * np.log(s), self.lower, self.upper)
+            c = self._safe_cost(u)
+            if c < best_c:
+                best_u, best_c = u, c
+        return best_u
+
+    def scan_starts(
+        self,
+        u0: np.ndarray,
+        exponents: np.ndarray,
+        grid: Sequence[float],
+        n_starts: int = 3,
+        min_ratio: float = 1.5,
+    ) -> list[np.ndarray]:
+        """Up to ``n_starts`` start points: the lowest local minima of the scan profile
+        ``cost(u0 + exponents·ln s)`` over ``grid`` (increasing), at least ``min_ratio``
+        apart in ``s``, best first."""
+        g = np.asarray(grid, float)
+        us = [np.clip(u0 + np.asarray(exponents) * np.log(s), self.lower, self.upper) for s in g]
+        c = np.array([self._safe_cost(u) for u in us])
+        left = np.r_[np.inf, c[:-1]]
+        right = np.r_[c[1:], np.inf]
+        minima = [int(i) for i in np.flatnonzero((c <= left) & (c <= right) & np.isfinite(c))]
+        minima.sort(key=lambda i: c[i])
+        chosen: list[int] = []
+        for i in minima:
+            if all(abs(np.log(g[i] / g[j])) >= np.log(min_ratio) for j in chosen):
+                chosen.append(i)
+            if len(chosen) == n_starts:
+                break
+        return [us[i] for i in chosen] or [np.asarray(u0, float)]
+
+    def _safe_cost(self, u: np.ndarray) -> float:
+        try:
+            return self.cost(u)
+        except ComputationError:
+            return float("inf")
+
+    # -- named results ----------------------------------------------------------------------
+    def frf_for_data(self, u: np.ndarray) -> list[np.ndarray]:
+        """Model FRF per data set on its whole frequency grid, columns in the data's input
+        order: ``(n_out, n_in_data, n_freq)`` each (what :func:`gap_report` takes)."""
+        out = []
+        for b in self.problem.blocks:
+            ds = b.data
+            H = self.frf_at(u, b, ds.freq_hz)
+            cols = [b.affine.inputs.index(i) for i in ds.inputs]
+            out.append(H[:, cols, :])
+        return out
+
+    def frf_at(self, u: np.ndarray, block, freq_hz: np.ndarray) -> np.ndarray:  # type: ignore[no-untyped-def]
+        """Model FRF ``(n_out, n_in_model, n_f)`` of one data set's block at ``freq_hz``."""
+        v = self.values(u)
+        aff, M, K, D = self._matrices(block, self.pmap.values(self.T @ v))
+        f = np.asarray(freq_hz, float)
+        X = _solve(dynamic_stiffness(M, K, D, omega(f)), aff.B)
+        H = np.einsum("on,fni->oif", aff.C, X)
+        if self.modifier is not None:
+            H = H * self.modifier(self._mod_values(v), f, aff.outputs, aff.inputs)[0]
+        return H
+
+    def named_values(self, u: np.ndarray) -> dict[str, float]:
+        """URDF parameter values set by the structural variables at ``u``."""
+        vals = self.T @ self.values(u)
+        return dict(zip(self.pmap.names, (float(x) for x in vals), strict=True))
+
+
+def _solve(Z: np.ndarray, B: np.ndarray) -> np.ndarray:
+    try:
+        return np.linalg.solve(Z, np.broadcast_to(B.astype(complex), (Z.shape[0], *B.shape)))
+    except np.linalg.LinAlgError as exc:
+        raise ComputationError("the dynamic stiffness is singular at some frequency") from exc

@@ -1,0 +1,291 @@
+"""Where the sim-to-real gap lies: the spec's ``db_rms`` in total, per channel and per band.
+
+The gap figure (spec §4) is the root-mean-square over all used channels and frequencies of
+
+    (20 / ln 10) · |ln(H_meas / H_model)|        (complex logarithm, phase wrapped to (−π, π])
+
+pooled over every data set given. It is computed with :func:`bondid.cost.residuals.residual`
+(kind ``complex_log``), the same residual the fit minimises. A point counts when both the
+measured and the model value are finite and non-zero. By default every point weighs the same;
+``weighting="coherence"`` weighs each squared point error by the measured coherence (off by
+default, so that the figure is the spec's plain RMS).
+
+The residual map (:attr:`GapReport.residual_db`) is the signed magnitude error
+``20·log10|H_model| − 20·log10|H_meas|`` in dB: positive where the model is above the data.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..cost.residuals import DB, residual
+from ..data.measurement import FrfData
+from ..exceptions import DataError
+
+WEIGHTINGS: tuple[str, ...] = ("none", "coherence")
+
+
+def automatic_bands(
+    freq_hz: np.ndarray,
+    resonances_hz: Sequence[float],
+    antiresonances_hz: Sequence[float],
+    *,
+    width: float = 0.15,
+    min_points: int = 3,
+) -> list[tuple[float, float]]:
+    """Frequency bands around each resonance and anti-resonance, and the regions in between.
+
+    Each feature at ``f`` gets the band ``[f·(1 − width), f·(1 + width)]`` (clipped to the
+    data range); overlapping bands are merged; the gaps between them become bands of their
+    own. A band holding fewer than ``min_points`` frequencies of ``freq_hz`` is merged into
+    its lower neighbour (the first one into its upper neighbour), so every band can be scored.
+
+    Args:
+        freq_hz: measured frequencies ``(n_freq,)`` [Hz], increasing.
+        resonances_hz: resonance frequencies [Hz] (those outside the data range are ignored).
+        antiresonances_hz: anti-resonance frequencies [Hz].
+        width: half-width of a feature band, relative to its frequency (0 < width < 1).
+        min_points: fewest frequencies a band may hold.
+
+    Returns:
+        ``[(f_lo, f_hi), ...]`` in Hz, contiguous (each ``f_hi`` is the next ``f_lo``), from
+        ``freq_hz[0]`` to ``freq_hz[-1]``.
+
+    Raises:
+        DataError: empty or non-increasing ``freq_hz``, or ``width`` outside (0, 1).
+    """
+    f = np.asarray(freq_hz, dtype=float)
+    if f.ndim != 1 or f.size == 0 or np.any(np.diff(f) <= 0):
+        raise DataError("automatic_bands: freq_hz must be 1-D, non-empty and increasing (Hz)")
+    if not 0.0 < width < 1.0:
+        raise DataError(f"automatic_bands: width {width!r} must be in (0, 1)")
+    lo, hi = float(f[0]), float(f[-1])
+    if f.size == 1:
+        return [(lo, hi)]
+    feats = sorted(
+        float(x) for x in [*resonances_hz, *antiresonances_hz] if np.isfinite(x) and x > 0
+    )
+    merged: list[list[float]] = []
+    for x in feats:
+        a, b = max(x * (1.0 - width), lo), min(x * (1.0 + width), hi)
+        if a >= b:
+            continue
+        if merged and a <= merged[-1][1]:
+            merged[-1][1] = max(merged[-1][1], b)
+        else:
+            merged.append([a, b])
+    edges = [lo]
+    for a, b in merged:
+        edges.extend([a, b])
+    edges.append(hi)
+    edges = sorted(set(edges))  # drops zero-width pieces at the range ends
+    bands = [[edges[k], edges[k + 1]] for k in range(len(edges) - 1)]
+
+    def count(band: list[float], last: bool) -> int:
+        right = f <= band[1] if last else f < band[1]
+        return int(np.count_nonzero((f >= band[0]) & right))
+
+    k = 0
+    while len(bands) > 1 and k < len(bands):
+        if count(bands[k], k == len(bands) - 1) >= min_points:
+            k += 1
+            continue
+        if k == 0:
+            bands[1][0] = bands[0][0]
+            del bands[0]
+        else:
+            bands[k - 1][1] = bands[k][1]
+            del bands[k]
+            k -= 1
+    return [(float(a), float(b)) for a, b in bands]
+
+
+def band_mask(freq_hz: np.ndarray, band: tuple[float, float], last: bool) -> np.ndarray:
+    """Boolean ``(n_freq,)``: ``f_lo ≤ f < f_hi`` (``≤ f_hi`` for the last band)."""
+    f = np.asarray(freq_hz, dtype=float)
+    return (f >= band[0]) & ((f <= band[1]) if last else (f < band[1]))
+
+
+@dataclass
+class GapReport:
+    """The gap between measured and model FRFs.
+
+    Attributes:
+        db_rms: the spec's figure over all used channels, frequencies and data sets [dB].
+        by_channel: ``OUT.IN`` → db_rms of that channel (pooled over data sets) [dB].
+        by_band: ``[{"f_lo_hz", "f_hi_hz", "db_rms", "n_points"}, ...]`` in band order
+            (``db_rms`` is NaN for a band with no used point).
+        residual_db: ``(n_rows, n_freq)`` signed magnitude error
+            ``20 log10|H_model| − 20 log10|H_meas|`` [dB], NaN where unused.
+        channels: row labels of ``residual_db`` (``OUT.IN``; with several data sets
+            ``OUT.IN #k``, k = 1-based data-set index).
+        freq_hz: ``(n_freq,)`` the map's frequencies [Hz] (the first data set's; other data
+            sets' rows are interpolated onto them in log-frequency when their grids differ).
+        mag_db_rms: RMS of the magnitude-only error [dB] over the same points.
+        n_points: number of (channel, frequency) points used.
+        weighting: ``"none"`` or ``"coherence"``.
+    """
+
+    db_rms: float
+    by_channel: dict[str, float]
+    by_band: list[dict[str, float]]
+    residual_db: np.ndarray
+    channels: list[str]
+    freq_hz: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    mag_db_rms: float = float("nan")
+    n_points: int = 0
+    weighting: str = "none"
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict with the spec's keys ``db_rms``, ``by_channel``, ``by_band``
+        (the map itself is left out: it is drawn as a PNG)."""
+
+        def num(v: float) -> float | None:
+            return None if not np.isfinite(v) else float(v)
+
+        return {
+            "db_rms": num(self.db_rms),
+            "mag_db_rms": num(self.mag_db_rms),
+            "by_channel": {k: num(v) for k, v in self.by_channel.items()},
+            "by_band": [
+                {k: (num(v) if k != "n_points" else int(v)) for k, v in b.items()}
+                for b in self.by_band
+            ],
+            "n_points": int(self.n_points),
+            "weighting": self.weighting,
+        }
+
+    def to_json(self) -> str:
+        """:meth:`to_dict` as indented JSON text."""
+        return json.dumps(self.to_dict(), indent=2) + "\n"
+
+
+def _rms(sq: np.ndarray, w: np.ndarray) -> float:
+    total = float(np.sum(w))
+    return float(np.sqrt(np.sum(sq * w) / total)) if total > 0 else float("nan")
+
+
+def gap_report(
+    data: FrfData | Sequence[FrfData],
+    model_H: np.ndarray | Sequence[np.ndarray],
+    bands: Sequence[tuple[float, float]] | None = None,
+    *,
+    channels: Sequence[str] | None = None,
+    weighting: str = "none",
+) -> GapReport:
+    """The gap (spec ``db_rms``) in total, per channel and per band.
+
+    Args:
+        data: one measured data set or several (e.g. several operating points).
+        model_H: the model FRF of each data set, ``(n_out, n_in, n_freq)`` complex, aligned
+            with that data set's ``outputs``, ``inputs`` and ``freq_hz`` and in its quantity.
+        bands: ``[(f_lo, f_hi), ...]`` [Hz] for ``by_band`` (e.g. :func:`automatic_bands`);
+            default one band over the whole range.
+        channels: ``OUT.IN`` names to use (default every channel present in the data).
+        weighting: ``"none"`` (the spec's figure) or ``"coherence"``.
+
+    Returns:
+        :class:`GapReport`.
+
+    Raises:
+        DataError: model and data shapes differ, unknown weighting, or no usable point.
+    """
+    sets = [data] if isinstance(data, FrfData) else list(data)
+    models = [model_H] if isinstance(model_H, np.ndarray) and model_H.ndim == 3 else model_H
+    models = [np.asarray(m, dtype=complex) for m in models]
+    if not sets or len(models) != len(sets):
+        raise DataError(f"gap_report: {len(sets)} data set(s) but {len(models)} model FRF array(s)")
+    if weighting not in WEIGHTINGS:
+        raise DataError(f"gap_report: unknown weighting {weighting!r}; valid: none, coherence")
+    f_map = sets[0].freq_hz
+    if bands is None:
+        lo = min(float(d.freq_hz[0]) for d in sets)
+        hi = max(float(d.freq_hz[-1]) for d in sets)
+        bands = [(lo, hi)]
+    bands = [(float(a), float(b)) for a, b in bands]
+    names_all: list[str] = []
+    for d in sets:
+        names_all += [c for c in d.channels if c not in names_all]
+    use = list(channels) if channels is not None else names_all
+
+    sq_all, w_all, mag_all = [], [], []
+    per_channel: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {c: [] for c in use}
+    per_band: list[list[tuple[np.ndarray, np.ndarray]]] = [[] for _ in bands]
+    rows, labels = [], []
+    for k, (d, Hs) in enumerate(zip(sets, models, strict=True)):
+        where = d.source or f"data set {k + 1}"
+        if Hs.shape != d.H.shape:
+            raise DataError(
+                f"gap_report: {where}: model FRF has shape {Hs.shape}, expected {d.H.shape}"
+            )
+        for c in use:
+            out, _, inp = c.rpartition(".")
+            if out not in d.outputs or inp not in d.inputs:
+                continue
+            a, b = d.outputs.index(out), d.inputs.index(inp)
+            hm, hs = d.H[a, b], Hs[a, b]
+            ok = np.isfinite(hm) & np.isfinite(hs) & (hm != 0) & (hs != 0)
+            r = np.full((2, hm.size), np.nan)
+            if np.any(ok):
+                r[:, ok] = residual("complex_log", hs[ok], hm[ok])
+            sq = np.where(ok, r[0] ** 2 + r[1] ** 2, 0.0)
+            w = ok.astype(float)
+            if weighting == "coherence" and d.coherence is not None:
+                coh = d.coherence[a, b]
+                w = w * np.where(np.isfinite(coh), np.clip(coh, 0.0, 1.0), 1.0)
+            sq_all.append(sq)
+            w_all.append(w)
+            mag_all.append(np.where(ok, r[0] ** 2, 0.0))
+            per_channel[c].append((sq, w))
+            for j, band in enumerate(bands):
+                m = band_mask(d.freq_hz, band, j == len(bands) - 1)
+                per_band[j].append((sq[m], w[m]))
+            mag = np.where(ok, r[0], np.nan)  # r[0] = DB·ln|Hs/Hm|: model above data > 0
+            if d.freq_hz.shape != f_map.shape or not np.allclose(d.freq_hz, f_map):
+                good = np.isfinite(mag)
+                mag = (
+                    np.interp(np.log(f_map), np.log(d.freq_hz[good]), mag[good])
+                    if np.count_nonzero(good) > 1
+                    else np.full(f_map.shape, np.nan)
+                )
+            rows.append(mag)
+            labels.append(c if len(sets) == 1 else f"{c} #{k + 1}")
+    if not sq_all or float(np.sum(np.concatenate(w_all))) == 0.0:
+        raise DataError("gap_report: no channel has a usable (finite, non-zero) point")
+    sq_cat, w_cat = np.concatenate(sq_all), np.concatenate(w_all)
+    by_channel = {
+        c: _rms(np.concatenate([s for s, _ in v]), np.concatenate([w for _, w in v]))
+        for c, v in per_channel.items()
+        if v
+    }
+    by_band = []
+    for band, parts in zip(bands, per_band, strict=True):
+        s = np.concatenate([p for p, _ in parts]) if parts else np.zeros(0)
+        w = np.concatenate([q for _, q in parts]) if parts else np.zeros(0)
+        by_band.append(
+            {
+                "f_lo_hz": band[0],
+                "f_hi_hz": band[1],
+                "db_rms": _rms(s, w),
+                "n_points": int(np.count_nonzero(w)),
+            }
+        )
+    return GapReport(
+        db_rms=_rms(sq_cat, w_cat),
+        by_channel=by_channel,
+        by_band=by_band,
+        residual_db=np.vstack(rows),
+        channels=labels,
+        freq_hz=f_map.copy(),
+        mag_db_rms=_rms(np.concatenate(mag_all), w_cat),
+        n_points=int(np.count_nonzero(w_cat)),
+        weighting=weighting,
+    )
+
+
+__all__ = ["DB", "WEIGHTINGS", "GapReport", "automatic_bands", "band_mask", "gap_report"]

@@ -1,0 +1,410 @@
+"""Modes in the measured FRF, modes of the model, and how they pair up.
+
+* :func:`identify_modes` — poles and residues of a measured 3×3 (any n_out × n_in) FRF:
+  poly-reference LSCF band by band with a stabilisation diagram, nonlinear refinement, LSFD
+  residues (see :mod:`bondid.diagnose._lscf` for the estimators).
+* :func:`model_modes` — the same description of a :class:`~bondid.linear.LinearModel`'s
+  vibration modes, from :func:`bondid.modes.analysis.modal_analysis`.
+* :func:`pair_modes` — paired / missing / spurious, by frequency and MAC of the residues.
+* :func:`antiresonances`, :func:`antiresonance_shifts` — drive-point anti-resonances.
+
+A mode is described by its pole ``λ`` (``f_hz = |λ|/2π``, ``zeta = −Re λ/|λ|``) and its
+residue matrix ``R`` (n_out, n_in) in ``H(s) ≈ Σ R/(s−λ) + R̄/(s−λ̄)`` (receptance units ×
+1/s). Its ``prominence`` is ``max over channels |R/(s−λ) + R̄/(s−λ̄)| / |H|`` at
+``s = j·Im λ``: about 1 for a mode that makes its own peak, ≪ 1 for one hidden under others.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..data.measurement import FrfData
+from ..exceptions import DataError
+from ..linear.linear_model import LinearModel
+from . import _lscf
+from .antiresonance import antiresonance_shifts, antiresonances
+
+VISIBLE_PROMINENCE = 0.1
+"""A model mode counts as visible (so unpaired = spurious) at this prominence or above."""
+
+
+@dataclass
+class IdentifiedMode:
+    """One mode (one member of a conjugate pair).
+
+    Attributes:
+        f_hz: undamped natural frequency |λ|/2π [Hz].
+        zeta: damping ratio −Re λ/|λ|.
+        residues: modal residue matrix ``(n_out, n_in)`` complex [FRF units / s].
+        shape: ``(n_out,)`` complex, dominant left singular vector of ``residues``, largest
+            entry 1; None when unknown.
+        prominence: peak contribution relative to the FRF (see the module docstring); NaN
+            when unknown.
+        n_orders: number of model orders at which the pole was stable (identified modes).
+    """
+
+    f_hz: float
+    zeta: float
+    residues: np.ndarray
+    shape: np.ndarray | None = None
+    prominence: float = float("nan")
+    n_orders: int = 0
+
+    @property
+    def eigenvalue(self) -> complex:
+        """λ [1/s] with Im λ > 0."""
+        w = 2 * np.pi * self.f_hz
+        return complex(-self.zeta * w, w * np.sqrt(max(1.0 - self.zeta**2, 0.0)))
+
+    def to_dict(self) -> dict[str, Any]:
+        def c(v: complex) -> dict[str, float]:
+            return {"re": float(v.real), "im": float(v.imag)}
+
+        return {
+            "f_hz": float(self.f_hz),
+            "zeta": float(self.zeta),
+            "prominence": None if not np.isfinite(self.prominence) else float(self.prominence),
+            "shape": None if self.shape is None else [c(v) for v in self.shape],
+        }
+
+
+def _shape(R: np.ndarray) -> np.ndarray | None:
+    if not np.all(np.isfinite(R)) or not np.any(R):
+        return None
+    u = np.linalg.svd(R)[0][:, 0]
+    k = int(np.argmax(np.abs(u)))
+    out = u / u[k]
+    out[k] = 1.0
+    return out
+
+
+def identify_modes(
+    data: FrfData,
+    *,
+    f_range: tuple[float, float] | None = None,
+    max_order: int | None = None,
+    stability: bool = True,
+    band_ratio: float = 4.0,
+    overlap: float = 1.5,
+    edge_margin: float = 1.15,
+    zeta_max: float = 0.3,
+    tol_f: float = 0.01,
+    tol_zeta: float = 0.1,
+    min_prominence: float = 0.05,
+    use_coherence: bool = True,
+    refine: bool = True,
+) -> list[IdentifiedMode]:
+    """Poles and residues of a measured FRF.
+
+    Method: the FRF (receptance) is balanced (one scale per output and per input, so that
+    channels in m/N and rad/(N·m) weigh alike; this does not move poles). The range is cut
+    into geometric core bands about ``band_ratio`` wide; each is fitted on itself widened by
+    ``overlap`` with pLSCF for orders 1..``max_order`` (default 24), each output row weighted
+    by ``1/‖H_o(ω)‖`` (a relative error, so log-spaced data and a 140 dB dynamic range are
+    treated evenly) times its mean coherence. Poles are tracked from order to order; a track
+    that stays within ``tol_f`` / ``tol_zeta`` (relative) for at least max(4, max_order/3)
+    orders, is physical (0 < ζ < ``zeta_max``) and lies in the fitted band less an
+    ``edge_margin`` is a mode (duplicates within 2·``tol_f`` keep the longest track). With
+    ``refine`` each band's poles are then polished by nonlinear least squares on the FRF
+    itself (variable projection over ``ln ω``, ``ln ζ``; error weighted by
+    ``√(γ²/(1−γ²))/|H|``, γ² the coherence, i.e. by the inverse noise level). Residues come
+    from LSFD on each band (all poles near the band, lower residual terms ``1/s, 1/s², 1/s³``
+    for the rigid-body mass lines, upper ``1, s``), and modes whose prominence is below
+    ``min_prominence`` (computational poles) are dropped. Output rows holding a missing
+    channel are left out of the pole estimation.
+
+    Args:
+        data: measured FRF (any quantity; converted to receptance).
+        f_range: ``(f_lo, f_hi)`` [Hz] to use (default all).
+        max_order: highest pLSCF order per band (default 24).
+        stability: False keeps every physical pole of the highest order (no diagram).
+        band_ratio, overlap: band plan (see above).
+        zeta_max, tol_f, tol_zeta: pole selection (see above).
+        min_prominence: smallest prominence of a reported mode.
+        use_coherence: weigh by the data's coherence where it has one.
+        refine: polish the poles by nonlinear least squares (see above).
+
+    Returns:
+        The modes, lowest frequency first.
+
+    Raises:
+        DataError: too few frequencies, or no output row with every channel present.
+    """
+    d = data.to_quantity("receptance") if data.quantity != "receptance" else data
+    f = d.freq_hz
+    m = np.ones(f.size, bool) if f_range is None else (f >= f_range[0]) & (f <= f_range[1])
+    f, H = f[m], d.H[:, :, m]
+    where = d.source or "<in-memory FRF>"
+    if f.size < 8:
+        raise DataError(f"{where}: identify_modes needs at least 8 frequencies in range")
+    coh = np.ones(H.shape)
+    if use_coherence and d.coherence is not None:
+        coh = np.where(np.isfinite(d.coherence[:, :, m]), d.coherence[:, :, m], 1.0)
+        coh = np.clip(coh, 1e-3, 1.0)
+    rows = np.flatnonzero(np.all(np.isfinite(H), axis=(1, 2)))
+    if rows.size == 0:
+        raise DataError(f"{where}: identify_modes needs an output with every input present")
+    n_max = 24 if max_order is None else int(max_order)
+
+    cands: list[tuple[complex, int]] = []
+    plan = _lscf.band_plan(f, band_ratio, overlap)
+    for lo, hi in plan:
+        sel = (f >= lo / overlap) & (f <= hi * overlap)
+        if np.count_nonzero(sel) < 8:
+            continue
+        # keep poles inside the fitted band less a margin (none at the ends of the data)
+        keep_lo = lo if lo <= f[0] else lo / overlap * edge_margin
+        keep_hi = hi if hi >= f[-1] else hi * overlap / edge_margin
+        Hb = H[rows][:, :, sel]
+        r, t = _lscf.balance(np.median(np.abs(Hb), axis=2))
+        Hs = r[:, None, None] * Hb * t[None, :, None]
+        w = np.mean(coh[rows][:, :, sel], axis=1) / np.linalg.norm(Hs, axis=1)
+        poles = _lscf.plscf(f[sel], Hs, w, n_max)
+        if stability:
+            cands += _lscf.stable_clusters(
+                poles, keep_lo, keep_hi, zeta_max=zeta_max, tol_f=tol_f, tol_zeta=tol_zeta,
+                min_count=max(4, n_max // 3),
+            )  # fmt: skip
+        else:
+            last = poles[-1].lam
+            ok = _lscf.physical(last, keep_lo, keep_hi, zeta_max)
+            cands += [(complex(x), 1) for x in last[ok]]
+    cands.sort(key=lambda c: abs(c[0]))
+    merged: list[tuple[complex, int]] = []
+    for pole, cnt in cands:
+        if merged and abs(abs(pole) - abs(merged[-1][0])) < 2 * tol_f * abs(pole):
+            if cnt > merged[-1][1]:
+                merged[-1] = (pole, cnt)
+            continue
+        merged.append((pole, cnt))
+    if not merged:
+        return []
+    lam = np.array([c[0] for c in merged])
+    wn = np.abs(lam) / (2 * np.pi)
+    cw = np.sqrt(np.clip(coh, 1e-6, 0.999) / (1.0 - np.clip(coh, 1e-6, 0.999)))
+    R, _ = _lscf.lsfd(f, H, lam, cw)  # fallback for poles whose band is too short
+    for lo, hi in plan:
+        sel = (f >= lo / overlap) & (f <= hi * overlap)
+        inc = (wn >= lo / overlap**2) & (wn <= hi * overlap**2)
+        core = (wn >= lo) & (wn < hi)
+        if not np.any(core) or np.count_nonzero(sel) < 4 * (2 * np.count_nonzero(inc) + 6):
+            continue
+        if refine:
+            lam[inc] = _lscf.refine_poles(
+                f[sel], H[:, :, sel], lam[inc], core[inc], cw[:, :, sel], zeta_max=zeta_max
+            )
+        Rb, _ = _lscf.lsfd(f[sel], H[:, :, sel], lam[inc], cw[:, :, sel], upper=2)
+        R[core] = Rb[core[inc]]
+        wn = np.abs(lam) / (2 * np.pi)
+    merged = [(complex(x), c[1]) for x, c in zip(lam, merged, strict=True)]
+    modes = []
+    for k, (lr, cnt) in enumerate(merged):
+        prom = _prominence(f, H, lr, R[k], coh)
+        if prom < min_prominence:
+            continue
+        modes.append(
+            IdentifiedMode(
+                f_hz=abs(lr) / (2 * np.pi),
+                zeta=-lr.real / abs(lr),
+                residues=R[k],
+                shape=_shape(R[k]),
+                prominence=prom,
+                n_orders=cnt,
+            )
+        )
+    return modes
+
+
+def _prominence(
+    f: np.ndarray, H: np.ndarray, lam: complex, R: np.ndarray, coh: np.ndarray | None = None
+) -> float:
+    """max over channels (coherence ≥ 0.5 where given) of |mode terms| / |H| at ω = Im λ."""
+    fd = lam.imag / (2 * np.pi)
+    if not f[0] <= fd <= f[-1]:
+        return 0.0
+    k = int(np.argmin(np.abs(f - fd)))
+    terms = np.abs(_lscf.mode_terms(np.array([fd]), lam, R)[..., 0])
+    ratio = terms / np.abs(H[:, :, k])
+    if coh is not None:
+        ratio = np.where(coh[:, :, k] >= 0.5, ratio, np.nan)
+    ratio = ratio[np.isfinite(ratio)]
+    return float(ratio.max()) if ratio.size else 0.0
+
+
+def model_modes(
+    linear_model: LinearModel,
+    *,
+    freq_hz: np.ndarray | None = None,
+    channel_mask: np.ndarray | None = None,
+    data: FrfData | None = None,
+    min_coherence: float = 0.5,
+) -> list[IdentifiedMode]:
+    """The vibration modes of a linear model in the form of :class:`IdentifiedMode`.
+
+    Residues ``R = C x ψᴴ B / (ψᴴ x)`` from :func:`bondid.modes.analysis.modal_analysis`
+    (rigid-body and real modes are left out). ``prominence`` is computed against the model's
+    own receptance, over the channels where ``channel_mask`` (n_out, n_in) is True and, when
+    ``data`` is given, where that channel is present in the data with coherence ≥
+    ``min_coherence`` at the mode's frequency (channels matched by name). It is 0 for a mode
+    outside the range of ``freq_hz`` (or of ``data``).
+    """
+    from ..modes.analysis import modal_analysis
+
+    res = modal_analysis(linear_model)
+    outs, ins = list(linear_model.outputs), list(linear_model.inputs)
+    if data is not None and freq_hz is None:
+        freq_hz = data.freq_hz
+    out = []
+    for md in res.vibration_modes():
+        lam = md.eigenvalue
+        fd = lam.imag / (2 * np.pi)
+        fgrid = np.array([fd])
+        H = linear_model.frf(fgrid)
+        mask = np.ones((len(outs), len(ins)))
+        if channel_mask is not None:
+            mask *= np.asarray(channel_mask, bool)
+        if data is not None:
+            k = int(np.argmin(np.abs(data.freq_hz - fd)))
+            seen = np.zeros_like(mask)
+            for a, o in enumerate(outs):
+                for b, i in enumerate(ins):
+                    if o in data.outputs and i in data.inputs:
+                        oa, ib = data.outputs.index(o), data.inputs.index(i)
+                        ok = bool(np.isfinite(data.H[oa, ib, k]))
+                        if ok and data.coherence is not None:
+                            c = data.coherence[oa, ib, k]
+                            ok = not np.isfinite(c) or c >= min_coherence
+                        seen[a, b] = float(ok)
+            mask *= seen
+        prom = _prominence(fgrid, H, lam, md.residue, mask[:, :, None])
+        if freq_hz is not None and not float(np.min(freq_hz)) <= md.f_hz <= float(np.max(freq_hz)):
+            prom = 0.0
+        out.append(
+            IdentifiedMode(
+                f_hz=md.f_hz,
+                zeta=float(md.zeta if md.zeta is not None else 0.0),
+                residues=md.residue,
+                shape=_shape(md.residue),
+                prominence=prom,
+            )
+        )
+    return out
+
+
+def mac_matrix(a: Sequence[IdentifiedMode], b: Sequence[IdentifiedMode]) -> np.ndarray:
+    """MAC ``(len(a), len(b))`` of the vectorised, balanced residue matrices.
+
+    Each output row and input column of every residue matrix is divided by one common scale
+    (from all modes of both lists, so m/N and rad/(N·m) channels weigh alike);
+    MAC = |aᴴb|² / (|a|²|b|²). Non-finite entries count as 0.
+    """
+    allR = [np.nan_to_num(m.residues) for m in [*a, *b]]
+    if not allR:
+        return np.zeros((len(a), len(b)))
+    c = np.sqrt(np.mean(np.abs(np.stack(allR)) ** 2, axis=0))
+    r, t = _lscf.balance(c)
+    va = [(r[:, None] * np.nan_to_num(m.residues) * t[None, :]).ravel() for m in a]
+    vb = [(r[:, None] * np.nan_to_num(m.residues) * t[None, :]).ravel() for m in b]
+    out = np.zeros((len(a), len(b)))
+    for i, x in enumerate(va):
+        for j, y in enumerate(vb):
+            den = np.vdot(x, x).real * np.vdot(y, y).real
+            out[i, j] = abs(np.vdot(x, y)) ** 2 / den if den > 0 else 0.0
+    return out
+
+
+def pair_modes(
+    measured: Sequence[IdentifiedMode],
+    model: Sequence[IdentifiedMode],
+    *,
+    f_tol: float = 0.2,
+    mac_min: float = 0.5,
+    f_band: tuple[float, float] | None = None,
+    min_prominence: float = VISIBLE_PROMINENCE,
+    include_unobserved: bool = False,
+) -> list[dict[str, Any]]:
+    """Pair measured and model modes by frequency and residue MAC.
+
+    A pair needs ``|f_model − f_measured| ≤ f_tol · f_measured`` and MAC ≥ ``mac_min``; among
+    the admissible pairs one-to-one assignment minimises Σ (1 − MAC) + |df_rel| / f_tol.
+    An unpaired measured mode is ``"missing"`` (in the data, not the model). An unpaired
+    model mode is ``"spurious"`` only if the data would have revealed it: its frequency lies in
+    ``f_band`` (the measured range, when given) and its prominence (see
+    :func:`model_modes`) is at least ``min_prominence``; other unpaired model modes are
+    left out, or listed as ``"unobserved"`` with ``include_unobserved``.
+
+    Returns:
+        ``[{f_measured_hz, f_model_hz, status, mac, df_rel, zeta_measured, zeta_model}]``
+        by frequency; ``df_rel = (f_model − f_measured) / f_measured``; absent values None.
+    """
+    from scipy.optimize import linear_sum_assignment
+
+    mac = mac_matrix(measured, model)
+    big = 1e6
+    cost = np.full(mac.shape, big)
+    for i, a in enumerate(measured):
+        for j, b in enumerate(model):
+            df = (b.f_hz - a.f_hz) / a.f_hz
+            if abs(df) <= f_tol and mac[i, j] >= mac_min:
+                cost[i, j] = (1.0 - mac[i, j]) + abs(df) / f_tol
+    pairs: dict[int, int] = {}
+    if cost.size:
+        for i, j in zip(*linear_sum_assignment(cost), strict=True):
+            if cost[i, j] < big:
+                pairs[int(i)] = int(j)
+    used = set(pairs.values())
+    rows: list[dict[str, Any]] = []
+    for i, a in enumerate(measured):
+        if i in pairs:
+            b = model[pairs[i]]
+            rows.append(_row(a, b, "paired", float(mac[i, pairs[i]])))
+        else:
+            rows.append(_row(a, None, "missing", None))
+    for j, b in enumerate(model):
+        if j in used:
+            continue
+        inside = f_band is None or f_band[0] <= b.f_hz <= f_band[1]
+        visible = inside and np.isfinite(b.prominence) and b.prominence >= min_prominence
+        if visible or (inside and not np.isfinite(b.prominence)):
+            rows.append(_row(None, b, "spurious", None))
+        elif include_unobserved:
+            rows.append(_row(None, b, "unobserved", None))
+    rows.sort(key=lambda r: r["f_measured_hz"] or r["f_model_hz"])
+    return rows
+
+
+def _row(
+    a: IdentifiedMode | None, b: IdentifiedMode | None, status: str, mac: float | None
+) -> dict[str, Any]:
+    return {
+        "f_measured_hz": None if a is None else float(a.f_hz),
+        "f_model_hz": None if b is None else float(b.f_hz),
+        "status": status,
+        "mac": mac,
+        "df_rel": None if a is None or b is None else float((b.f_hz - a.f_hz) / a.f_hz),
+        "zeta_measured": None if a is None else float(a.zeta),
+        "zeta_model": None if b is None else float(b.zeta),
+    }
+
+
+def modes_to_json(modes: Sequence[IdentifiedMode]) -> str:
+    """A list of modes as JSON text (frequency, damping, prominence, shape)."""
+    return json.dumps([m.to_dict() for m in modes], indent=2) + "\n"
+
+
+__all__ = [
+    "VISIBLE_PROMINENCE",
+    "IdentifiedMode",
+    "antiresonance_shifts",
+    "antiresonances",
+    "identify_modes",
+    "mac_matrix",
+    "model_modes",
+    "modes_to_json",
+    "pair_modes",
+]

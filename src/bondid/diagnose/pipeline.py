@@ -1,0 +1,363 @@
+"""The diagnosis pipeline: :func:`diagnose`.
+
+1. Data: converted to receptance, limited to ``bands``; channels whose median coherence is
+   below :data:`MIN_CHANNEL_COHERENCE` (below the sensor noise floor) are left out unless the
+   user names channels; decimated to ``n_points`` log-spaced frequencies per data set for the
+   refits, and split into training and held-out frequencies (:mod:`.split`).
+2. Parameter refit: :func:`bondid.fit.fit` (IPOPT, physically consistent, bounded) of the
+   nominal parameters on the training data, then the same bounded least squares every
+   candidate uses (:mod:`.engine`) from there — the parameter-only baseline.
+3. Where the gap lies: :func:`.gap.gap_report` of the nominal and the refitted model (total,
+   per channel, per automatic band), measured modes (:func:`.modal_id.identify_modes`) paired
+   with the refitted model's, anti-resonance shifts.
+4. Every candidate of every chosen effect (:mod:`.effects`) is refitted from the baseline
+   (:mod:`.runner`) in worker processes, scored on held-out data and ranked; the verdict
+   follows :mod:`.scoring`.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..cost.problem import CostOptions
+from ..data.measurement import FrfData
+from ..exceptions import ConfigError, DataError
+from ..model.document import UrdfDocument
+from ..model.parameters import get_parameter, select_parameters
+from . import scoring
+from .effects import Candidate, get_effects
+from .engine import nominal_variables
+from .runner import Job, JobResult, run_job
+from .split import decimate, holdout_split, limit_bands
+
+#: default free parameters of the parameter refit (zero-valued springs/dampers are dropped)
+DEFAULT_FREE = ("all",)
+MIN_CHANNEL_COHERENCE = 0.5
+
+
+@dataclass
+class Settings:
+    """Choices of a diagnosis (CLI options map onto these)."""
+
+    effects: list[str] | None = None
+    free: list[str] | None = None
+    bands: list[tuple[float, float]] | None = None
+    channels: list[str] | None = None
+    n_points: int = 500
+    n_holdout_bands: int = 16
+    workers: int = 2
+    use_ipopt: bool = True
+    ipopt_iter: int = 300
+    max_nfev: int = 30
+    n_starts: int = 3
+    modes: bool = True
+
+
+@dataclass
+class Diagnosis:
+    """Everything :func:`diagnose` found (``report`` turns it into files)."""
+
+    nominal: UrdfDocument
+    datasets: list[FrfData]
+    channels: list[str]
+    names: list[str]
+    baseline: JobResult
+    results: list[JobResult]  # ranked, best first
+    scores: list[float]
+    baseline_score: float
+    winner: JobResult | None
+    nominal_H: list[np.ndarray]
+    bands: list[tuple[float, float]]
+    modes: list[dict[str, Any]]
+    modes_by_dataset: list[list[dict[str, Any]]]
+    antiresonances: list[dict[str, Any]]
+    fit_info: dict[str, Any]
+    split_info: dict[str, Any]
+    wall_s: float
+    notes: list[str] = field(default_factory=list)
+
+
+def used_channels(datasets: Sequence[FrfData], requested: Sequence[str] | None) -> list[str]:
+    """Channels to use: ``requested`` (checked), else every present channel whose median
+    coherence is at least :data:`MIN_CHANNEL_COHERENCE` (all present ones without coherence)."""
+    present: list[str] = []
+    for d in datasets:
+        present += [c for c in d.channels if c not in present]
+    if requested:
+        bad = [c for c in requested if c not in present]
+        if bad:
+            raise DataError(
+                f"--channels: {', '.join(bad)} not in the data; valid: {', '.join(present)}"
+            )
+        return list(requested)
+    keep = []
+    for c in present:
+        cohs = []
+        for d in datasets:
+            if c in d.channels and d.coherence is not None:
+                o, _, i = c.rpartition(".")
+                cohs.append(d.coherence[d.outputs.index(o), d.inputs.index(i)])
+        if not cohs or np.nanmedian(np.concatenate(cohs)) >= MIN_CHANNEL_COHERENCE:
+            keep.append(c)
+    if not keep:
+        raise DataError("every channel is below the noise floor (median coherence < 0.5)")
+    return keep
+
+
+def model_frf(doc: UrdfDocument, ds: FrfData) -> np.ndarray:
+    """Receptance of ``doc`` aligned with ``ds`` ``(n_out, n_in, n_freq)``."""
+    from ..linear.affine import build_affine_model
+
+    am = build_affine_model(doc, ds.operating_point, outputs=ds.outputs)
+    H = am.linear_model().frf(ds.freq_hz)
+    return H[:, [am.inputs.index(i) for i in ds.inputs], :]
+
+
+def default_names(doc: UrdfDocument, free: Sequence[str] | None) -> list[str]:
+    """The refit's free parameters: ``free`` (names, globs, groups) or :data:`DEFAULT_FREE`
+    without zero-valued springs and dampers."""
+    if free:
+        return select_parameters(doc, free)
+    names = select_parameters(doc, DEFAULT_FREE)
+    return [n for n in names if not n.endswith((".stiffness", ".damping")) or
+            get_parameter(doc, n) > 0]  # fmt: skip
+
+
+def _parameter_fit(
+    doc: UrdfDocument, train: list[FrfData], names: list[str], options: CostOptions, iters: int
+) -> tuple[str, dict[str, Any]]:
+    """Stage (i): bondid.fit.fit; returns (URDF text of the fitted model, info)."""
+    from ..exceptions import BondidError
+    from ..fit import default_bounds, fit
+
+    lo, hi = default_bounds(
+        doc, names, rel={"mass": 0.5, "inertia": 0.5, "stiffness": 0.67, "damping": 0.8}
+    )
+    try:
+        res = fit(doc, train, names, options=options, lower=lo, upper=hi, max_iter=iters)
+    except BondidError as exc:
+        return doc.to_string(), {"status": "failed", "error": str(exc)}
+    info = {
+        "status": res.status,
+        "iterations": res.iterations,
+        "wall_s": res.wall_s,
+        "cost_initial": res.cost_initial,
+        "cost_final": res.cost_final,
+        "parameters": [
+            {"name": n, "initial": float(a), "fitted": float(b), "std": float(s)}
+            for n, a, b, s in zip(res.names, res.initial, res.fitted, res.std, strict=True)
+        ],
+    }
+    return res.document.to_string(), info
+
+
+def _baseline_task(
+    urdf: str, names: list[str], train: list[FrfData], held: list[FrfData],
+    full: list[FrfData], options: CostOptions, use_ipopt: bool, iters: int, max_nfev: int,
+) -> tuple[JobResult, dict[str, Any]]:  # fmt: skip
+    nominal = UrdfDocument.from_string(urdf, source="nominal model")
+    info: dict[str, Any] = {"status": "skipped"}
+    start = urdf
+    if use_ipopt:
+        start, info = _parameter_fit(nominal, train, names, options, iters)
+    fitted = UrdfDocument.from_string(start, source="refit model")
+    nom_vars = nominal_variables(fitted, names, reference=nominal)
+    job = Job(start, nom_vars, train, held, full, None, options, max_nfev_all=max_nfev)
+    res = run_job(job)
+    res.extra["nominal_variables"] = nom_vars
+    return res, info
+
+
+class _Pool:
+    """Worker processes (spawned with single-threaded BLAS) or in-process execution."""
+
+    def __init__(self, workers: int):
+        self.workers = workers
+        self.ex = None
+        if workers > 1:
+            import multiprocessing as mp
+            from concurrent.futures import ProcessPoolExecutor
+
+            saved = {k: os.environ.get(k) for k in _THREAD_VARS}
+            for k in _THREAD_VARS:
+                os.environ[k] = "1"
+            try:
+                self.ex = ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"))
+                self.ex.submit(int, 0).result()  # start the workers with this environment
+                for _ in range(workers - 1):
+                    self.ex.submit(time.sleep, 0.0)
+            finally:
+                for k, v in saved.items():
+                    if v is None:
+                        os.environ.pop(k, None)
+                    else:
+                        os.environ[k] = v
+
+    def submit(self, fn: Callable[..., Any], *args: Any) -> Any:
+        if self.ex is not None:
+            return self.ex.submit(fn, *args)
+        from concurrent.futures import Future
+
+        fut: Future[Any] = Future()
+        fut.set_result(fn(*args))
+        return fut
+
+    def close(self) -> None:
+        if self.ex is not None:
+            self.ex.shutdown(cancel_futures=True)
+
+
+_THREAD_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def diagnose(
+    doc: UrdfDocument,
+    datasets: Sequence[FrfData],
+    settings: Settings | None = None,
+    *,
+    progress: Callable[[int, int, str], None] | None = None,
+) -> Diagnosis:
+    """Diagnose the gap between ``doc`` and the measured ``datasets`` (see module docstring).
+
+    Args:
+        doc: the nominal model.
+        datasets: measured FRFs (one per operating point), any quantity.
+        settings: choices (default :class:`Settings`).
+        progress: ``progress(done, total, label)`` after the baseline and each candidate.
+
+    Raises:
+        ConfigError, DataError, ParameterError: bad choices or data.
+    """
+    t0 = time.perf_counter()
+    s = settings or Settings()
+    if not datasets:
+        raise DataError("no measured data given")
+    full = [limit_bands(d, s.bands) for d in datasets]
+    channels = used_channels(full, s.channels)
+    options = CostOptions(channels=channels)
+    names = default_names(doc, s.free)
+    if not names:
+        raise ConfigError("no parameter to refit; check --free")
+    effects = get_effects(s.effects)
+    candidates: list[Candidate] = [c for e in effects for c in e.candidates(doc)]
+    dec = [decimate(d, s.n_points) for d in full]
+    train, held = holdout_split(dec, s.n_holdout_bands)
+    split_info = {
+        "scheme": "checkerboard: data set k trains on log-frequency bands of parity k, "
+        "holds out the others",
+        "n_bands": s.n_holdout_bands,
+        "n_points_per_dataset": [int(d.freq_hz.size) for d in dec],
+        "n_train_points": [int(d.freq_hz.size) for d in train],
+        "n_heldout_points": [int(d.freq_hz.size) for d in held],
+    }
+    total = len(candidates) + 1
+    pool = _Pool(max(1, s.workers))
+    try:
+        fut = pool.submit(
+            _baseline_task, doc.to_string(), names, train, held, full, options, s.use_ipopt,
+            s.ipopt_iter, s.max_nfev,
+        )  # fmt: skip
+        baseline, fit_info = fut.result()
+        if baseline.error:
+            from ..exceptions import ComputationError
+
+            raise ComputationError(f"the parameter refit failed: {baseline.error}")
+        if progress:
+            progress(1, total, "parameter refit")
+        nom_vars = baseline.extra.pop("nominal_variables")
+        # second origin of every candidate refit: the nominal values (a refit may have bent
+        # the nominal parameters to mimic the missing effect)
+        alt = [_nominal_value(doc, v) for v in nom_vars]
+        futures = [
+            pool.submit(
+                run_job,
+                Job(baseline.urdf, nom_vars, train, held, full, c, options,
+                    max_nfev_all=s.max_nfev, n_starts=s.n_starts, alt_start=alt),
+            )
+            for c in candidates
+        ]  # fmt: skip
+        nominal_H = [model_frf(doc, d) for d in full]
+        modes, by_ds, anti, bands = _where(doc, full, baseline, channels, s.modes)
+        results: list[JobResult] = []
+        from concurrent.futures import as_completed
+
+        for f in as_completed(futures):
+            r = f.result()
+            results.append(r)
+            if progress:
+                progress(len(results) + 1, total, r.label)
+    finally:
+        pool.close()
+    scores = [scoring.score(r.heldout_rms, r.n_train, r.n_new) for r in results]
+    order = scoring.rank(scores)
+    results = [results[i] for i in order]
+    scores = [scores[i] for i in order]
+    base_score = scoring.score(baseline.heldout_rms, baseline.n_train, 0)
+    winner = None
+    if results and scoring.clearly_better(scores[0], base_score):
+        winner = results[0]
+    return Diagnosis(
+        nominal=doc, datasets=full, channels=channels, names=names, baseline=baseline,
+        results=results, scores=scores, baseline_score=base_score, winner=winner,
+        nominal_H=nominal_H, bands=bands, modes=modes, modes_by_dataset=by_ds,
+        antiresonances=anti, fit_info=fit_info, split_info=split_info,
+        wall_s=time.perf_counter() - t0,
+    )  # fmt: skip
+
+
+def _nominal_value(doc: UrdfDocument, var: Any) -> float:
+    """The value a refit variable has in the nominal model (inertia scales: 1 = the refit's
+    tensor, kept)."""
+    if len(var.members) == 1 and var.members[0][1] == 1.0:
+        return float(get_parameter(doc, var.members[0][0]))
+    return float(var.initial)
+
+
+def _where(
+    doc: UrdfDocument,
+    full: list[FrfData],
+    baseline: JobResult,
+    channels: list[str],
+    do_modes: bool,
+) -> tuple[list[dict[str, Any]], list[list[dict[str, Any]]], list[dict[str, Any]], list]:
+    """Modes (measured vs refitted model), anti-resonance shifts and automatic bands."""
+    from ..linear.affine import build_affine_model
+    from .antiresonance import antiresonance_shifts
+    from .gap import automatic_bands
+
+    refit_doc = UrdfDocument.from_string(baseline.urdf, source="refit model")
+    by_ds: list[list[dict[str, Any]]] = []
+    anti: list[dict[str, Any]] = []
+    res_f: list[float] = []
+    for k, (d, H) in enumerate(zip(full, baseline.full_H, strict=True)):
+        rows: list[dict[str, Any]] = []
+        if do_modes:
+            from .modal_id import identify_modes, model_modes, pair_modes
+
+            try:
+                meas = identify_modes(d)
+            except Exception as exc:
+                meas = []
+                rows.append({"error": f"modal identification failed: {exc}"})
+            lm = build_affine_model(refit_doc, d.operating_point, outputs=d.outputs)
+            mask = np.array([[f"{o}.{i}" in channels for i in lm.inputs] for o in lm.outputs])
+            mod = model_modes(lm.linear_model(), freq_hz=d.freq_hz, channel_mask=mask)
+            cols = [lm.inputs.index(i) for i in d.inputs]
+            for m in mod:
+                m.residues = m.residues[:, cols]
+            rows = pair_modes(meas, mod, f_band=(float(d.freq_hz[0]), float(d.freq_hz[-1])))
+            if k == 0:
+                res_f = [float(m.f_hz) for m in meas]
+        by_ds.append(rows)
+        for row in antiresonance_shifts(d, H, channels=channels):
+            anti.append({"dataset": k, **row})
+    a_f = [float(r["f_measured_hz"]) for r in anti if r["dataset"] == 0 and r["f_measured_hz"]]
+    bands = automatic_bands(full[0].freq_hz, res_f, a_f)
+    modes = by_ds[0] if by_ds else []
+    return modes, by_ds, anti, bands

@@ -1,0 +1,264 @@
+"""What a diagnosis writes: ``diagnosis.json``, plots, URDF files, and the human summary.
+
+``diagnosis.json`` keys (spec §4 plus extras):
+
+* ``gap`` — the remaining gap after the parameter refit (``db_rms``, ``by_channel``,
+  ``by_band``, ``modes``), plus ``mag_db_rms``, ``antiresonances``; ``gap_closed`` is always
+  relative to this ``gap.db_rms``;
+* ``candidates`` — best first: ``effect``, ``location``, ``parameters`` {name: value},
+  ``db_rms_after``, ``gap_closed``, ``heldout_db_rms_after``, ``score`` (see
+  :mod:`.scoring`), plus ``parameters_std``, ``heldout_weighted_rms``, ``train_weighted_rms``,
+  ``n_parameters``, ``wall_s``, ``error``;
+* ``verdict`` — ``effect`` (or ``"none"``), ``location``, ``gap_closed``, plus
+  ``reason``, ``parameters`` with ``std``, ``where`` (gap by channel and band after it);
+* ``stages`` — the gap (total, per channel, per band) of the nominal model, after the
+  parameter refit and after the winning effect; ``gap_closed_total`` (vs the nominal gap);
+* ``refit`` (the parameter refit: names, values, std, IPOPT stage), ``split``, ``settings``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..atomic import write_text_atomic
+from .gap import GapReport, gap_report
+from .pipeline import Diagnosis
+from .scoring import ABS_MARGIN_DB, REL_MARGIN, gap_closed
+
+
+def _num(v: Any) -> Any:
+    if isinstance(v, (float, np.floating)):
+        return float(v) if math.isfinite(float(v)) else None
+    if isinstance(v, (np.integer,)):
+        return int(v)
+    if isinstance(v, dict):
+        return {k: _num(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_num(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return [_num(x) for x in v.tolist()]
+    return v
+
+
+def gaps(diag: Diagnosis) -> dict[str, GapReport]:
+    """Gap reports of the nominal model, the refit and the winner (when there is one)."""
+    from .split import mask_incoherent
+
+    sets = [mask_incoherent(d) for d in diag.datasets]
+    ch = diag.channels
+    out = {
+        "nominal": gap_report(sets, diag.nominal_H, diag.bands, channels=ch),
+        "refit": gap_report(sets, diag.baseline.full_H, diag.bands, channels=ch),
+    }
+    if diag.winner is not None:
+        out["effect"] = gap_report(sets, diag.winner.full_H, diag.bands, channels=ch)
+    return out
+
+
+def _gap_dict(g: GapReport) -> dict[str, Any]:
+    return {
+        "db_rms": g.db_rms,
+        "mag_db_rms": g.mag_db_rms,
+        "by_channel": dict(g.by_channel),
+        "by_band": [
+            {"f_lo_hz": b["f_lo_hz"], "f_hi_hz": b["f_hi_hz"], "db_rms": b["db_rms"]}
+            for b in g.by_band
+        ],
+    }
+
+
+def _new_params(r: Any) -> tuple[dict[str, float], dict[str, float]]:
+    k = len(r.names) - r.n_new
+    vals = {n: float(v) for n, v in zip(r.names[k:], r.values[k:], strict=True)}
+    std = {n: float(v) for n, v in zip(r.names[k:], r.std[k:], strict=True)} if len(r.std) else {}
+    return vals, std
+
+
+def to_json_dict(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, Any]:
+    """The content of ``diagnosis.json`` (module docstring)."""
+    before = reports["refit"].db_rms
+    nominal = reports["nominal"].db_rms
+    cands = []
+    for r, sc in zip(diag.results, diag.scores, strict=True):
+        vals, std = _new_params(r) if not r.error else ({}, {})
+        cands.append(
+            {
+                "effect": r.effect,
+                "location": r.location,
+                "parameters": vals,
+                "db_rms_after": r.db_rms,
+                "gap_closed": gap_closed(before, r.db_rms),
+                "heldout_db_rms_after": r.heldout_db_rms,
+                "score": sc,
+                "parameters_std": std,
+                "heldout_weighted_rms": r.heldout_rms,
+                "train_weighted_rms": r.train_rms,
+                "n_parameters": r.n_new,
+                "wall_s": r.wall_s,
+                "error": r.error or None,
+            }
+        )
+    gap = _gap_dict(reports["refit"])
+    gap["modes"] = [
+        {k: row.get(k) for k in ("f_measured_hz", "f_model_hz", "status", "mac", "df_rel",
+                                 "zeta_measured", "zeta_model")}
+        for row in diag.modes if "status" in row
+    ]  # fmt: skip
+    gap["antiresonances"] = diag.antiresonances
+    w = diag.winner
+    if w is not None:
+        vals, std = _new_params(w)
+        verdict = {
+            "effect": w.effect,
+            "location": w.location,
+            "gap_closed": gap_closed(before, w.db_rms),
+            "gap_closed_total": gap_closed(nominal, w.db_rms),
+            "parameters": {n: {"value": v, "std": std.get(n)} for n, v in vals.items()},
+            "reason": f"held-out score {diag.scores[0]:.3f} dB vs {diag.baseline_score:.3f} dB"
+            f" for the parameter refit (needs ≥ {REL_MARGIN:.0%} and ≥ {ABS_MARGIN_DB} dB lower)",
+            "where": _gap_dict(reports["effect"]),
+        }
+    else:
+        best = diag.scores[0] if diag.scores else math.nan
+        verdict = {
+            "effect": "none",
+            "location": None,
+            "gap_closed": 0.0,
+            "reason": f"no candidate beats the parameter refit clearly on held-out data (best"
+            f" {best:.3f} dB vs {diag.baseline_score:.3f} dB; needs ≥ {REL_MARGIN:.0%} and"
+            f" ≥ {ABS_MARGIN_DB} dB lower)",
+        }
+    stages = {
+        "nominal": _gap_dict(reports["nominal"]),
+        "refit": _gap_dict(reports["refit"]),
+        "effect": _gap_dict(reports["effect"]) if "effect" in reports else None,
+        "gap_closed_by_refit": gap_closed(nominal, before),
+        "gap_closed_total": gap_closed(nominal, w.db_rms if w else before),
+    }
+    b = diag.baseline
+    refit = {
+        "parameters": [
+            {"name": n, "value": float(v), "std": float(s)}
+            for n, v, s in zip(b.names, b.values, b.std, strict=True)
+        ],
+        "free": diag.names,
+        "ipopt_stage": diag.fit_info,
+        "heldout_weighted_rms": b.heldout_rms,
+        "train_weighted_rms": b.train_rms,
+        "score": diag.baseline_score,
+    }
+    out = {
+        "gap": gap,
+        "candidates": cands,
+        "verdict": verdict,
+        "stages": stages,
+        "refit": refit,
+        "channels": diag.channels,
+        "bands": [list(x) for x in diag.bands],
+        "modes_by_dataset": diag.modes_by_dataset,
+        "split": diag.split_info,
+        "scoring": {
+            "score": "held-out coherence-weighted RMS complex-log error [dB] x FPE factor",
+            "rel_margin": REL_MARGIN,
+            "abs_margin_db": ABS_MARGIN_DB,
+            "gap_closed": "1 - db_rms_after / gap.db_rms (gap after the parameter refit)",
+            "db_rms_points": "used channels, points with coherence >= 0.5 (where given)",
+        },
+        "wall_s": diag.wall_s,
+    }
+    return _num(out)
+
+
+def write_outputs(diag: Diagnosis, out_dir: Path, *, plots: bool = True) -> list[Path]:
+    """Write diagnosis.json, refit.urdf, augmented.urdf (winner), residual map and Bode PNGs."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    reports = gaps(diag)
+    content = to_json_dict(diag, reports)
+    written = [write_text_atomic(out_dir / "diagnosis.json", json.dumps(content, indent=2) + "\n")]
+    written.append(write_text_atomic(out_dir / "refit.urdf", diag.baseline.urdf))
+    if diag.winner is not None and diag.winner.urdf:
+        written.append(write_text_atomic(out_dir / "augmented.urdf", diag.winner.urdf))
+    if plots:
+        written += _plots(diag, reports, out_dir)
+    return written
+
+
+def _plots(diag: Diagnosis, reports: dict[str, GapReport], out_dir: Path) -> list[Path]:
+    from ..plots import Curve, plot_bode, plot_residual_map
+
+    out = []
+    g = reports["refit"]
+    out.append(
+        plot_residual_map(
+            g.freq_hz, g.residual_db, channels=g.channels, path=out_dir / "residual_map.png",
+            title="Remaining gap after the parameter refit (model − measured)",
+            bands=diag.bands, cbar_label="model − measured [dB]",
+        )
+    )  # fmt: skip
+    best = diag.winner or (diag.results[0] if diag.results and not diag.results[0].error else None)
+    for k, d in enumerate(diag.datasets):
+        curves = [
+            Curve("measured", d.H, kind="measured"),
+            Curve("nominal", diag.nominal_H[k]),
+            Curve("parameter refit", diag.baseline.full_H[k]),
+        ]
+        if best is not None:
+            tag = "with effect" if best is diag.winner else "best candidate (not retained)"
+            curves.append(Curve(f"{tag}: {best.label}", best.full_H[k]))
+        out.append(
+            plot_bode(
+                d.freq_hz, curves, outputs=d.outputs, inputs=d.inputs,
+                path=out_dir / f"bode_{k + 1}.png",
+                title=f"Data set {k + 1} at {d.operating_point or 'neutral'}",
+            )
+        )  # fmt: skip
+    return out
+
+
+def summary(diag: Diagnosis, content: dict[str, Any]) -> str:
+    """A short human summary: gap, where, verdict, how far it shrinks."""
+    st = content["stages"]
+    g = content["gap"]
+    lines = [
+        f"gap (db_rms over {len(diag.channels)} channels): nominal {st['nominal']['db_rms']:.2f}"
+        f" dB -> after parameter refit {g['db_rms']:.2f} dB",
+    ]
+    ch = sorted(g["by_channel"].items(), key=lambda kv: -(kv[1] or 0))[:3]
+    lines.append("  worst channels: " + ", ".join(f"{c} {v:.2f} dB" for c, v in ch))
+    bands = sorted(g["by_band"], key=lambda b: -(b["db_rms"] or 0))[:3]
+    lines.append(
+        "  worst bands: "
+        + ", ".join(f"{b['f_lo_hz']:.0f}-{b['f_hi_hz']:.0f} Hz {b['db_rms']:.2f} dB" for b in bands)
+    )
+    miss = [m for m in g["modes"] if m["status"] == "missing"]
+    spur = [m for m in g["modes"] if m["status"] == "spurious"]
+    if g["modes"]:
+        lines.append(
+            f"  modes: {len(g['modes']) - len(miss) - len(spur)} paired, missing in the model at "
+            + (", ".join(f"{m['f_measured_hz']:.0f}" for m in miss) or "-")
+            + " Hz, spurious at "
+            + (", ".join(f"{m['f_model_hz']:.0f}" for m in spur) or "-")
+            + " Hz"
+        )
+    lines.append("candidates (held-out score, dB; lower is better):")
+    lines.append(f"  {'parameter refit only':42s} {diag.baseline_score:8.3f}")
+    for c in content["candidates"][:5]:
+        lab = f"{c['effect']}@{c['location']}" if c["location"] else c["effect"]
+        sc = c["score"]
+        lines.append(f"  {lab:42s} {sc if sc is not None else float('nan'):8.3f}")
+    v = content["verdict"]
+    if v["effect"] == "none":
+        lines.append(f"verdict: none — {v['reason']}")
+    else:
+        pars = ", ".join(f"{n} = {p['value']:.4g}" for n, p in v["parameters"].items())
+        lines.append(
+            f"verdict: {v['effect']} at {v['location']} ({pars}); gap {g['db_rms']:.2f} ->"
+            f" {st['effect']['db_rms']:.2f} dB, gap_closed {v['gap_closed']:.2f}"
+        )
+    lines.append(f"time {diag.wall_s:.1f} s")
+    return "\n".join(lines)
