@@ -11,8 +11,8 @@ import argparse
 import sys
 import time
 from collections.abc import Callable, Sequence
-from typing import NoReturn
 from pathlib import Path
+from typing import NoReturn
 
 from .exceptions import BondidError, ComputationError
 

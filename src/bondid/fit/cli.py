@@ -1,0 +1,377 @@
+"""``python -m bondid.fit``: fit a URDF's parameters to measured FRFs (conventions §4).
+
+Reads the model and data, resolves the free parameters and bounds, runs the constrained fit
+(optionally staged, optionally from several Latin-hypercube starts in parallel), prints a short
+summary on stdout, shows progress on stderr and, with ``--out DIR``, writes ``fit.json``,
+``fitted.urdf`` and the plots (:mod:`bondid.fit.outputs`). Exit codes: 0 converged, 2 bad
+input, 1 the fit failed or did not converge (the results are still written).
+"""
+
+from __future__ import annotations
+
+import argparse
+import fnmatch
+import math
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..cli import (
+    EXIT_BAD_INPUT,
+    EXIT_FAILED,
+    EXIT_OK,
+    Progress,
+    make_parser,
+    parse_band,
+    run,
+    split_names,
+)
+from ..cost.problem import CostOptions
+from ..cost.residuals import NORMS, RESIDUAL_KINDS
+from ..data.measurement import FrfData
+from ..exceptions import ConfigError, DependencyError
+from ..model.document import UrdfDocument
+from ..model.parameters import get_parameters, parameter_infos, select_parameters
+from .study import (
+    KINDS,
+    STAGES,
+    StudySettings,
+    add_bound,
+    check_names,
+    load_study,
+    parse_bound_option,
+)
+
+_KIND_GLOB = {
+    "mass": "*.mass",
+    "com": "*.com.*",
+    "inertia": "*.inertia.*",
+    "stiffness": "*.stiffness",
+    "damping": "*.damping",
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = make_parser("fit", "Fit a machine model's parameters to measured FRFs.")
+    p.add_argument("--model", type=Path, help="the machine's URDF file (or model = in --study)")
+    p.add_argument(
+        "--data",
+        nargs="+",
+        type=Path,
+        help="measured FRF files, CSV or UFF58 (or data = in --study)",
+    )
+    p.add_argument("--study", type=Path, help="study TOML file; command-line options override it")
+    p.add_argument(
+        "--free", nargs="+", action="extend",
+        help="parameters to fit: names, globs (x_stage.*, *.stiffness), groups (inertial,"
+        " parasitic, joints, all) or auto; default parasitic",
+    )  # fmt: skip
+    p.add_argument(
+        "--fixed", nargs="+", action="extend", help="parameters to hold (wins over --free)"
+    )
+    p.add_argument(
+        "--bound", action="append", metavar="KEY=REL|KEY=LO:HI",
+        help="bound for a kind (mass, com, inertia, stiffness, damping), name or glob: relative"
+        " fraction (0.2 = ±20 %%) or absolute LO:HI; repeatable",
+    )  # fmt: skip
+    p.add_argument(
+        "--band", action="append", type=parse_band, metavar="F_LO:F_HI",
+        help="frequency band to fit, Hz; repeatable",
+    )  # fmt: skip
+    p.add_argument("--channels", help="channels to fit, e.g. x.x,y.y (default: all in the data)")
+    p.add_argument(
+        "--weight",
+        action="append",
+        metavar="OUT.IN=W",
+        help="extra weight of a channel; repeatable",
+    )
+    p.add_argument("--cost", choices=RESIDUAL_KINDS, help="residual kind (default complex_log)")
+    p.add_argument("--norm", choices=NORMS, help="norm (default l2)")
+    p.add_argument(
+        "--coherence", action=argparse.BooleanOptionalAction, default=None,
+        help="weight by the measured coherence where present (default on)",
+    )  # fmt: skip
+    p.add_argument("--multistart", type=int, metavar="N", help="number of starts (default 1)")
+    p.add_argument("--seed", type=int, help="Latin-hypercube seed (default 0)")
+    p.add_argument("--workers", type=int, help="parallel processes for --multistart (default 2)")
+    p.add_argument(
+        "--staged", action=argparse.BooleanOptionalAction, default=None,
+        help="fit bands first (stiffness, damping, inertia), then everything",
+    )  # fmt: skip
+    p.add_argument(
+        "--stage-band", action="append", metavar="STAGE=F_LO:F_HI",
+        help=f"band of a stage ({', '.join(STAGES)}) for --staged; repeatable",
+    )  # fmt: skip
+    p.add_argument(
+        "--max-iter", type=int, metavar="N", help="IPOPT iterations per fit (default 200)"
+    )
+    p.add_argument("--out", type=Path, default=None, help="folder for the results")
+    p.add_argument("--quiet", action="store_true", help="no progress display")
+    return p
+
+
+def _positive(value: int | None, name: str, minimum: int) -> int | None:
+    if value is not None and value < minimum:
+        raise ConfigError(f"{name} {value}: give an integer >= {minimum}")
+    return value
+
+
+def resolve_settings(args: argparse.Namespace) -> StudySettings:
+    """The study file (if any) with the command-line options laid over it."""
+    s = load_study(args.study) if args.study is not None else StudySettings()
+    if args.model is not None:
+        s.model = args.model
+    if args.data:
+        s.data = list(args.data)
+    if args.free:
+        s.free = split_names(args.free)
+    if args.fixed:
+        s.fixed = split_names(args.fixed)
+    for text in args.bound or ():
+        add_bound(s, *parse_bound_option(text))
+    if args.band:
+        s.bands = list(args.band)
+    if args.channels is not None:
+        s.channels = check_names(args.channels, "--channels", "value")
+        if not s.channels:
+            raise ConfigError("--channels: empty; give OUT.IN names such as x.x,y.y")
+    for text in args.weight or ():
+        ch, sep, w = text.partition("=")
+        try:
+            value = float(w)
+        except ValueError:
+            value = math.nan
+        if not sep or ch.count(".") != 1 or not value >= 0:
+            raise ConfigError(f"--weight {text!r}: not OUT.IN=W with a weight W >= 0")
+        s.channel_weights[ch] = value
+    if args.cost is not None:
+        s.cost = args.cost
+    if args.norm is not None:
+        s.norm = args.norm
+    if args.coherence is not None:
+        s.coherence = args.coherence
+    s.multistart = _positive(args.multistart, "--multistart", 1) or s.multistart
+    if args.seed is not None:
+        s.seed = int(_positive(args.seed, "--seed", 0) or 0)
+    s.workers = _positive(args.workers, "--workers", 1) or s.workers
+    if args.staged is not None:
+        s.staged = args.staged
+    cli_stage: dict[str, list[tuple[float, float]]] = {}
+    for text in args.stage_band or ():
+        stage, sep, band = text.partition("=")
+        if not sep or stage not in STAGES:
+            raise ConfigError(
+                f"--stage-band {text!r}: not STAGE=F_LO:F_HI with STAGE in {', '.join(STAGES)}"
+            )
+        try:
+            cli_stage.setdefault(stage, []).append(parse_band(band))
+        except argparse.ArgumentTypeError as exc:
+            raise ConfigError(f"--stage-band: {exc}") from None
+    s.stage_bands.update(cli_stage)
+    if args.max_iter is not None:
+        s.max_iter = int(_positive(args.max_iter, "--max-iter", 0) or 0)
+    if s.model is None:
+        raise ConfigError("no model: give --model URDF (or model = ... in the study file)")
+    if not s.data:
+        raise ConfigError("no data: give --data FILE... (or data = [...] in the study file)")
+    return s
+
+
+def cost_options(s: StudySettings) -> CostOptions:
+    return CostOptions(
+        kind=s.cost,
+        norm=s.norm,
+        bands=None if s.bands is None else list(s.bands),
+        channels=None if s.channels is None else list(s.channels),
+        channel_weights=dict(s.channel_weights),
+        use_coherence=s.coherence,
+    )
+
+
+def resolve_names(
+    doc: UrdfDocument, datasets: list[FrfData], s: StudySettings, options: CostOptions
+) -> list[str]:
+    """Free parameter names from ``free``/``fixed`` (``auto`` asks bondid.sensitivity)."""
+    free = list(s.free)
+    if "auto" in free:
+        try:
+            from ..sensitivity import recommend_subset  # type: ignore[attr-defined]
+        except ImportError:
+            raise DependencyError(
+                "--free auto needs bondid.sensitivity.recommend_subset, which this installation"
+                " lacks; name the parameters, globs or groups instead"
+            ) from None
+        free = [t for t in free if t != "auto"] + list(recommend_subset(doc, datasets, options))
+    names = select_parameters(doc, free, s.fixed) if free else []
+    if not names:
+        raise ConfigError(
+            f"{doc.source}: no free parameter left (free: {' '.join(s.free)};"
+            f" fixed: {' '.join(s.fixed) or 'none'})"
+        )
+    return names
+
+
+def resolve_bounds(
+    doc: UrdfDocument, names: list[str], s: StudySettings
+) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds from the defaults, the study and ``--bound`` (a kind key applies to its kind)."""
+    from .bounds import default_bounds
+
+    known = [p.name for p in parameter_infos(doc)]
+    for key in [*s.rel_bounds, *s.abs_bounds]:
+        pattern = _KIND_GLOB.get(key, key)
+        if not any(fnmatch.fnmatchcase(n, pattern) for n in known):
+            raise ConfigError(
+                f"{s.source or '--bound'}: bounds key {key!r} matches no parameter of"
+                f" {doc.source}; valid: a kind ({', '.join(KINDS)}), a parameter name or a glob"
+            )
+    # absolute bounds of parameters that are not free this time are not an error
+    absolute = {
+        _KIND_GLOB.get(k, k): v
+        for k, v in s.abs_bounds.items()
+        if any(fnmatch.fnmatchcase(n, _KIND_GLOB.get(k, k)) for n in names)
+    }
+    try:
+        return default_bounds(doc, names, rel=s.rel_bounds, absolute=absolute)
+    except ConfigError as exc:
+        raise ConfigError(f"{s.source or '--bound'}: {exc}") from None
+
+
+def _fmt(v: float) -> str:
+    return "—" if not math.isfinite(v) else f"{v:.6g}"
+
+
+def summary(result: Any, content: dict[str, Any] | None, extra: dict[str, Any]) -> str:
+    """The short human summary printed on stdout."""
+    lines = [
+        f"bondid.fit: {result.status} ({'converged' if result.success else 'NOT converged'}),"
+        f" {result.iterations} iterations, {result.wall_s:.1f} s",
+        f"cost ({result.cost_name}): {result.cost_initial:.6g} → {result.cost_final:.6g}",
+    ]
+    cm = extra.get("cost_model")
+    if cm is not None and not math.isclose(cm, result.cost_initial, rel_tol=1e-9):
+        lines[-1] += (
+            f" (from start {extra['multistart']['best_start']}; at the model's values {cm:.6g})"
+        )
+    if content is not None:
+        db = content["db_rms"]
+        if db["initial"] is not None:
+            lines.append(f"db_rms: {db['initial']:.3f} dB → {db['final']:.3f} dB")
+    ms = extra.get("multistart")
+    if ms and ms["n_runs"] > 1:
+        lines.append(
+            f"multistart: {ms['n_runs']} runs ({ms['n_failed']} failed), final cost min"
+            f" {ms['min']:.4g} / median {ms['median']:.4g} / max {ms['max']:.4g};"
+            f" best from start {ms['best_start']}"
+        )
+    for st in extra.get("stages") or ():
+        info = st["skipped"] and f"skipped ({st['skipped']})"
+        if not info:
+            info = f"{st['status']}, cost {st['cost_initial']:.4g} → {st['cost_final']:.4g}"
+        lines.append(f"stage {st['name']}: {info}")
+    w = max([len("parameter"), *(len(n) for n in result.names)])
+    lines.append(f"{'parameter':<{w}}  {'initial':>12}  {'fitted':>12}  {'change':>9}  {'std':>10}")
+    for i, n in enumerate(result.names):
+        a, b, sd = float(result.initial[i]), float(result.fitted[i]), float(result.std[i])
+        ch = f"{100 * (b - a) / abs(a):+.2f} %" if a != 0 else f"{b - a:+.3g}"
+        lines.append(f"{n:<{w}}  {_fmt(a):>12}  {_fmt(b):>12}  {ch:>9}  {_fmt(sd):>10}")
+    if result.active_constraints:
+        lines.append("active constraints: " + "; ".join(result.active_constraints))
+    for note in getattr(result, "notes", []) or []:
+        lines.append(f"note: {note}")
+    return "\n".join(lines)
+
+
+def _body(args: argparse.Namespace) -> int:
+    from ..data.for_model import load_datasets
+    from .multistart import run_multistart
+    from .outputs import check_out_dir, write_outputs
+    from .staged import cost_at
+
+    s = resolve_settings(args)
+    assert s.model is not None
+    inputs: list[Path] = [s.model, *s.data] + ([s.source] if s.source else [])
+    doc = UrdfDocument.load(s.model)
+    datasets = [
+        ds if ds.quantity == "receptance" else ds.to_quantity("receptance")
+        for ds in load_datasets(doc, s.data)
+    ]
+    if args.out is not None:
+        check_out_dir(args.out, inputs, datasets)
+    options = cost_options(s)
+    names = resolve_names(doc, datasets, s, options)
+    lower, upper = resolve_bounds(doc, names, s)
+
+    single = s.multistart == 1 or s.workers == 1
+    prog = Progress(
+        "fit" if s.multistart == 1 else f"fit ({s.multistart} starts)",
+        None if single else s.multistart,
+        quiet=args.quiet,
+    )
+
+    def on_iteration(it: int, cost: float) -> None:
+        prog.update(1, f"iteration {it} cost {cost:.4g}")
+
+    def on_run(done: int, total: int, out: Any) -> None:
+        if not single:
+            info = (
+                f"{out.result.status} cost {out.cost:.4g}" if out.result else f"failed: {out.error}"
+            )
+            prog.update(1, f"start {out.index}: {info}")
+
+    ms = run_multistart(
+        doc, datasets, names, lower=lower, upper=upper, options=options, n_starts=s.multistart,
+        seed=s.seed, max_iter=s.max_iter, workers=s.workers, staged=s.staged,
+        stage_bands=s.stage_bands or None, on_run=on_run, on_iteration=on_iteration,
+    )  # fmt: skip
+    result = ms.best
+    prog.close(f"{result.status}, cost {result.cost_final:.4g}")
+    start0 = ms.runs[0].result
+    if start0 is not None and not s.staged:
+        cost_model = float(start0.cost_initial)
+    else:
+        cost_model = cost_at(
+            doc, datasets, names, np.clip(get_parameters(doc, names), lower, upper), options
+        )
+    extra: dict[str, Any] = {
+        "cost_model": cost_model,
+        "command": "bondid.fit",
+        "model_file": str(s.model),
+        "study_file": None if s.source is None else str(s.source),
+        "settings": s.to_json_dict(),
+        "multistart": ms.spread(),
+        "stages": [st.to_json_dict() for st in ms.best_run.stages] or None,
+    }
+    content = None
+    if args.out is not None:
+        histories = [r.result.cost_history if r.result else [] for r in ms.runs]
+        content = write_outputs(
+            args.out, result=result, initial_doc=doc, datasets=datasets, options=options,
+            inputs=inputs, histories=histories,
+            history_labels=[f"start {r.index}" for r in ms.runs], extra=extra,
+        )  # fmt: skip
+    print(summary(result, content, extra))
+    if args.out is not None:
+        print(f"results: {args.out} ({', '.join(content['outputs']) if content else ''})")
+    else:
+        print("(no --out given: nothing written)")
+    if not result.success:
+        print(
+            f"error: the fit did not converge (solver status: {result.status}); raise"
+            " --max-iter or narrow the problem",
+            file=sys.stderr,
+        )
+        return EXIT_FAILED
+    return EXIT_OK
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command; returns the exit code (0 ok, 2 bad input, 1 failed)."""
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:  # --help (0) or a bad option (2, message already printed)
+        return exc.code if isinstance(exc.code, int) else EXIT_BAD_INPUT
+    return run(lambda: _body(args))

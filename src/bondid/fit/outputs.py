@@ -1,0 +1,254 @@
+"""What a fit writes under ``--out``: ``fit.json``, ``fitted.urdf`` and PNG plots.
+
+Every file is written atomically (:mod:`bondid.atomic`); no output may be one of the inputs.
+
+* ``fit.json`` — :meth:`FitResult.to_json_dict` (spec keys ``status``, ``cost_initial``,
+  ``cost_final``, ``cost_name``, ``iterations``, ``wall_s``, ``parameters``, plus the correlation
+  matrix and the active constraints), and ``multistart`` (spread of the final costs),
+  ``stages`` (staged fit), ``settings`` (every setting used), ``model_file``, ``data_files``,
+  ``db_rms`` (before/after, total, per channel and per data set) and ``outputs``.
+* ``fitted.urdf`` — the fitted model (the input URDF is never touched).
+* ``bode_<data-stem>.png`` — measured, initial model and fitted model per data set.
+* ``convergence.png`` — cost per iteration of every run.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..atomic import refuse_overwrite, write_text_atomic
+from ..cost.problem import CostOptions
+from ..cost.residuals import DB
+from ..data.measurement import FrfData
+from ..exceptions import ConfigError
+from ..linear.affine import build_affine_model
+from ..model.document import UrdfDocument
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from .result import FitResult
+
+FIT_JSON = "fit.json"
+FITTED_URDF = "fitted.urdf"
+CONVERGENCE_PNG = "convergence.png"
+
+
+def bode_names(datasets: Sequence[FrfData]) -> list[str]:
+    """``bode_<stem>.png`` per data set (a numeric suffix keeps repeated stems apart)."""
+    stems = [Path(ds.source).stem if ds.source else f"data{i}" for i, ds in enumerate(datasets)]
+    out = []
+    for i, s in enumerate(stems):
+        out.append(f"bode_{s}.png" if stems.count(s) == 1 else f"bode_{s}_{i}.png")
+    return out
+
+
+def output_paths(out_dir: Path, datasets: Sequence[FrfData]) -> list[Path]:
+    """Every file a fit writes under ``out_dir``."""
+    names = [FIT_JSON, FITTED_URDF, CONVERGENCE_PNG, *bode_names(datasets)]
+    return [out_dir / n for n in names]
+
+
+def check_out_dir(
+    out_dir: str | os.PathLike[str],
+    inputs: Sequence[str | os.PathLike[str]],
+    datasets: Sequence[FrfData] = (),
+) -> Path:
+    """Refuse an ``--out`` that is an input file or would overwrite one.
+
+    Raises:
+        ConfigError: ``out_dir`` is an existing file, or one of its outputs is an input.
+    """
+    out = Path(out_dir)
+    refuse_overwrite(out, inputs)
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"{out}: --out must be a folder, and this is a file")
+    for p in output_paths(out, datasets):
+        refuse_overwrite(p, inputs)
+    return out
+
+
+def jsonable(value: Any) -> Any:
+    """Plain JSON values: numpy scalars/arrays to Python, NaN and ±inf to None."""
+    if isinstance(value, Mapping):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, np.ndarray):
+        return jsonable(value.tolist())
+    if isinstance(value, list | tuple):
+        return [jsonable(v) for v in value]
+    if isinstance(value, np.bool_):
+        return bool(value)
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, float | np.floating):
+        v = float(value)
+        return v if math.isfinite(v) else None
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+def _units(doc: UrdfDocument, joints: Sequence[str]) -> dict[str, str]:
+    return {j: "m" if doc.joint(j).type == "prismatic" else "rad" for j in joints}
+
+
+def model_frf(doc: UrdfDocument, ds: FrfData) -> np.ndarray:
+    """The model's FRF at ``ds``'s operating point and frequencies, in ``ds``'s channel layout.
+
+    Returns:
+        complex ``(n_out, n_in, n_freq)`` in ``ds.quantity``, rows ``ds.outputs``, columns
+        ``ds.inputs``.
+    """
+    lm = build_affine_model(doc, ds.operating_point, outputs=ds.outputs).linear_model()
+    H = lm.frf(ds.freq_hz, ds.quantity)
+    cols = [lm.inputs.index(i) for i in ds.inputs]
+    return H[:, cols, :]
+
+
+def _used_mask(ds: FrfData, options: CostOptions) -> np.ndarray:
+    """Boolean ``(n_out, n_in, n_freq)``: the points the fit used (channels, bands, finite)."""
+    chosen = ds.present.copy()
+    if options.channels is not None:
+        wanted = set(options.channels)
+        for a, o in enumerate(ds.outputs):
+            for b, i in enumerate(ds.inputs):
+                chosen[a, b] &= f"{o}.{i}" in wanted
+    fmask = np.ones(ds.freq_hz.size, bool)
+    if options.bands:
+        fmask[:] = False
+        for lo, hi in options.bands:
+            fmask |= (ds.freq_hz >= lo) & (ds.freq_hz <= hi)
+    return chosen[:, :, None] & fmask[None, None, :] & np.isfinite(ds.H)
+
+
+def _sq_db(Hs: np.ndarray, Hm: np.ndarray) -> np.ndarray:
+    """Per point ``((20/ln10)|ln(Hm/Hs)|)²`` with the phase wrapped to (−π, π]."""
+    L = np.log(Hm / Hs)
+    ph = np.pi - np.mod(np.pi - L.imag, 2.0 * np.pi)
+    return DB**2 * (L.real**2 + ph**2)
+
+
+def db_rms_report(
+    initial: UrdfDocument,
+    fitted: UrdfDocument,
+    datasets: Sequence[FrfData],
+    options: CostOptions,
+    model_frfs: list[tuple[np.ndarray, np.ndarray]] | None = None,
+) -> dict[str, Any]:
+    """The spec's ``db_rms`` before and after, over the points the fit used.
+
+    Returns:
+        ``{"initial", "final", "by_channel": {ch: {"initial", "final"}}, "by_dataset":
+        [{"file", "initial", "final", "by_channel"}]}`` (dB).
+    """
+    frfs = model_frfs or [(model_frf(initial, ds), model_frf(fitted, ds)) for ds in datasets]
+    tot: dict[str, list[float]] = {"initial": [], "final": []}
+    per_ch: dict[str, dict[str, list[float]]] = {}
+    by_ds = []
+    for ds, (H0, H1) in zip(datasets, frfs, strict=True):
+        mask = _used_mask(ds, options)
+        entry: dict[str, Any] = {"file": ds.source, "by_channel": {}}
+        for label, H in (("initial", H0), ("final", H1)):
+            e = _sq_db(H[mask], ds.H[mask])
+            entry[label] = float(np.sqrt(np.mean(e))) if e.size else None
+            tot[label] += list(e)
+            for a, o in enumerate(ds.outputs):
+                for b, i in enumerate(ds.inputs):
+                    m = mask[a, b]
+                    if not m.any():
+                        continue
+                    ch = f"{o}.{i}"
+                    ec = _sq_db(H[a, b, m], ds.H[a, b, m])
+                    entry["by_channel"].setdefault(ch, {})[label] = float(np.sqrt(np.mean(ec)))
+                    per_ch.setdefault(ch, {"initial": [], "final": []})[label] += list(ec)
+        by_ds.append(entry)
+
+    def rms(v: list[float]) -> float | None:
+        return float(np.sqrt(np.mean(v))) if v else None
+
+    return {
+        "initial": rms(tot["initial"]),
+        "final": rms(tot["final"]),
+        "by_channel": {ch: {k: rms(v) for k, v in d.items()} for ch, d in per_ch.items()},
+        "by_dataset": by_ds,
+    }
+
+
+def write_outputs(
+    out_dir: str | os.PathLike[str],
+    *,
+    result: FitResult,
+    initial_doc: UrdfDocument,
+    datasets: Sequence[FrfData],
+    options: CostOptions,
+    inputs: Sequence[str | os.PathLike[str]],
+    histories: Sequence[Sequence[float]] = (),
+    history_labels: Sequence[str] | None = None,
+    extra: Mapping[str, Any] | None = None,
+) -> dict[str, Any]:
+    """Write every output of a fit under ``out_dir`` and return the ``fit.json`` content.
+
+    Args:
+        out_dir: results folder (created if missing).
+        result: the fit (its ``document`` is the fitted model).
+        initial_doc: the model before the fit (for the "initial" Bode curves).
+        datasets: the measured data, one Bode plot each.
+        options: the cost options (their bands/channels define the db_rms points).
+        inputs: every input file (none may be overwritten).
+        histories: cost per iteration of each run, for ``convergence.png``.
+        history_labels: a label per history.
+        extra: more top-level keys for ``fit.json`` (settings, multistart, stages, ...).
+
+    Returns:
+        The dictionary written as ``fit.json``.
+
+    Raises:
+        ConfigError: an output would overwrite an input.
+    """
+    from ..plots import Curve, plot_bode, plot_convergence
+
+    out = check_out_dir(out_dir, inputs, datasets)
+    out.mkdir(parents=True, exist_ok=True)
+    written: list[str] = []
+    frfs = [(model_frf(initial_doc, ds), model_frf(result.document, ds)) for ds in datasets]
+    for ds, (H0, H1), name in zip(datasets, frfs, bode_names(datasets), strict=True):
+        op = " ".join(f"{k}={v:g}" for k, v in ds.operating_point.items()) or "neutral"
+        plot_bode(
+            ds.freq_hz,
+            [
+                Curve("measured", ds.H, kind="measured"),
+                Curve("initial model", H0, style={"linestyle": "--"}),
+                Curve("fitted model", H1),
+            ],
+            outputs=ds.outputs,
+            inputs=ds.inputs,
+            path=out / name,
+            title=f"{Path(ds.source).name if ds.source else name}: operating point {op}",
+            quantity=ds.quantity,
+            units=_units(initial_doc, [*ds.outputs, *ds.inputs]),
+        )
+        written.append(name)
+    runs = [list(h) for h in histories if len(h) > 0]
+    if runs:
+        labels = None
+        if history_labels is not None:
+            labels = [lb for lb, h in zip(history_labels, histories, strict=True) if len(h) > 0]
+        plot_convergence(
+            runs, path=out / CONVERGENCE_PNG, labels=labels,
+            title=f"Convergence ({result.cost_name})",
+        )  # fmt: skip
+        written.append(CONVERGENCE_PNG)
+    result.document.write(out / FITTED_URDF)
+    written.append(FITTED_URDF)
+    content = dict(result.to_json_dict())
+    content.update(extra or {})
+    content["data_files"] = [ds.source for ds in datasets]
+    content["db_rms"] = db_rms_report(initial_doc, result.document, datasets, options, frfs)
+    content["outputs"] = [*written, FIT_JSON]
+    write_text_atomic(out / FIT_JSON, json.dumps(jsonable(content), indent=2) + "\n")
+    return content

@@ -1,0 +1,372 @@
+"""The fit's decision vector: Cholesky-factor coordinates per body, scaled joint parameters.
+
+Per fitted body the pseudo-inertia is written ``J = U Uᵀ`` with
+
+    U = [[V, √m·t], [0, √m]],   V upper triangular (3×3), diag V = e^{δ},  m = e^{2α},
+
+i.e. the log-Cholesky factor of :mod:`bondid.consistency.log_cholesky` in the coordinates
+``ζ = (α, δ₁, δ₂, δ₃, σ₁₂, σ₂₃, σ₁₃, t₁, t₂, t₃)`` with ``δᵢ = α + dᵢ`` and ``σ = e^α s``. Every
+ζ gives ``J ≻ 0`` (a physically consistent body), and the coordinates separate the URDF
+quantities: ``m = e^{2α}``, ``c = t`` and the second moment about the CoM ``Σ_c = V Vᵀ`` (so
+``I_c = tr(Σ_c) 𝟙 − Σ_c`` depends on δ and σ only). A fixed mass, CoM or full inertia is then a
+fixed variable rather than a curved equality constraint, which keeps IPOPT's steps Newton-like.
+
+Layout of the decision vector ``z`` (all entries O(1)):
+
+* per body 10 entries ``z_b`` with ``ζ_b = shift_b + scale_b ∘ z_b``: δ shifted by ``ln √σ̄``
+  (σ̄ the mean principal second moment at the start), σ scaled by ``√σ̄``, t scaled by the
+  body length ``L`` (half the hull's bounding-box diagonal);
+* for every free ``JOINT.stiffness`` / ``JOINT.damping``, one entry ``p / s`` with ``s`` the
+  magnitude of its starting value (the finite upper bound, or 1, when that is 0).
+
+:class:`Layout` is a *parameter model* for :class:`bondid.cost.FrfProblem` (``size``,
+``values``, ``jacobian``) and also builds the CasADi constraint expressions of the NLP:
+equalities for fixed inertia components of a body whose other inertia components are free,
+bounds on free inertia components, and the CoM-in-hull inequalities ``A t ≤ b`` (linear in z).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..consistency.hull import Hull
+from ..consistency.log_cholesky import jacobian_pi_theta, pi_from_theta, theta_from_pi
+from ..consistency.projection import is_feasible, project_feasible
+from ..consistency.pseudo_inertia import pi_from_urdf, urdf_from_pi
+from ..linear.affine import AffineModel
+from ..model.document import UrdfDocument
+from ..model.parameters import COM_AXES, INERTIA_COMPONENTS, ParameterInfo, link_inertial
+
+# (row, col) of each URDF inertia component
+_IJ = {"ixx": (0, 0), "ixy": (0, 1), "ixz": (0, 2), "iyy": (1, 1), "iyz": (1, 2), "izz": (2, 2)}
+_ALPHA, _T = 0, 7  # index of α and of t₁ in θ and ζ
+_DIAG = (1, 2, 3)  # δ (ζ) / d (θ)
+_OFF = ((4, 0, 1), (5, 1, 2), (6, 0, 2))  # σ₁₂, σ₂₃, σ₁₃ (ζ index, row, col of V)
+
+
+def _component(info: ParameterInfo) -> str:
+    """``mass``, ``com.x``… or ``inertia.ixx``… of an inertial parameter."""
+    return "mass" if info.kind == "mass" else f"{info.kind}.{info.component}"
+
+
+@dataclass
+class BodyBlock:
+    """One fitted body: where its θ lives in ``z`` and which named parameters are free."""
+
+    link: str
+    body: int  # index in AffineModel.bodies
+    offset: int  # first index in z
+    shift: np.ndarray  # (10,)
+    scale: np.ndarray  # (10,)
+    length: float  # L, m
+    inertia_scale: float  # kg·m², for scaling inertia constraints
+    hull: Hull | None
+    free: dict[str, int] = field(default_factory=dict)  # component -> index in names
+    fixed: dict[str, float] = field(default_factory=dict)  # component -> URDF value
+    fixed_v: np.ndarray | None = None  # z of δ, σ when no inertia component is free
+
+    def zeta(self, z: np.ndarray) -> np.ndarray:
+        return self.shift + self.scale * z[self.offset : self.offset + 10]
+
+    def theta(self, z: np.ndarray) -> np.ndarray:
+        """Log-Cholesky θ (10,) of this body at ``z``."""
+        ze = self.zeta(z)
+        th = ze.copy()
+        th[1:4] = ze[1:4] - ze[0]
+        th[4:7] = ze[4:7] * np.exp(-ze[0])
+        return th
+
+    def dtheta_dz(self, z: np.ndarray) -> np.ndarray:
+        """∂θ/∂z_b (10, 10)."""
+        ze = self.zeta(z)
+        D = np.eye(10)
+        D[1:4, 0] = -1.0
+        e = np.exp(-ze[0])
+        D[4:7, 4:7] *= e
+        D[4:7, 0] = -ze[4:7] * e
+        return D * self.scale
+
+
+@dataclass
+class JointVar:
+    name: str
+    kind: str  # stiffness / damping
+    dof: int  # index into the affine model's velocity coordinates
+    index: int  # index in z
+    name_index: int  # index in names
+    scale: float
+
+
+def named_from_pi(pi: np.ndarray) -> dict[str, float]:
+    """URDF-form values ``{component: value}`` of one body's ``pi`` (10,)."""
+    m, c, I_c = urdf_from_pi(pi)
+    out = {"mass": m}
+    out.update({f"com.{a}": float(c[k]) for k, a in enumerate(COM_AXES)})
+    out.update({f"inertia.{n}": float(I_c[_IJ[n]]) for n in INERTIA_COMPONENTS})
+    return out
+
+
+class Layout:
+    """Decision vector of the fit (see the module docstring) and its maps.
+
+    Args:
+        doc: the model (values of the parameters that are not free).
+        affine: any :class:`AffineModel` of ``doc`` (gives body and DOF indices, base values).
+        infos: the free parameters, in order (length ``n``).
+        hulls: link hull per fitted body (None = no CoM constraint).
+    """
+
+    def __init__(
+        self,
+        doc: UrdfDocument,
+        affine: AffineModel,
+        infos: Sequence[ParameterInfo],
+        hulls: dict[str, Hull | None],
+    ):
+        self.infos = list(infos)
+        self.base_pi = affine.pi.copy()
+        self.base_k = affine.stiffness.copy()
+        self.base_d = affine.damping.copy()
+        self.blocks: list[BodyBlock] = []
+        self.joints: list[JointVar] = []
+        self.notes: list[str] = []
+        by_link: dict[str, BodyBlock] = {}
+        offset = 0
+        for j, info in enumerate(self.infos):
+            if not info.is_inertial:
+                continue
+            blk = by_link.get(info.owner)
+            if blk is None:
+                m, _, I_c = link_inertial(doc, info.owner)
+                hull = hulls.get(info.owner)
+                if hull is not None:
+                    length = 0.5 * hull.size
+                elif m > 0:
+                    length = float(np.sqrt(max(np.trace(I_c), 0.0) / m)) or 0.1
+                else:
+                    length = 0.1
+                shift = np.zeros(10)  # δ shift and σ scale are set by start()
+                scale = np.ones(10)
+                scale[7:] = length
+                blk = BodyBlock(
+                    info.owner,
+                    affine.bodies.index(info.owner),
+                    offset,
+                    shift,
+                    scale,
+                    length,
+                    1.0,
+                    hull,
+                )
+                by_link[info.owner] = blk
+                self.blocks.append(blk)
+                offset += 10
+            blk.free[_component(info)] = j
+        for blk in self.blocks:
+            m, c, I_c = link_inertial(doc, blk.link)
+            urdf = {"mass": m}
+            urdf.update({f"com.{a}": float(c[k]) for k, a in enumerate(COM_AXES)})
+            urdf.update({f"inertia.{n}": float(I_c[_IJ[n]]) for n in INERTIA_COMPONENTS})
+            blk.fixed = {k: v for k, v in urdf.items() if k not in blk.free}
+        for j, info in enumerate(self.infos):
+            if info.is_inertial:
+                continue
+            dof = affine.dofs.index(info.owner)
+            self.joints.append(JointVar(info.name, info.kind, dof, offset, j, 1.0))
+            offset += 1
+        self.size = offset
+
+    # -- start point -----------------------------------------------------------------------
+    def start(
+        self, doc: UrdfDocument, p0: np.ndarray, lower: np.ndarray, upper: np.ndarray
+    ) -> np.ndarray:
+        """Decision vector ``z`` (size,) for named values ``p0`` (n,), projected if needed.
+
+        Bodies whose start is not physically consistent or whose CoM lies outside the hull are
+        projected (:func:`bondid.consistency.project_feasible`); a note says so. Also fixes the
+        joint scales and the inertia-constraint scales.
+        """
+        z = np.zeros(self.size)
+        for blk in self.blocks:
+            m, c, I_c = link_inertial(doc, blk.link)
+            for comp, j in blk.free.items():
+                if comp == "mass":
+                    m = float(p0[j])
+                elif comp.startswith("com."):
+                    c[COM_AXES.index(comp[4:])] = p0[j]
+                else:
+                    r, s = _IJ[comp[8:]]
+                    I_c[r, s] = I_c[s, r] = p0[j]
+            pi = pi_from_urdf(m, c, I_c)
+            if not is_feasible(pi, blk.hull):
+                pi = project_feasible(pi, blk.hull, name=blk.link)
+                moved = {k: v for k, v in named_from_pi(pi).items() if k != "mass"}
+                self.notes.append(
+                    f"{blk.link}: start not feasible (pseudo-inertia or CoM outside the hull);"
+                    " projected to " + ", ".join(f"{k}={v:.6g}" for k, v in moved.items())
+                )
+            _, _, I_p = urdf_from_pi(pi)
+            blk.inertia_scale = float(np.trace(I_p)) / 3.0
+            sigma_bar = float(np.trace(I_p)) / 6.0  # mean principal second moment about CoM
+            blk.shift[1:4] = 0.5 * np.log(sigma_bar)
+            blk.scale[4:7] = np.sqrt(sigma_bar)
+            theta = theta_from_pi(pi, name=blk.link)
+            zeta = theta.copy()
+            zeta[1:4] = theta[1:4] + theta[0]
+            zeta[4:7] = theta[4:7] * np.exp(theta[0])
+            z[blk.offset : blk.offset + 10] = (zeta - blk.shift) / blk.scale
+            if not any(k.startswith("inertia.") for k in blk.free):
+                blk.fixed_v = z[blk.offset + 1 : blk.offset + 7].copy()
+        for jv in self.joints:
+            v = float(p0[jv.name_index])
+            hi = float(upper[jv.name_index])
+            jv.scale = abs(v) if v != 0 else (hi if np.isfinite(hi) and hi > 0 else 1.0)
+            z[jv.index] = v / jv.scale
+        return z
+
+    # -- parameter-model protocol (numpy) ------------------------------------------------
+    def values(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(π ``(nb, 10)``, stiffness ``(nv,)``, damping ``(nv,)``) at ``z``."""
+        z = np.asarray(z, dtype=float)
+        pi = self.base_pi.copy()
+        for blk in self.blocks:
+            pi[blk.body] = pi_from_theta(blk.theta(z))
+        k, d = self.base_k.copy(), self.base_d.copy()
+        for jv in self.joints:
+            (k if jv.kind == "stiffness" else d)[jv.dof] = jv.scale * z[jv.index]
+        return pi, k, d
+
+    def jacobian(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """dπ/dz ``(nb, 10, size)``, dk/dz ``(nv, size)``, dd/dz ``(nv, size)``."""
+        z = np.asarray(z, dtype=float)
+        dpi = np.zeros((self.base_pi.shape[0], 10, self.size))
+        dk = np.zeros((self.base_k.size, self.size))
+        dd = np.zeros((self.base_d.size, self.size))
+        for blk in self.blocks:
+            dpi[blk.body, :, blk.offset : blk.offset + 10] = jacobian_pi_theta(
+                blk.theta(z)
+            ) @ blk.dtheta_dz(z)
+        for jv in self.joints:
+            (dk if jv.kind == "stiffness" else dd)[jv.dof, jv.index] = jv.scale
+        return dpi, dk, dd
+
+    # -- named values ------------------------------------------------------------------------
+    def body_values(self, z: np.ndarray) -> dict[str, dict[str, float]]:
+        """URDF-form values of every fitted body at ``z``: ``{link: {component: value}}``."""
+        return {b.link: named_from_pi(pi_from_theta(b.theta(z))) for b in self.blocks}
+
+    def named(self, z: np.ndarray) -> np.ndarray:
+        """Values ``(n,)`` of the free named parameters at ``z`` (SI units)."""
+        out = np.empty(len(self.infos))
+        for blk in self.blocks:
+            vals = named_from_pi(pi_from_theta(blk.theta(z)))
+            for comp, j in blk.free.items():
+                out[j] = vals[comp]
+        for jv in self.joints:
+            out[jv.name_index] = jv.scale * z[jv.index]
+        return out
+
+    # -- variable bounds -------------------------------------------------------------------
+    def variable_bounds(
+        self, lower: np.ndarray, upper: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, list[tuple[str, int]]]:
+        """Bounds on ``z`` ``(size,)`` x2 and labels ``(parameter name, z index)`` of bounded
+        entries that stand for a named parameter (mass via α, CoM via t, joint parameters)."""
+        lbz = np.full(self.size, -np.inf)
+        ubz = np.full(self.size, np.inf)
+        labels: list[tuple[str, int]] = []
+        for blk in self.blocks:
+            ia = blk.offset + _ALPHA
+            if "mass" in blk.free:
+                j = blk.free["mass"]
+                lo, hi = float(lower[j]), float(upper[j])
+                lbz[ia] = 0.5 * np.log(lo) if lo > 0 else -np.inf
+                ubz[ia] = 0.5 * np.log(hi) if np.isfinite(hi) else np.inf
+                labels.append((self.infos[j].name, ia))
+            else:
+                lbz[ia] = ubz[ia] = 0.5 * np.log(blk.fixed["mass"])
+            for k, a in enumerate(COM_AXES):
+                it = blk.offset + _T + k
+                comp = f"com.{a}"
+                if comp in blk.free:
+                    j = blk.free[comp]
+                    lbz[it] = (lower[j] - blk.shift[_T + k]) / blk.scale[_T + k]
+                    ubz[it] = (upper[j] - blk.shift[_T + k]) / blk.scale[_T + k]
+                    labels.append((self.infos[j].name, it))
+                else:
+                    lbz[it] = ubz[it] = blk.fixed[comp] / blk.scale[_T + k]
+            if blk.fixed_v is not None:
+                sl = slice(blk.offset + 1, blk.offset + 7)
+                lbz[sl] = ubz[sl] = blk.fixed_v
+        for jv in self.joints:
+            lbz[jv.index] = lower[jv.name_index] / jv.scale
+            ubz[jv.index] = upper[jv.name_index] / jv.scale
+            labels.append((jv.name, jv.index))
+        return lbz, ubz, labels
+
+    # -- CasADi constraints ----------------------------------------------------------------
+    def constraints(
+        self, zsym: Any, lower: np.ndarray, upper: np.ndarray
+    ) -> tuple[Any, np.ndarray, np.ndarray, list[str], list[str]]:
+        """Constraint expressions ``g(z)`` (CasADi column) with bounds and labels.
+
+        Rows, each scaled to O(1): fixed inertia components ``(I_c,k(θ) − v)/s_I = 0``; bounded
+        free inertia components ``lo/s_I ≤ I_c,k(θ)/s_I ≤ hi/s_I``; CoM in hull
+        ``(A t − b)/L ≤ 0`` (one row per facet, only for bodies with a free CoM component).
+
+        Returns:
+            ``(g, lbg, ubg, labels, groups)``: labels name each row; groups give the readable
+            constraint each row belongs to (e.g. ``"x_stage com in hull"``).
+        """
+        import casadi
+
+        rows: list[Any] = []
+        lbg: list[float] = []
+        ubg: list[float] = []
+        labels: list[str] = []
+        groups: list[str] = []
+        for blk in self.blocks:
+            zb = zsym[blk.offset : blk.offset + 10]
+            ze = casadi.DM(blk.shift) + casadi.DM(blk.scale) * zb
+            V: Any = casadi.SX.zeros(3, 3) if isinstance(zsym, casadi.SX) else casadi.MX.zeros(3, 3)
+            for k in range(3):
+                V[k, k] = casadi.exp(ze[_DIAG[k]])
+            for idx, r, c in _OFF:
+                V[r, c] = ze[idx]
+            S = V @ V.T  # second moment about the CoM
+            I_c = casadi.trace(S) * casadi.DM.eye(3) - S
+            s_i = blk.inertia_scale
+            if blk.fixed_v is None:
+                for comp in INERTIA_COMPONENTS:
+                    r, c = _IJ[comp]
+                    expr = I_c[r, c] / s_i
+                    key = f"inertia.{comp}"
+                    if key in blk.fixed:
+                        rows.append(expr)
+                        lbg.append(blk.fixed[key] / s_i)
+                        ubg.append(blk.fixed[key] / s_i)
+                        labels.append(f"{blk.link}.{key} fixed")
+                        groups.append(f"{blk.link}.{key} fixed")
+                        continue
+                    j = blk.free[key]
+                    lo, hi = float(lower[j]), float(upper[j])
+                    if np.isfinite(lo) or np.isfinite(hi):
+                        rows.append(expr)
+                        lbg.append(lo / s_i)
+                        ubg.append(hi / s_i)
+                        labels.append(self.infos[j].name)
+                        groups.append(self.infos[j].name)
+            if blk.hull is not None and any(k.startswith("com.") for k in blk.free):
+                t = blk.scale[_T] * zb[_T : _T + 3]  # shift of t is 0
+                for A_row, b_row in zip(blk.hull.A, blk.hull.b, strict=True):
+                    rows.append((casadi.dot(casadi.DM(A_row), t) - b_row) / blk.length)
+                    lbg.append(-np.inf)
+                    ubg.append(0.0)
+                    labels.append(f"{blk.link} com in hull")
+                    groups.append(f"{blk.link} com in hull")
+        g = casadi.vertcat(*rows) if rows else casadi.SX(0, 1)
+        return g, np.array(lbg), np.array(ubg), labels, groups

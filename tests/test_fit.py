@@ -1,0 +1,227 @@
+"""The constrained fit (bondid.fit): round trips, constraints, gradient, errors."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from bondid.consistency import is_consistent, link_hull
+from bondid.consistency.log_cholesky import pi_from_theta
+from bondid.data.measurement import FrfData
+from bondid.data.noise import add_measurement_noise
+from bondid.exceptions import ConfigError, ParameterError, SolverError
+from bondid.fit import default_bounds, fit
+from bondid.fit.solver import prepare
+from bondid.linear.affine import build_affine_model
+from bondid.model import UrdfDocument, get_parameters, link_inertial, select_parameters
+
+URDF = "urdf/bonder.urdf"
+OPS = [{}, {"x": 0.05, "y": -0.03, "z": 0.1}]
+# identifiable from the 3x3 data at the two poses (checked with the Jacobian's SVD)
+INERTIAL = [
+    "x_stage.mass",
+    "y_stage.mass",
+    "z_stage.mass",
+    "x_stage.com.z",
+    "y_stage.inertia.ixx",
+    "z_stage.inertia.ixx",
+]
+REL = {"mass": 0.5, "com": 0.6, "inertia": 0.6, "stiffness": 0.6, "damping": 0.6}
+
+
+@pytest.fixture(scope="module")
+def bonder() -> UrdfDocument:
+    return UrdfDocument.load(URDF)
+
+
+def synth(doc: UrdfDocument, n_freq: int, noise_seed: int | None = None) -> list[FrfData]:
+    f = np.logspace(0, np.log10(4000.0), n_freq)
+    out = []
+    for k, op in enumerate(OPS):
+        am = build_affine_model(doc, op)
+        H = am.linear_model().frf(f)
+        coh = None
+        if noise_seed is not None:
+            H, coh = add_measurement_noise(H, f, rel=0.02, floor_db=None, rng=noise_seed + k)
+        out.append(FrfData(f, am.outputs, am.inputs, H, operating_point=op, coherence=coh))
+    return out
+
+
+def perturbed_start(doc: UrdfDocument, names: list[str], seed: int = 5) -> np.ndarray:
+    """±30 % on joint parameters, ±10 % on inertial ones (random signs)."""
+    truth = get_parameters(doc, names)
+    rng = np.random.default_rng(seed)
+    frac = np.array([0.1 if n.split(".")[0].endswith("_stage") else 0.3 for n in names])
+    return truth * (1.0 + frac * rng.choice([-1.0, 1.0], size=truth.size))
+
+
+@pytest.fixture(scope="module")
+def names(bonder: UrdfDocument) -> list[str]:
+    return select_parameters(bonder, ["parasitic", *INERTIAL])
+
+
+def test_noise_free_round_trip(bonder: UrdfDocument, names: list[str]) -> None:
+    truth = get_parameters(bonder, names)
+    lo, hi = default_bounds(bonder, names, rel=REL)
+    seen: list[tuple[int, float]] = []
+    res = fit(
+        bonder,
+        synth(bonder, 300),
+        names,
+        start=perturbed_start(bonder, names),
+        lower=lo,
+        upper=hi,
+        progress=lambda i, c: seen.append((i, c)),
+    )
+    assert res.success, res.status
+    rel_err = np.abs(res.fitted - truth) / np.abs(truth)
+    assert np.max(rel_err) < 1e-6, dict(zip(names, rel_err, strict=True))
+    assert res.cost_final < 1e-12 < res.cost_initial
+    assert len(res.cost_history) == res.iterations + 1 == len(seen)
+    assert res.cost_history[-1] == pytest.approx(res.cost_final, abs=1e-12)
+    # the fitted document carries the fitted values; the input is untouched
+    np.testing.assert_allclose(get_parameters(res.document, names), res.fitted, rtol=1e-12)
+    assert get_parameters(bonder, names) == pytest.approx(truth, rel=0)
+    js = res.to_json_dict()
+    assert {p["name"] for p in js["parameters"]} == set(names)
+    assert js["status"] == res.status and js["iterations"] == res.iterations
+
+
+def test_noisy_round_trip_within_three_std(bonder: UrdfDocument, names: list[str]) -> None:
+    truth = get_parameters(bonder, names)
+    lo, hi = default_bounds(bonder, names, rel=REL)
+    res = fit(
+        bonder,
+        synth(bonder, 300, noise_seed=11),
+        names,
+        start=perturbed_start(bonder, names),
+        lower=lo,
+        upper=hi,
+    )
+    assert res.success, res.status
+    assert np.all(np.isfinite(res.std)) and np.all(res.std > 0)
+    z = (res.fitted - truth) / res.std
+    assert np.max(np.abs(z)) < 3.0, dict(zip(names, np.round(z, 2), strict=True))
+    # the correlation matrix is a correlation matrix
+    C = res.correlation
+    np.testing.assert_allclose(np.diag(C), 1.0)
+    np.testing.assert_allclose(C, C.T, atol=1e-12)
+    assert np.min(np.linalg.eigvalsh(C)) > -1e-9
+
+
+def _com_outside_truth(doc: UrdfDocument) -> UrdfDocument:
+    """The bonder with the x_stage CoM moved to y = 0.16 m (its box reaches |y| = 0.1 m)."""
+    text = doc.to_string()
+    new, count = re.subn(
+        r'(<link name="x_stage">\s*<inertial>\s*<origin xyz=")[^"]*"',
+        r'\g<1>0.011 0.16 -0.004"',
+        text,
+    )
+    assert count == 1
+    return UrdfDocument.from_string(new)
+
+
+def test_com_outside_hull_ends_on_hull(bonder: UrdfDocument) -> None:
+    truth = _com_outside_truth(bonder)
+    hull = link_hull(bonder.link("x_stage"))
+    assert hull is not None
+    _, c_true, _ = link_inertial(truth, "x_stage")
+    assert not hull.contains(c_true)
+    names = ["x_stage.com.x", "x_stage.com.y", "x_stage.com.z"]
+    res = fit(
+        bonder,
+        synth(truth, 200),
+        names,
+        lower=np.full(3, -1.0),
+        upper=np.full(3, 1.0),
+    )
+    assert res.success, res.status
+    m, c, I_c = link_inertial(res.document, "x_stage")
+    assert hull.contains(c, -1e-8)  # IPOPT may relax a bound by ~1e-8 (scaled)
+    assert hull.distance(c) < 1e-6  # on the boundary: the data pull it outwards
+    assert c[1] > 0.09
+    from bondid.consistency import pi_from_urdf
+
+    assert is_consistent(pi_from_urdf(m, c, I_c))
+    assert "x_stage com in hull" in res.active_constraints
+    # the fixed parameters of x_stage kept their URDF values
+    assert m == pytest.approx(link_inertial(bonder, "x_stage")[0], rel=1e-12)
+    np.testing.assert_allclose(I_c, link_inertial(bonder, "x_stage")[2], rtol=1e-6, atol=1e-12)
+
+
+def test_gradient_matches_central_differences(bonder: UrdfDocument) -> None:
+    names = [
+        "x_stage.mass",
+        "x_stage.com.y",
+        "z_stage.inertia.ixx",
+        "x_guide_ry.stiffness",
+        "y_guide_rz.damping",
+    ]
+    truth = _com_outside_truth(bonder)  # any data that do not fit the start exactly
+    setup = prepare(bonder, synth(truth, 120), names)
+    z0 = setup.z0 + 0.05 * np.random.default_rng(0).standard_normal(setup.z0.size)
+    g = setup.nlp.gradient(z0)
+    fd = np.empty_like(g)
+    for k in range(z0.size):
+        h = 1e-6 * max(1.0, abs(z0[k]))
+        e = np.zeros_like(z0)
+        e[k] = h
+        fd[k] = (setup.nlp.cost(z0 + e) - setup.nlp.cost(z0 - e)) / (2 * h)
+    np.testing.assert_allclose(g, fd, rtol=1e-5, atol=1e-7 * np.max(np.abs(g)))
+    # every z is physically consistent (log-Cholesky)
+    for blk in setup.layout.blocks:
+        assert is_consistent(pi_from_theta(blk.theta(z0 + 3.0)))
+
+
+def test_unknown_name_and_kinematic_placement(bonder: UrdfDocument) -> None:
+    data = synth(bonder, 50)
+    with pytest.raises(ParameterError, match=r"x_stage\.volume"):
+        fit(bonder, data, ["x_stage.volume"])
+    with pytest.raises(ConfigError, match="kinematic"):
+        fit(bonder, data, ["x_guide_ry.origin.z"])
+    with pytest.raises(ConfigError, match="twice"):
+        fit(bonder, data, ["x.damping", "x.damping"])
+
+
+def test_solver_failure_keeps_ipopt_status(bonder: UrdfDocument) -> None:
+    data = synth(bonder, 50)
+    # izz of x_stage must exceed |ixx - iyy| = 0.0038 kg m² (triangle inequality): infeasible
+    with pytest.raises(SolverError) as info:
+        fit(
+            bonder,
+            data,
+            ["x_stage.inertia.izz"],
+            lower=np.array([1e-4]),
+            upper=np.array([2e-4]),
+            start=np.array([1.5e-4]),
+        )
+    assert info.value.status in ("Infeasible_Problem_Detected", "Restoration_Failed")
+    # an iteration limit is returned, not raised
+    names = ["x_guide_ry.stiffness", "y_guide_rx.stiffness"]
+    res = fit(bonder, data, names, start=get_parameters(bonder, names) * 1.3, max_iter=1)
+    assert not res.success and res.status == "Maximum_Iterations_Exceeded"
+
+
+def test_default_bounds(bonder: UrdfDocument) -> None:
+    names = ["x_stage.mass", "x.stiffness", "x_guide_ry.stiffness", "x_stage.com.x", "z.damping"]
+    lo, hi = default_bounds(
+        bonder, names, rel={"x_guide_*": 0.1}, absolute={"z.damping": (0.0, 1.0)}
+    )
+    np.testing.assert_allclose(lo[0:3], [1.67 * 0.8, 0.0, 2e5 * 0.9])
+    np.testing.assert_allclose(hi[[0, 2]], [1.67 * 1.2, 2e5 * 1.1])
+    assert hi[1] == np.inf  # a zero stiffness has nothing to be relative to
+    # CoM: room relative to the hull size when the value is small (hull diagonal ~0.33 m)
+    assert hi[3] - lo[3] > 2 * 0.5 * 0.011
+    assert (lo[4], hi[4]) == (0.0, 1.0)
+
+
+def test_infeasible_prior_is_projected_and_noted(bonder: UrdfDocument) -> None:
+    truth = _com_outside_truth(bonder)
+    names = ["x_stage.com.x", "x_stage.com.y", "x_stage.com.z"]
+    res = fit(truth, synth(truth, 60), names, lower=np.full(3, -1.0), upper=np.full(3, 1.0))
+    assert any("x_stage" in n and "projected" in n for n in res.notes)
+    hull = link_hull(bonder.link("x_stage"))
+    assert hull is not None
+    assert hull.contains(link_inertial(res.document, "x_stage")[1], -1e-8)
