@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..cost.problem import CostOptions, FrfProblem
-from ..cost.residuals import residual, residual_jacobian
+from ..cost.residuals import RESIDUAL_KINDS, residual, residual_jacobian
 from ..data.measurement import FrfData
 from ..exceptions import ComputationError, ConfigError
 from ..frf.engine import dynamic_stiffness, omega
@@ -117,9 +117,6 @@ def nominal_variables(
     return out
 
 
-#: smoothing widths σ [ln f] of :meth:`Refit.continuation` (0.3 ≈ ±35 % in frequency)
-CONTINUATION_WIDTHS = (0.3, 0.1, 0.03)
-
 #: smallest half-width of the CoM bounds in the refit [m]
 COM_HALF_WIDTH = 0.01
 
@@ -182,10 +179,10 @@ class Refit:
         total = sum(float(b.weight.sum()) for b in self.problem.blocks)
         self._norm = 1.0 / np.sqrt(total)
         self._cache: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
-        #: width σ of the log-frequency smoothing of the residual (0 = none), see
-        #: :meth:`continuation`
-        self.smoothing = 0.0
-        self._smoothers: dict[tuple[int, float], np.ndarray] = {}
+        #: residual kind being minimised (see :meth:`solve`)
+        self.kind = "complex_log"
+        #: evaluations used by all solves so far
+        self.nfev = 0
 
     # -- model ------------------------------------------------------------------------------
     def _to_u(self, v: np.ndarray) -> np.ndarray:
@@ -231,9 +228,7 @@ class Refit:
         rs = []
         for b, H in zip(self.problem.blocks, self.frf(u), strict=True):
             Hs = H[b.rows, b.cols, b.fidx]
-            r = residual("complex_log", Hs, b.Hm)
-            if self.smoothing > 0:
-                r = (self._smoother(b) @ r[0])[None]
+            r = residual(self.kind, Hs, b.Hm)
             rs.append((r * (np.sqrt(b.weight) * self._norm)).reshape(-1))
         out = np.concatenate(rs)
         if not np.all(np.isfinite(out)):
@@ -247,7 +242,7 @@ class Refit:
     def residual_and_jacobian(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Residuals ``(n_r,)`` and the exact Jacobian ``(n_r, n_var)`` w.r.t. ``u = ln v``."""
         u = np.asarray(u, float)
-        key = np.r_[u, self.smoothing]
+        key = np.r_[u, RESIDUAL_KINDS.index(self.kind)]
         if self._cache is not None and np.array_equal(self._cache[0], key):
             return self._cache[1], self._cache[2]
         v = self.values(u)
@@ -286,11 +281,8 @@ class Refit:
                     dH[:, k] = Hs * dGs[:, int(self.variables[k].modifier)] * dv[k]  # type: ignore[arg-type]
                 Hs = Hs * Gs
             sw = np.sqrt(b.weight) * self._norm
-            r = residual("complex_log", Hs, b.Hm)
-            J = residual_jacobian("complex_log", Hs, b.Hm, dH)
-            if self.smoothing > 0:
-                W = self._smoother(b)
-                r, J = (W @ r[0])[None], (W @ J[0])[None]
+            r = residual(self.kind, Hs, b.Hm)
+            J = residual_jacobian(self.kind, Hs, b.Hm, dH)
             r = r * sw
             J = J * sw[None, :, None]
             rs.append(r.reshape(-1))
@@ -301,20 +293,6 @@ class Refit:
         self._cache = (key, r_all, J_all)
         return r_all, J_all
 
-    def _smoother(self, block) -> np.ndarray:  # type: ignore[no-untyped-def]
-        """Row-normalised, coherence-weighted Gaussian kernel ``(n_s, n_s)`` in ln f with
-        width :attr:`smoothing`, within each channel of ``block``."""
-        key = (id(block), self.smoothing)
-        W = self._smoothers.get(key)
-        if W is None:
-            lf = np.log(block.freq_hz[block.fidx])
-            same = block.channel[:, None] == block.channel[None, :]
-            W = np.exp(-0.5 * ((lf[:, None] - lf[None, :]) / self.smoothing) ** 2) * same
-            W = W * block.weight[None, :]
-            W /= np.maximum(W.sum(axis=1, keepdims=True), 1e-300)
-            self._smoothers[key] = W
-        return W
-
     # -- solving ------------------------------------------------------------------------------
     def solve(
         self,
@@ -322,26 +300,53 @@ class Refit:
         *,
         free: Sequence[int] | None = None,
         max_nfev: int = 40,
+        pre_nfev: int = 0,
     ) -> tuple[np.ndarray, RefitOutcome]:
         """Bounded least squares from ``u0`` (default: the initial values).
+
+        With ``pre_nfev > 0`` a first stage minimises the normalised complex error
+        ``(Hs − Hm)/|Hm|`` (the seed's eq. 6.3) for up to ``pre_nfev`` evaluations before the
+        complex-log error. The log error is infinite where the model has a zero the data do not
+        have, so when a cross term's static gain must change sign on the way to the optimum
+        (a CoM coordinate a few tenths of a millimetre off), the log cost has a wall the
+        local search cannot cross; the normalised error is bounded there (−1) and smooth.
+        Measured on a blind case (50 nominal + 2 new parameters from nominal values): log
+        error alone stalls at cost 35 in 150 evaluations, 40 normalised + 80 log reach 3.56
+        (the truth's 3.51).
 
         Args:
             u0: start ``(n_var,)`` in log units.
             free: indices of the variables to move (default all); the others stay at ``u0``.
-            max_nfev: SciPy's function-evaluation limit.
+            max_nfev: SciPy's function-evaluation limit (complex-log stage).
+            pre_nfev: evaluations of the normalised-complex stage (0 = none).
 
         Returns:
-            ``(u, outcome)``: the solution in log units and its :class:`RefitOutcome`.
+            ``(u, outcome)``: the solution in log units and its :class:`RefitOutcome`
+            (cost = the complex-log cost).
         """
-        from scipy.optimize import least_squares
-
-        u_start = np.clip(self.u0 if u0 is None else np.asarray(u0, float), self.lower, self.upper)
+        n0 = self.nfev
+        u = np.clip(self.u0 if u0 is None else np.asarray(u0, float), self.lower, self.upper)
         idx = np.arange(len(self.variables)) if free is None else np.asarray(list(free), int)
+        if pre_nfev > 0 and idx.size:
+            self.kind = "normalised_complex"
+            try:
+                u = self._least_squares(u, idx, pre_nfev)[0]
+            finally:
+                self.kind = "complex_log"
         if idx.size == 0:
-            r = self.residual(u_start)
-            return u_start, RefitOutcome(
-                self.values(u_start), float(r @ r), np.full(0, np.nan), 1, ""
-            )
+            r = self.residual(u)
+            return u, RefitOutcome(self.values(u), float(r @ r), np.full(0, np.nan), 1, "")
+        u, message = self._least_squares(u, idx, max_nfev)
+        r, J = self.residual_and_jacobian(u)
+        std = self.std(r, J, u)
+        return u, RefitOutcome(self.values(u), float(r @ r), std, self.nfev - n0, message)
+
+    def _least_squares(
+        self, u_start: np.ndarray, idx: np.ndarray, max_nfev: int
+    ) -> tuple[np.ndarray, str]:
+        """SciPy's trust-region reflective least squares of the current :attr:`kind` over the
+        variables ``idx``; returns ``(u, message)``."""
+        from scipy.optimize import least_squares
 
         def full(z: np.ndarray) -> np.ndarray:
             u = u_start.copy()
@@ -362,35 +367,8 @@ class Refit:
             gtol=1e-8,
             max_nfev=max_nfev,
         )
-        u = full(res.x)
-        r, J = self.residual_and_jacobian(u)
-        return u, RefitOutcome(
-            self.values(u), float(r @ r), self.std(r, J, u), int(res.nfev), str(res.message)
-        )
-
-    def continuation(
-        self,
-        u0: np.ndarray | None = None,
-        *,
-        widths: Sequence[float] = CONTINUATION_WIDTHS,
-        free: Sequence[int] | None = None,
-        max_nfev: int = 15,
-    ) -> np.ndarray:
-        """Graduated fit from ``u0``: bounded least squares on the log-magnitude error
-        smoothed in log frequency, widest kernel first (``widths`` σ in ln f), each stage
-        starting where the previous one ended. A wide kernel turns resonance peaks of model
-        and data that do not overlap (parameters tens of % off) into broad bumps that do, so
-        the cost has one wide basin where the raw FRF error has one per peak alignment; the
-        narrower stages then restore the detail. Returns ``u`` (the caller finishes with
-        :meth:`solve` on the raw error). Smoothing is off again on return."""
-        u = np.clip(self.u0 if u0 is None else np.asarray(u0, float), self.lower, self.upper)
-        try:
-            for width in widths:
-                self.smoothing = float(width)
-                u, _ = self.solve(u, free=free, max_nfev=max_nfev)
-        finally:
-            self.smoothing = 0.0
-        return u
+        self.nfev += int(res.nfev)
+        return full(res.x), str(res.message)
 
     def std(self, r: np.ndarray, J: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Standard deviation of each variable ``(n_var,)`` [SI] from the Jacobian at ``u``:

@@ -168,7 +168,8 @@ def _baseline_task(
         start, info = _parameter_fit(nominal, train, names, options, iters)
     fitted = UrdfDocument.from_string(start, source="refit model")
     nom_vars = nominal_variables(fitted, names, reference=nominal)
-    job = Job(start, nom_vars, train, held, full, None, options, max_nfev_all=max_nfev)
+    job = Job(start, nom_vars, train, held, full, None, options, max_nfev_all=max_nfev,
+              alt_urdf=urdf, alt_nominal=nominal_variables(nominal, names))  # fmt: skip
     res = run_job(job)
     res.extra["nominal_variables"] = nom_vars
     return res, info
@@ -271,14 +272,14 @@ def diagnose(
         if progress:
             progress(1, total, "parameter refit")
         nom_vars = baseline.extra.pop("nominal_variables")
-        # second origin of every candidate refit: the nominal values (a refit may have bent
-        # the nominal parameters to mimic the missing effect)
-        alt = [_nominal_value(doc, v) for v in nom_vars]
+        # second origin of every candidate refit: the nominal model (see .runner)
+        alt_vars = nominal_variables(doc, names)
         futures = [
             pool.submit(
                 run_job,
                 Job(baseline.urdf, nom_vars, train, held, full, c, options,
-                    max_nfev_all=s.max_nfev, n_starts=s.n_starts, alt_start=alt),
+                    max_nfev_all=s.max_nfev, n_starts=s.n_starts, alt_urdf=doc.to_string(),
+                    alt_nominal=alt_vars),
             )
             for c in candidates
         ]  # fmt: skip
@@ -309,14 +310,6 @@ def diagnose(
         antiresonances=anti, fit_info=fit_info, split_info=split_info,
         wall_s=time.perf_counter() - t0,
     )  # fmt: skip
-
-
-def _nominal_value(doc: UrdfDocument, var: Any) -> float:
-    """The value a refit variable has in the nominal model (inertia scales: 1 = the refit's
-    tensor, kept)."""
-    if len(var.members) == 1 and var.members[0][1] == 1.0:
-        return float(get_parameter(doc, var.members[0][0]))
-    return float(var.initial)
 
 
 def _where(
