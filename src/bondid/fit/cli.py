@@ -108,6 +108,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--max-iter", type=int, metavar="N", help="IPOPT iterations per fit (default 200)"
     )
+    p.add_argument(
+        "--presolve", type=int, metavar="N",
+        help="IPOPT iterations on the normalised complex error before a log-cost fit (default"
+        " 60; 0 = none): crosses the walls a log cost has where a cross term changes sign",
+    )  # fmt: skip
     p.add_argument("--out", type=Path, default=None, help="folder for the results")
     p.add_argument("--quiet", action="store_true", help="no progress display")
     return p
@@ -173,6 +178,8 @@ def resolve_settings(args: argparse.Namespace) -> StudySettings:
     s.stage_bands.update(cli_stage)
     if args.max_iter is not None:
         s.max_iter = int(_positive(args.max_iter, "--max-iter", 0) or 0)
+    if args.presolve is not None:
+        s.presolve = int(_positive(args.presolve, "--presolve", 0) or 0)
     if s.model is None:
         raise ConfigError("no model: give --model URDF (or model = ... in the study file)")
     if not s.data:
@@ -326,6 +333,7 @@ def _body(args: argparse.Namespace) -> int:
         doc, datasets, names, lower=lower, upper=upper, options=options, n_starts=s.multistart,
         seed=s.seed, max_iter=s.max_iter, workers=s.workers, staged=s.staged,
         stage_bands=s.stage_bands or None, on_run=on_run, on_iteration=on_iteration,
+        presolve_iter=s.presolve,
     )  # fmt: skip
     result = ms.best
     prog.close(f"{result.status}, cost {result.cost_final:.4g}")

@@ -25,6 +25,7 @@ from ..data.measurement import FrfData
 from ..exceptions import ComputationError, ConfigError, SolverError
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameters
+from .solver import PRESOLVE_ITER
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from .result import FitResult
@@ -143,6 +144,7 @@ class _Job:
     max_iter: int
     staged: bool
     stage_bands: dict[str, list[tuple[float, float]]] | None
+    presolve_iter: int = PRESOLVE_ITER
 
 
 def _run_job(job: _Job, progress: Callable[[int, float], None] | None = None) -> RunOutcome:
@@ -159,7 +161,7 @@ def _run_job(job: _Job, progress: Callable[[int, float], None] | None = None) ->
             st = staged_fit(
                 job.doc, job.datasets, job.names, options=job.options, lower=job.lower,
                 upper=job.upper, start=job.start, max_iter=job.max_iter,
-                stage_bands=job.stage_bands, progress=progress,
+                stage_bands=job.stage_bands, progress=progress, presolve_iter=job.presolve_iter,
             )  # fmt: skip
             return RunOutcome(
                 job.index, job.start, st.result, stages=st.stages,
@@ -170,6 +172,7 @@ def _run_job(job: _Job, progress: Callable[[int, float], None] | None = None) ->
         res = fit(
             job.doc, job.datasets, job.names, options=job.options, lower=job.lower,
             upper=job.upper, start=job.start, max_iter=job.max_iter, progress=progress,
+            presolve_iter=job.presolve_iter,
         )  # fmt: skip
         return RunOutcome(job.index, job.start, res, wall_s=time.perf_counter() - t0)
     except ComputationError as exc:
@@ -197,6 +200,7 @@ def run_multistart(
     stage_bands: dict[str, list[tuple[float, float]]] | None = None,
     on_run: RunProgress | None = None,
     on_iteration: Callable[[int, float], None] | None = None,
+    presolve_iter: int = PRESOLVE_ITER,
 ) -> MultistartResult:
     """Fit from ``n_starts`` starts (start 0 = the URDF values) and keep the best.
 
@@ -215,6 +219,8 @@ def run_multistart(
         on_run: called in this process as each run finishes.
         on_iteration: per-iteration progress ``(iteration, cost)``, only for runs done in
             this process (``workers == 1`` or a single start).
+        presolve_iter: normalised-complex presolve iterations of each fit
+            (:data:`bondid.fit.solver.PRESOLVE_ITER`).
 
     Returns:
         :class:`MultistartResult`; ``.best`` is the best :class:`FitResult`.
@@ -230,8 +236,9 @@ def run_multistart(
     hi = np.asarray(upper, dtype=float)
     x0 = np.clip(get_parameters(doc, names), lo, hi)
     starts = lhs_starts(x0, lo, hi, n_starts, seed)
+    common = (list(datasets), names, opts, lo, hi)
     jobs = [
-        _Job(i, doc, list(datasets), names, opts, lo, hi, starts[i], max_iter, staged, stage_bands)
+        _Job(i, doc, *common, starts[i], max_iter, staged, stage_bands, presolve_iter)
         for i in range(n_starts)
     ]
     runs: list[RunOutcome | None] = [None] * n_starts

@@ -35,6 +35,7 @@ from ..linear.affine import build_affine_model
 from ..linear.parameter_map import ParameterMap
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameters, parameter_infos
+from .solver import PRESOLVE_ITER
 from .study import STAGES
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -198,6 +199,7 @@ def staged_fit(
     stage_bands: Mapping[str, Sequence[Band]] | None = None,
     progress: Callable[[int, float], None] | None = None,
     on_stage: Callable[[StageResult], None] | None = None,
+    presolve_iter: int = PRESOLVE_ITER,
 ) -> StagedResult:
     """Fit in stages (see the module docstring), then all parameters together.
 
@@ -213,6 +215,8 @@ def staged_fit(
             a stage missing here takes its bands from the modes.
         progress: per-iteration callback ``(iteration, cost)`` passed to every stage.
         on_stage: called after each stage.
+        presolve_iter: normalised-complex presolve iterations of the final fit (band stages
+            have none).
 
     Returns:
         :class:`StagedResult`: ``result`` is the final all-parameter fit, with ``initial``,
@@ -257,6 +261,7 @@ def staged_fit(
                 res = fit(
                     current, list(datasets), sub, options=stage_opts, lower=lo[idx],
                     upper=hi[idx], start=x[idx], max_iter=stage_iter, progress=progress,
+                    presolve_iter=0,
                 )  # fmt: skip
             except ConfigError as exc:
                 if "no data" not in str(exc):
@@ -272,7 +277,7 @@ def staged_fit(
             on_stage(st)
     final = fit(
         current, list(datasets), names, options=opts, lower=lo, upper=hi, start=x,
-        max_iter=max_iter, progress=progress,
+        max_iter=max_iter, progress=progress, presolve_iter=presolve_iter,
     )  # fmt: skip
     iterations += int(final.iterations)
     all_stage = StageResult("all", list(opts.bands or [(f_min, f_max)]), names, final)

@@ -31,6 +31,7 @@ Every section and key is optional::
     workers = 2                              # --workers
     staged = true                            # --staged
     max_iter = 200                           # --max-iter
+    presolve = 60                            # --presolve (0 = none)
     [search.stage_bands]                     # staged fitting bands (Hz); default: from the modes
     stiffness = [[1.0, 300.0]]
     damping = [[350.0, 500.0], [800.0, 950.0]]
@@ -61,7 +62,15 @@ _TOP_KEYS = ("model", "data", "parameters", "bounds", "cost", "search")
 _SECTION_KEYS = {
     "parameters": ("free", "fixed"),
     "cost": ("kind", "norm", "bands", "channels", "coherence", "channel_weights"),
-    "search": ("multistart", "seed", "workers", "staged", "max_iter", "stage_bands"),
+    "search": (
+        "multistart",
+        "seed",
+        "workers",
+        "staged",
+        "max_iter",
+        "presolve",
+        "stage_bands",
+    ),
 }
 
 Band = tuple[float, float]
@@ -88,6 +97,8 @@ class StudySettings:
         staged: fit by bands first (stiffness, damping, inertia), then everything.
         stage_bands: stage -> bands (Hz); a missing stage takes bands from the modes.
         max_iter: IPOPT iteration limit per fit.
+        presolve: IPOPT iterations on the normalised complex error before a log-cost fit
+            (:data:`bondid.fit.solver.PRESOLVE_ITER`; 0 = none).
         source: the study file, or None.
     """
 
@@ -109,6 +120,7 @@ class StudySettings:
     staged: bool = False
     stage_bands: dict[str, list[Band]] = field(default_factory=dict)
     max_iter: int = 200
+    presolve: int = 60
     source: Path | None = None
 
     def to_json_dict(self) -> dict[str, Any]:
@@ -133,6 +145,7 @@ class StudySettings:
             "staged": self.staged,
             "stage_bands": {k: [list(b) for b in v] for k, v in self.stage_bands.items()},
             "max_iter": self.max_iter,
+            "presolve": self.presolve,
         }
 
 
@@ -347,6 +360,8 @@ def study_from_dict(
         s.staged = check_bool(search["staged"], where, "search.staged")
     if "max_iter" in search:
         s.max_iter = check_int(search["max_iter"], where, "search.max_iter", 0)
+    if "presolve" in search:
+        s.presolve = check_int(search["presolve"], where, "search.presolve", 0)
     if "stage_bands" in search:
         table = _table(search["stage_bands"], where, "search.stage_bands")
         _check_keys(table, STAGES, where, "search.stage_bands")
