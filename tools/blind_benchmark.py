@@ -8,8 +8,8 @@ operating points and writes them as CSV files to a temporary folder. The diagnos
 run as a subprocess with ONLY the nominal URDF and those files — nothing about the truth is
 passed in. Truth effects are built here, deliberately not identical to the candidates the
 diagnosis tries: compliant joints pivot elsewhere than the candidate's pivot, the flexible
-base has 4 lumps (the candidate has 3) and unequal directions, the soft mounts have six
-different stiffnesses.
+base has 5 unequal lumps, heavier at the bottom (the candidate: 4, uniform-rod lumping), the
+soft mounts have six different stiffnesses.
 
 Scores per case: top-1 effect class, location (where it applies), and the verdict's
 ``gap_closed`` against what the truth model itself achieves on the same data
@@ -137,24 +137,31 @@ def add_compliance(doc: UrdfDocument, location: str, f: float, pivot=None) -> Ur
 
 
 def add_flexible_base(doc: UrdfDocument, f: float) -> UrdfDocument:
-    """4-lump free-free chain (x/y shear stiffer in y by 30 %, compression 3×), ζ ≈ 2.5 %."""
+    """5-lump free-free chain, heavier at the bottom (masses M·(0.3, 0.25, 0.2, 0.15) below
+    the root's 0.1), x/y shear 1 : 1.3, compression 3×, segments 4 cm high, ζ ≈ 2.5 %; the
+    shear stiffness sets the first x mode near ``f``."""
     from bondid.diagnose.effects._chain import TRANSLATIONS, add_link, dof_chain
 
     out = doc.copy()
     root = out.root_link()
     M, c, inertia = link_inertial(out, root)
-    split = np.array([1, 2, 2, 1]) / 6.0
+    split = np.array([0.3, 0.25, 0.2, 0.15, 0.1])
     set_link_inertial(out, root, M * split[-1], c, inertia)
     add_link(out, "tb_ground")
-    nodes = [f"tb_{i}" for i in range(3)] + [root]
-    for i in range(3):
+    nodes = [f"tb_{i}" for i in range(4)] + [root]
+    for i in range(4):
         add_link(out, nodes[i], M * split[i])
-    dof_chain(out, "tb_free", "tb_ground", nodes[0], TRANSLATIONS, xyz=(0, 0, -0.12),
+    dof_chain(out, "tb_free", "tb_ground", nodes[0], TRANSLATIONS, xyz=(0, 0, -0.16),
               stiffness=[0.0] * 3)  # fmt: skip
-    # free-free chain of 4 lumps: first mode ω² ≈ (2 − √2)·k/m_lump for end lumps; set k from f
-    m_l = M * split[1]
-    k = m_l * (2 * np.pi * f) ** 2 / 0.6
-    for i in range(3):
+    # first elastic mode of the chain with unit stiffness, then scale k to put it at f
+    masses = M * split
+    K1 = np.zeros((5, 5))
+    for i in range(4):
+        K1[i : i + 2, i : i + 2] += [[1.0, -1.0], [-1.0, 1.0]]
+    w2 = np.sort(np.linalg.eigvals(np.linalg.solve(np.diag(masses), K1)).real)[1]
+    k = (2 * np.pi * f) ** 2 / w2
+    m_l = float(np.mean(masses))
+    for i in range(4):
         ks = [k, 1.3 * k, 3.0 * k]
         ds = [2 * 0.025 * np.sqrt(kk * m_l) for kk in ks]
         dof_chain(out, f"tb_seg{i}", nodes[i], nodes[i + 1], TRANSLATIONS, xyz=(0, 0, 0.04),

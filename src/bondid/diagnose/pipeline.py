@@ -11,7 +11,8 @@
    per channel, per automatic band), measured modes (:func:`.modal_id.identify_modes`) paired
    with the refitted model's, anti-resonance shifts.
 4. Every candidate of every chosen effect (:mod:`.effects`) is refitted from the baseline
-   (:mod:`.runner`) in worker processes, scored on held-out data and ranked; the verdict
+   (:mod:`.runner`, its scans seeded with the frequencies of the missing modes of step 3) in
+   worker processes, scored on held-out data and ranked; the verdict
    follows :mod:`.scoring`.
 """
 
@@ -272,6 +273,8 @@ def diagnose(
         if progress:
             progress(1, total, "parameter refit")
         nom_vars = baseline.extra.pop("nominal_variables")
+        modes, by_ds, anti, bands = _where(doc, full, baseline, channels, s.modes)
+        hints = missing_mode_hints(by_ds)
         # second origin of every candidate refit: the nominal model (see .runner)
         alt_vars = nominal_variables(doc, names)
         futures = [
@@ -279,12 +282,11 @@ def diagnose(
                 run_job,
                 Job(baseline.urdf, nom_vars, train, held, full, c, options,
                     max_nfev_all=s.max_nfev, n_starts=s.n_starts, alt_urdf=doc.to_string(),
-                    alt_nominal=alt_vars),
+                    alt_nominal=alt_vars, hints_hz=hints),
             )
             for c in candidates
         ]  # fmt: skip
         nominal_H = [model_frf(doc, d) for d in full]
-        modes, by_ds, anti, bands = _where(doc, full, baseline, channels, s.modes)
         results: list[JobResult] = []
         from concurrent.futures import as_completed
 
@@ -310,6 +312,24 @@ def diagnose(
         antiresonances=anti, fit_info=fit_info, split_info=split_info,
         wall_s=time.perf_counter() - t0,
     )  # fmt: skip
+
+
+def missing_mode_hints(
+    by_dataset: list[list[dict[str, Any]]], tol: float = 0.02
+) -> tuple[float, ...]:
+    """Frequencies [Hz] of the measured modes the refitted model lacks (status ``missing``),
+    over all data sets, merged within a relative ``tol``, ascending."""
+    found = sorted(
+        float(r["f_measured_hz"])
+        for rows in by_dataset
+        for r in rows
+        if r.get("status") == "missing" and r.get("f_measured_hz")
+    )
+    out: list[float] = []
+    for f in found:
+        if not out or f > out[-1] * (1.0 + tol):
+            out.append(f)
+    return tuple(out)
 
 
 def _where(

@@ -6,7 +6,8 @@ data and on all data. Steps for a candidate:
 
 1. starting point: a coarse 1-D scan of the candidate's scale (its modes sweep the band, or
    its delay/lag sweeps microseconds to milliseconds), then, for candidates with several
-   scanned parameters, one coordinate scan of each;
+   scanned parameters, one coordinate scan of each; both scans also try the scales that put
+   the candidate's mode at each measured mode the refitted model lacks (``Job.hints_hz``);
 2. bounded least squares of the new parameters alone (nominal ones fixed at the refit);
 3. bounded least squares of new and nominal parameters together, normalised complex error
    first, then the complex-log error (see :meth:`.engine.Refit.solve`);
@@ -40,7 +41,7 @@ from .effects import Candidate, get_effect
 from .engine import Refit, Variable
 
 DAMPING_FACTORS = (1.0, 4.0)
-COORD_GRID = tuple(float(x) for x in np.geomspace(1 / 30, 30, 9))
+COORD_GRID = tuple(float(x) for x in np.geomspace(1 / 30, 30, 25))
 
 
 @dataclass
@@ -61,6 +62,7 @@ class Job:
     alt_nominal: list[Variable] | None = None
     max_nfev_alt: int = 60
     pre_nfev: int = 30
+    hints_hz: tuple[float, ...] = ()
 
 
 @dataclass
@@ -167,12 +169,14 @@ def _candidate_fit(job: Job, refit: Refit, n_nom: int) -> tuple[np.ndarray, Any,
     exps[n_nom:] = [p.scan for p in cand.parameters]
     u = refit.u0.copy()
     starts = [u]
+    hint_factors = [(f / cand.ref_hz) ** 2 for f in job.hints_hz] if cand.ref_hz else []
     if cand.scan_grid:
+        grid = tuple(sorted({*cand.scan_grid, *hint_factors}))
         damp = (exps == 0.5).astype(float)
         bases = [u + damp * np.log(f) for f in DAMPING_FACTORS] if damp.any() else [u]
         starts = []
         for b in bases:
-            starts += refit.scan_starts(b, exps, cand.scan_grid, n_starts=job.n_starts)
+            starts += refit.scan_starts(b, exps, grid, n_starts=job.n_starts)
         starts.sort(key=refit.cost)
         starts = starts[: job.n_starts]
     scanned = [n_nom + i for i, p in enumerate(cand.parameters) if p.scan == 1.0]
@@ -183,7 +187,9 @@ def _candidate_fit(job: Job, refit: Refit, n_nom: int) -> tuple[np.ndarray, Any,
             for k in scanned:
                 e = np.zeros(n_var)
                 e[k] = 1.0
-                u_s = refit.scan(u_s, e, COORD_GRID)
+                # relative steps, and the values that put this DOF's mode at a hint
+                at_hints = [h * np.exp(u[k] - u_s[k]) for h in hint_factors]
+                u_s = refit.scan(u_s, e, sorted({*COORD_GRID, *at_hints}))
         u_s, o_s = refit.solve(u_s, free=new_idx, max_nfev=job.max_nfev_new)
         new_only.append((o_s.cost, u_s[n_nom:]))
         u_s, o_s = refit.solve(u_s, max_nfev=job.max_nfev_all, pre_nfev=job.pre_nfev)

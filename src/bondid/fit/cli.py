@@ -266,7 +266,13 @@ def summary(result: Any, content: dict[str, Any] | None, extra: dict[str, Any]) 
     if content is not None:
         db = content["db_rms"]
         if db["initial"] is not None:
-            lines.append(f"db_rms: {db['initial']:.3f} dB → {db['final']:.3f} dB")
+            lines.append(f"db_rms: {db['initial']:.3f} dB → {db['final']:.3f} dB (all points)")
+            c = db.get("coherent") or {}
+            if c.get("final") is not None and c["fraction"] < 1.0:
+                lines.append(
+                    f"db_rms where coherence ≥ {c['min_coherence']}: {c['initial']:.3f} dB →"
+                    f" {c['final']:.3f} dB ({100 * c['fraction']:.0f} % of the points)"
+                )
     ms = extra.get("multistart")
     if ms and ms["n_runs"] > 1:
         lines.append(

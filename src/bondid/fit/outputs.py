@@ -133,6 +133,10 @@ def _sq_db(Hs: np.ndarray, Hm: np.ndarray) -> np.ndarray:
     return DB**2 * (L.real**2 + ph**2)
 
 
+#: coherence from which a point counts in the ``coherent`` db_rms figure
+COHERENT = 0.5
+
+
 def db_rms_report(
     initial: UrdfDocument,
     fitted: UrdfDocument,
@@ -144,19 +148,30 @@ def db_rms_report(
 
     Returns:
         ``{"initial", "final", "by_channel": {ch: {"initial", "final"}}, "by_dataset":
-        [{"file", "initial", "final", "by_channel"}]}`` (dB).
+        [{"file", "initial", "final", "by_channel"}], "coherent": {"initial", "final",
+        "fraction", "min_coherence"}}`` (dB). ``coherent`` is the same figure over the points
+        whose measured coherence is at least :data:`COHERENT` (all points without coherence),
+        ``fraction`` their share: points near the sensor noise floor (anti-resonances, weak
+        cross terms) carry tens of dB of noise that no model can fit.
     """
     frfs = model_frfs or [(model_frf(initial, ds), model_frf(fitted, ds)) for ds in datasets]
     tot: dict[str, list[float]] = {"initial": [], "final": []}
+    coh: dict[str, list[float]] = {"initial": [], "final": []}
+    n_all = 0
     per_ch: dict[str, dict[str, list[float]]] = {}
     by_ds = []
     for ds, (H0, H1) in zip(datasets, frfs, strict=True):
         mask = _used_mask(ds, options)
         entry: dict[str, Any] = {"file": ds.source, "by_channel": {}}
+        good = mask.copy()
+        if ds.coherence is not None:
+            good &= np.nan_to_num(ds.coherence, nan=1.0) >= COHERENT
+        n_all += int(mask.sum())
         for label, H in (("initial", H0), ("final", H1)):
             e = _sq_db(H[mask], ds.H[mask])
             entry[label] = float(np.sqrt(np.mean(e))) if e.size else None
             tot[label] += list(e)
+            coh[label] += list(_sq_db(H[good], ds.H[good]))
             for a, o in enumerate(ds.outputs):
                 for b, i in enumerate(ds.inputs):
                     m = mask[a, b]
@@ -176,6 +191,12 @@ def db_rms_report(
         "final": rms(tot["final"]),
         "by_channel": {ch: {k: rms(v) for k, v in d.items()} for ch, d in per_ch.items()},
         "by_dataset": by_ds,
+        "coherent": {
+            "initial": rms(coh["initial"]),
+            "final": rms(coh["final"]),
+            "fraction": len(coh["final"]) / n_all if n_all else None,
+            "min_coherence": COHERENT,
+        },
     }
 
 

@@ -68,6 +68,10 @@ class Candidate:
             (plain values only, so a candidate pickles to a worker process).
         scan_grid: factors of the starting-point scan (empty = no scan).
         description: one line for humans.
+        ref_hz: for a structural candidate, the frequency [Hz] of its (first) new mode at the
+            initial values; scaling the ``scan = 1`` parameters by ``(f/ref_hz)²`` moves it
+            to ``f``, which is how identified missing modes seed the scan. None = no such
+            mode (FRF modifiers).
     """
 
     effect: str
@@ -76,6 +80,7 @@ class Candidate:
     spec: dict[str, Any] = field(default_factory=dict)
     scan_grid: tuple[float, ...] = ()
     description: str = ""
+    ref_hz: float | None = None
 
     @property
     def label(self) -> str:

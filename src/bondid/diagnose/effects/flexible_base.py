@@ -3,21 +3,24 @@
 The report models the base as a block of height L whose horizontal (shear) and vertical
 (compression) motion propagates as waves, with a stress-free bottom (weak legs), and suggests
 "a small number of individual masses linked by springs and dampers". That is what is built
-here: the grounded root body becomes the top node of a chain of ``N = 3`` lumped masses
-(bottom, middle, top) joined by shear springs (x, y) and compression springs (z) with dampers;
-the bottom node is free to translate (stress-free bottom: zero-stiffness joints to a new root
-``ground``). The stages ride on the top node (the original root link). Node masses follow the
-consistent lumping of a uniform rod, ``M·(1/4, 1/2, 1/4)``, so the chain has a rigid-body
-translation and wave-like elastic modes at ``ω² = 4k/M`` and ``8k/M`` per direction. (The
-continuous ``coth`` impedance of the report is not used: the lumped chain keeps the model an
-ordinary URDF that can be written out, and its first modes match the continuum's.)
+here: the grounded root body becomes the top node of a chain of ``N = 4`` lumped masses joined
+by shear springs (x, y) and compression springs (z) with dampers; the bottom node is free to
+translate (stress-free bottom: zero-stiffness joints to a new root ``ground``). The stages
+ride on the top node (the original root link). Node masses follow the consistent lumping of a
+uniform rod, ``M·(1/6, 1/3, 1/3, 1/6)``, so each direction has a rigid-body translation and
+three wave-like elastic modes at ``ω² = (6k/M)·(0.5, 1.5, 2)`` — frequency ratios 1 : 1.7 : 2,
+near the continuum's 1 : 2 : 3 where a 3-node chain gives 1 : 1.4. (The continuous ``coth``
+impedance of the report is not used: the lumped chain keeps the model an ordinary URDF that
+can be written out, and its first modes follow the continuum's.) A real chassis is not
+square, so the two shear directions have their own stiffness.
 
-Joints: ``flexible_base_{level}_{tx,ty,tz}``, level 0 the free bottom, 1 and 2 the elastic
-segments; links ``flexible_base_0`` (bottom) and ``flexible_base_1`` (middle). One candidate,
-located at the root body. New parameters: total mass M (the root body's mass at the start),
-shear stiffness and damper (both horizontal directions, every segment), compression stiffness
-and damper. Start: first shear mode at 1 kHz (compression 3.5× stiffer, as for ν ≈ 0.3),
-2 % damping; the scan moves both from 100 Hz to 12 kHz.
+Joints: ``flexible_base_{level}_{tx,ty,tz}``, level 0 the free bottom, 1 … N−1 the elastic
+segments; links ``flexible_base_0`` (bottom) … ``flexible_base_{N−2}``. One candidate, located
+at the root body. New parameters: total mass M (the root body's mass at the start), shear
+stiffness in x and in y, one shear damper (every segment, both directions), compression
+stiffness and damper. Start: first shear modes at 1 kHz (compression 3.5× stiffer, as for
+ν ≈ 0.3), 2 % damping; the scan moves all stiffnesses together from 100 Hz to 12 kHz, then
+each stiffness alone (:mod:`..runner`).
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ from . import register
 from ._chain import TRANSLATIONS, add_link, dof_chain
 from .base import Candidate, Effect, NewParameter
 
-N_NODES = 3
+N_NODES = 4
 F0_HZ = 1000.0
 ZETA = 0.02
 COMPRESSION_RATIO = 3.5
@@ -38,7 +41,9 @@ HEIGHT = 0.1
 SCAN_HZ = tuple(float(f) for f in np.geomspace(100.0, 12000.0, 50))
 PREFIX = "flexible_base"
 GROUND = "ground"
-SPLIT = (0.25, 0.5, 0.25)  # bottom, middle, top
+#: first elastic mode of the free-free chain: ω₁² = FIRST_MODE_FACTOR · k / (M/6)
+FIRST_MODE_FACTOR = 0.5
+SPLIT = (1 / 6, 1 / 3, 1 / 3, 1 / 6)  # bottom … top
 
 
 @register
@@ -53,21 +58,23 @@ class FlexibleBase(Effect):
             return []
         M = float(lk.inertial.mass)
         w = 2 * np.pi * F0_HZ
-        ks = M * w**2 / 4.0
+        m_eff = M / 6.0
+        ks = m_eff * w**2 / FIRST_MODE_FACTOR
         kc = COMPRESSION_RATIO * ks
-        m_eff = M / 4.0
         ds, dc = 2 * ZETA * np.sqrt(ks * m_eff), 2 * ZETA * np.sqrt(kc * m_eff)
         lo, hi = (30.0 / F0_HZ) ** 2, (40000.0 / F0_HZ) ** 2
-        seg = [f"{PREFIX}_{lev}" for lev in (1, 2)]
-        shear_k = tuple((f"{s}_{a}.stiffness", 1.0) for s in seg for a in ("tx", "ty"))
+        seg = [f"{PREFIX}_{lev}" for lev in range(1, N_NODES)]
+        shear_kx = tuple((f"{s}_tx.stiffness", 1.0) for s in seg)
+        shear_ky = tuple((f"{s}_ty.stiffness", 1.0) for s in seg)
         shear_d = tuple((f"{s}_{a}.damping", 1.0) for s in seg for a in ("tx", "ty"))
         comp_k = tuple((f"{s}_tz.stiffness", 1.0) for s in seg)
         comp_d = tuple((f"{s}_tz.damping", 1.0) for s in seg)
-        mass = ((f"{PREFIX}_0.mass", SPLIT[0]), (f"{PREFIX}_1.mass", SPLIT[1]),
-                (f"{root}.mass", SPLIT[2]))  # fmt: skip
+        nodes = [f"{PREFIX}_{i}" for i in range(N_NODES - 1)] + [root]
+        mass = tuple((f"{n}.mass", share) for n, share in zip(nodes, SPLIT, strict=True))
         params = (
             NewParameter("mass", M, M / 3, M * 3, "kg", mass),
-            NewParameter("shear_stiffness", ks, ks * lo, ks * hi, "N/m", shear_k, scan=1.0),
+            NewParameter("shear_x_stiffness", ks, ks * lo, ks * hi, "N/m", shear_kx, scan=1.0),
+            NewParameter("shear_y_stiffness", ks, ks * lo, ks * hi, "N/m", shear_ky, scan=1.0),
             NewParameter("shear_damping", ds, ds * 1e-3, ds * 1e3, "N*s/m", shear_d, scan=0.5),
             NewParameter("compression_stiffness", kc, kc * lo, kc * hi, "N/m", comp_k, scan=1.0),
             NewParameter("compression_damping", dc, dc * 1e-3, dc * 1e3, "N*s/m", comp_d,
@@ -82,6 +89,7 @@ class FlexibleBase(Effect):
                 {"root": root},
                 grid,
                 f"{root} as a {N_NODES}-node elastic chain",
+                F0_HZ,
             )
         ]
 
@@ -93,18 +101,20 @@ class FlexibleBase(Effect):
         _, com, I_c = link_inertial(new, root)
         from ...model.parameters import set_link_inertial
 
-        set_link_inertial(new, root, M * SPLIT[2], com, I_c)
+        set_link_inertial(new, root, M * SPLIT[-1], com, I_c)
         add_link(new, GROUND)
-        add_link(new, f"{PREFIX}_0", M * SPLIT[0])
-        add_link(new, f"{PREFIX}_1", M * SPLIT[1])
+        nodes = [f"{PREFIX}_{i}" for i in range(N_NODES - 1)]
+        for node, share in zip(nodes, SPLIT, strict=False):
+            add_link(new, node, M * share)
+        nodes.append(root)
         dz = HEIGHT / (N_NODES - 1)
-        dof_chain(new, f"{PREFIX}_0", GROUND, f"{PREFIX}_0", TRANSLATIONS, xyz=(0, 0, -HEIGHT),
+        dof_chain(new, f"{PREFIX}_0", GROUND, nodes[0], TRANSLATIONS, xyz=(0, 0, -HEIGHT),
                   stiffness=[0.0] * 3)  # fmt: skip
-        ks, kc = p["shear_stiffness"], p["compression_stiffness"]
-        ds, dc = p["shear_damping"], p["compression_damping"]
-        for lev, (a, b) in ((1, (f"{PREFIX}_0", f"{PREFIX}_1")), (2, (f"{PREFIX}_1", root))):
+        k = [p["shear_x_stiffness"], p["shear_y_stiffness"], p["compression_stiffness"]]
+        d = [p["shear_damping"], p["shear_damping"], p["compression_damping"]]
+        for lev in range(1, N_NODES):
             dof_chain(
-                new, f"{PREFIX}_{lev}", a, b, TRANSLATIONS, xyz=(0, 0, dz),
-                stiffness=[ks, ks, kc], damping=[ds, ds, dc],
+                new, f"{PREFIX}_{lev}", nodes[lev - 1], nodes[lev], TRANSLATIONS, xyz=(0, 0, dz),
+                stiffness=k, damping=d,
             )  # fmt: skip
         return new

@@ -74,6 +74,7 @@ class JointCompliance(Effect):
                         spec,
                         tuple((f / F_REF_HZ) ** 2 for f in SCAN_HZ),
                         f"{kind} DOF along {axis} between {itf.parent} and {itf.child}",
+                        F_REF_HZ,
                     )
                 )
         return out

@@ -61,7 +61,9 @@ class SoftMounts(Effect):
             params.append(NewParameter(group, ZETA, 1e-4, 2.0, "1", members, scan=0.5))
         spec = {"root": root, "com": [float(x) for x in com]}
         grid = tuple((f / F0_HZ) ** 2 for f in SCAN_HZ)
-        return [Candidate(self.name, root, tuple(params), spec, grid, f"{root} on 6-DOF mounts")]
+        return [
+            Candidate(self.name, root, tuple(params), spec, grid, f"{root} on 6-DOF mounts", F0_HZ)
+        ]
 
     def augment(self, doc: UrdfDocument, candidate: Candidate) -> UrdfDocument:
         new = doc.copy()
