@@ -12,7 +12,7 @@ import numpy as np
 
 from ...model.document import UrdfDocument
 from . import register
-from .base import Candidate, Effect, NewParameter
+from .base import Candidate, Effect, NewParameter, per_joint_candidates
 from .sensor_delay import row_mask
 
 T0 = 5e-5
@@ -26,12 +26,8 @@ class ActuatorLag(Effect):
     is_modifier = True
 
     def candidates(self, doc: UrdfDocument) -> list[Candidate]:
-        ins = [t.joint for t in doc.transmissions]
-        out = []
-        for loc in [*ins, "all"]:
-            p = NewParameter("T", T0, 1e-9, 5e-2, "s", scan=1.0)
-            out.append(Candidate(self.name, loc, (p,), {}, SCAN, f"lag on input(s) {loc}"))
-        return out
+        p = NewParameter("T", T0, 1e-9, 5e-2, "s", scan=1.0)
+        return per_joint_candidates(self, doc, p, SCAN, "lag on input(s)")
 
     def modifier(self, candidate, values, freq_hz, outputs, inputs):  # type: ignore[no-untyped-def]
         T = float(values[0])

@@ -120,3 +120,16 @@ class Effect:
         n = len(candidate.parameters)
         shape = (len(outputs), len(inputs), np.size(freq_hz))
         return np.ones(shape, complex), np.zeros((*shape, n), complex)
+
+
+def per_joint_candidates(
+    effect: Effect, doc: UrdfDocument, parameter: NewParameter, grid: tuple[float, ...], what: str
+) -> list[Candidate]:
+    """One candidate per driven joint (location = the joint) and one for all of them together
+    (location ``"all"``), each with the single new ``parameter`` and the scan ``grid``; ``what``
+    completes the description (``"delay on output(s)"``)."""
+    joints = [t.joint for t in doc.transmissions]
+    return [
+        Candidate(effect.name, loc, (parameter,), {}, grid, f"{what} {loc}")
+        for loc in [*joints, "all"]
+    ]

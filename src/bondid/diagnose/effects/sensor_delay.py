@@ -12,7 +12,7 @@ import numpy as np
 
 from ...model.document import UrdfDocument
 from . import register
-from .base import Candidate, Effect, NewParameter
+from .base import Candidate, Effect, NewParameter, per_joint_candidates
 
 TAU0 = 2e-5
 SCAN = tuple(float(t / TAU0) for t in np.geomspace(5e-7, 1e-3, 54))
@@ -32,12 +32,8 @@ class SensorDelay(Effect):
     is_modifier = True
 
     def candidates(self, doc: UrdfDocument) -> list[Candidate]:
-        outs = [t.joint for t in doc.transmissions]
-        out = []
-        for loc in [*outs, "all"]:
-            p = NewParameter("tau", TAU0, 1e-9, 5e-3, "s", scan=1.0)
-            out.append(Candidate(self.name, loc, (p,), {}, SCAN, f"delay on output(s) {loc}"))
-        return out
+        p = NewParameter("tau", TAU0, 1e-9, 5e-3, "s", scan=1.0)
+        return per_joint_candidates(self, doc, p, SCAN, "delay on output(s)")
 
     def modifier(self, candidate, values, freq_hz, outputs, inputs):  # type: ignore[no-untyped-def]
         tau = float(values[0])
