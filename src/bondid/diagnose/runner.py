@@ -9,13 +9,15 @@ data and on all data. Steps for a candidate:
    scanned parameters, one coordinate scan of each; both scans also try the scales that put
    the candidate's mode at each measured mode the refitted model lacks (``Job.hints_hz``);
 2. bounded least squares of the new parameters alone (nominal ones fixed at the refit);
-3. bounded least squares of new and nominal parameters together, normalised complex error
-   first, then the complex-log error (see :meth:`.engine.Refit.solve`);
+3. bounded least squares of new and nominal parameters together;
 4. a second origin, when the job carries the nominal model: the nominal model augmented with
-   the best new parameters of step 2, refitted the same way (steps 2–3). The parameter refit
-   that starts every candidate may have bent nominal parameters to mimic the missing effect
-   (including the proportions of the inertia tensors, which the refit variables keep); from
-   the nominal values they can unbend. The lower training cost of the two is kept.
+   new parameters — the best of step 2 or those that put the candidate's mode at a missing
+   mode, whichever fits better with the nominal values — refitted new-only, then all together
+   with the normalised complex error first and the complex-log error after (see
+   :meth:`.engine.Refit.solve`). The parameter refit that starts every candidate may have bent
+   nominal parameters to mimic the missing effect (including the proportions of the inertia
+   tensors, which the refit variables keep); from the nominal values they can unbend. The
+   lower training cost of the two origins is kept.
 
 The parameter-only baseline gets the same treatment (step 3 from the parameter refit, and
 step 4 from the nominal model), so that candidates do not win by a better optimiser alone.
@@ -60,7 +62,7 @@ class Job:
     max_nfev_all: int = 30
     alt_urdf: str | None = None
     alt_nominal: list[Variable] | None = None
-    max_nfev_alt: int = 60
+    max_nfev_alt: int = 150
     pre_nfev: int = 30
     hints_hz: tuple[float, ...] = ()
 
@@ -192,12 +194,35 @@ def _candidate_fit(job: Job, refit: Refit, n_nom: int) -> tuple[np.ndarray, Any,
                 u_s = refit.scan(u_s, e, sorted({*COORD_GRID, *at_hints}))
         u_s, o_s = refit.solve(u_s, free=new_idx, max_nfev=job.max_nfev_new)
         new_only.append((o_s.cost, u_s[n_nom:]))
-        u_s, o_s = refit.solve(u_s, max_nfev=job.max_nfev_all, pre_nfev=job.pre_nfev)
+        u_s, o_s = refit.solve(u_s, max_nfev=job.max_nfev_all)
         if best is None or o_s.cost < best[1].cost:
             best = (u_s, o_s)
     assert best is not None
     new_only.sort(key=lambda t: t[0])
     return best[0], best[1], [v for _, v in new_only]
+
+
+def _alt_start(job: Job, refit: Refit, n_nom: int, found: list[np.ndarray]) -> np.ndarray:
+    """Start of the second origin: the nominal values with the new parameters that fit best
+    (new-parameter-only solves) among those found from the parameter refit and those that put
+    the candidate's mode at each missing mode (``Job.hints_hz``)."""
+    cand = job.candidate
+    assert cand is not None
+    new_idx = list(range(n_nom, len(refit.u0)))
+    lo, hi = refit.lower[n_nom:], refit.upper[n_nom:]
+    options = [np.clip(v, lo, hi) for v in found[:1]]
+    if cand.ref_hz:
+        exps = np.array([p.scan for p in cand.parameters])
+        for f in job.hints_hz:
+            options.append(np.clip(refit.u0[n_nom:] + exps * 2.0 * np.log(f / cand.ref_hz), lo, hi))
+    best: tuple[float, np.ndarray] | None = None
+    for new in options:
+        u = refit.u0.copy()
+        u[n_nom:] = new
+        u, o = refit.solve(u, free=new_idx, max_nfev=job.max_nfev_new)
+        if best is None or o.cost < best[0]:
+            best = (o.cost, u)
+    return refit.u0.copy() if best is None else best[1]
 
 
 def _run(job: Job, t0: float) -> JobResult:
@@ -207,7 +232,7 @@ def _run(job: Job, t0: float) -> JobResult:
     n_new = len(variables) - n_nom
     found: list[np.ndarray] = []
     if cand is None:
-        u, out = refit.solve(refit.u0, max_nfev=job.max_nfev_all, pre_nfev=job.pre_nfev)
+        u, out = refit.solve(refit.u0, max_nfev=job.max_nfev_all)
     else:
         u, out, found = _candidate_fit(job, refit, n_nom)
     if job.alt_urdf is not None and job.alt_nominal is not None:
@@ -218,9 +243,8 @@ def _run(job: Job, t0: float) -> JobResult:
         alt = _setup(job.alt_urdf, job.alt_nominal, job)
         a_refit = alt[2]
         u_a = a_refit.u0.copy()
-        if found:
-            u_a[n_alt:] = np.clip(found[0], a_refit.lower[n_alt:], a_refit.upper[n_alt:])
-            u_a, _ = a_refit.solve(u_a, free=range(n_alt, len(u_a)), max_nfev=job.max_nfev_new)
+        if cand is not None:
+            u_a = _alt_start(job, a_refit, n_alt, found)
         u_a, o_a = a_refit.solve(u_a, max_nfev=job.max_nfev_alt, pre_nfev=job.pre_nfev)
         if o_a.cost < out.cost:
             doc, variables, refit, modifier = alt
