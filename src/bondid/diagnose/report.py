@@ -8,9 +8,10 @@
 * ``candidates`` — best first: ``effect``, ``location``, ``parameters`` {name: value},
   ``db_rms_after``, ``gap_closed``, ``heldout_db_rms_after``, ``score`` (see
   :mod:`.scoring`), plus ``parameters_std``, ``heldout_weighted_rms``, ``train_weighted_rms``,
-  ``n_parameters``, ``wall_s``, ``error``;
+  ``n_parameters``, ``detail`` (the variant the runner kept, e.g. a pivot), ``wall_s``,
+  ``error``;
 * ``verdict`` — ``effect`` (or ``"none"``), ``location``, ``gap_closed``, plus
-  ``reason``, ``parameters`` with ``std``, ``where`` (gap by channel and band after it);
+  ``reason``, ``detail``, ``parameters`` with ``std``, ``where`` (gap by channel and band after it);
 * ``stages`` — the gap (total, per channel, per band) of the nominal model, after the
   parameter refit and after the winning effect; ``gap_closed_total`` (vs the nominal gap);
 * ``refit`` (the parameter refit: names, values, std, IPOPT stage), ``split``, ``settings``.
@@ -99,6 +100,7 @@ def to_json_dict(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, An
                 "heldout_weighted_rms": r.heldout_rms,
                 "train_weighted_rms": r.train_rms,
                 "n_parameters": r.n_new,
+                "detail": r.extra.get("variant"),
                 "wall_s": r.wall_s,
                 "error": r.error or None,
             }
@@ -116,6 +118,7 @@ def to_json_dict(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, An
         verdict = {
             "effect": w.effect,
             "location": w.location,
+            "detail": w.extra.get("variant"),
             "gap_closed": gap_closed(before, w.db_rms),
             "gap_closed_total": gap_closed(nominal, w.db_rms),
             "parameters": {n: {"value": v, "std": std.get(n)} for n, v in vals.items()},

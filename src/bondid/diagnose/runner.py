@@ -11,13 +11,17 @@ data and on all data. Steps for a candidate:
 2. bounded least squares of the new parameters alone (nominal ones fixed at the refit);
 3. bounded least squares of new and nominal parameters together;
 4. a second origin, when the job carries the nominal model: the nominal model augmented with
-   new parameters — the best of step 2 or those that put the candidate's mode at a missing
-   mode, whichever fits better with the nominal values — refitted new-only, then all together
-   with the normalised complex error first and the complex-log error after (see
-   :meth:`.engine.Refit.solve`). The parameter refit that starts every candidate may have bent
-   nominal parameters to mimic the missing effect (including the proportions of the inertia
-   tensors, which the refit variables keep); from the nominal values they can unbend. The
-   lower training cost of the two origins is kept.
+   new parameters — the best of step 2, the candidate's initial values, or those that put its
+   mode at a missing mode — each fitted new-only and then briefly with everything; the best
+   of those short solves continues, all parameters together with the normalised complex
+   error first and the complex-log error after (see :meth:`.engine.Refit.solve`). The
+   parameter refit that starts every candidate may have bent nominal parameters to mimic the
+   missing effect (including the proportions of the inertia tensors, which the refit
+   variables keep); from the nominal values they can unbend. The lower training cost of the
+   two origins is kept.
+
+A candidate with variants (e.g. the pivots of a rotational DOF) first keeps the variant
+whose step-4 start fits best (:func:`_screen_variants`).
 
 The parameter-only baseline gets the same treatment (step 3 from the parameter refit, and
 step 4 from the nominal model), so that candidates do not win by a better optimiser alone.
@@ -29,7 +33,7 @@ to a worker process.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -65,6 +69,7 @@ class Job:
     max_nfev_alt: int = 150
     pre_nfev: int = 30
     hints_hz: tuple[float, ...] = ()
+    screen_nfev: int = 10
 
 
 @dataclass
@@ -202,16 +207,22 @@ def _candidate_fit(job: Job, refit: Refit, n_nom: int) -> tuple[np.ndarray, Any,
     return best[0], best[1], [v for _, v in new_only]
 
 
-def _alt_start(job: Job, refit: Refit, n_nom: int, found: list[np.ndarray]) -> np.ndarray:
-    """Start of the second origin: the nominal values with the new parameters that fit best
-    (new-parameter-only solves) among those found from the parameter refit and those that put
-    the candidate's mode at each missing mode (``Job.hints_hz``)."""
+def _alt_start(
+    job: Job, refit: Refit, n_nom: int, found: list[np.ndarray]
+) -> tuple[np.ndarray, float]:
+    """Start of the second origin and its training cost. Options for the new parameters: the
+    best found from the parameter refit, the candidate's initial values, and those that put
+    its mode at each missing mode (``Job.hints_hz``); each is fitted alone (nominal values
+    fixed), then briefly with everything (``screen_nfev`` evaluations of the normalised
+    complex error, as many of the complex-log error). The best after that short solve is
+    kept: which basin a start leads to shows only once the nominal parameters move too.
+    The parameter-only baseline (no candidate) gets the same short solve from the nominal
+    values, so that candidates do not win by a longer optimisation."""
     cand = job.candidate
-    assert cand is not None
     new_idx = list(range(n_nom, len(refit.u0)))
     lo, hi = refit.lower[n_nom:], refit.upper[n_nom:]
-    options = [np.clip(v, lo, hi) for v in found[:1]]
-    if cand.ref_hz:
+    options = [np.clip(v, lo, hi) for v in found[:1]] + [refit.u0[n_nom:]]
+    if cand is not None and cand.ref_hz:
         exps = np.array([p.scan for p in cand.parameters])
         for f in job.hints_hz:
             options.append(np.clip(refit.u0[n_nom:] + exps * 2.0 * np.log(f / cand.ref_hz), lo, hi))
@@ -219,13 +230,44 @@ def _alt_start(job: Job, refit: Refit, n_nom: int, found: list[np.ndarray]) -> n
     for new in options:
         u = refit.u0.copy()
         u[n_nom:] = new
-        u, o = refit.solve(u, free=new_idx, max_nfev=job.max_nfev_new)
+        if new_idx:
+            u, _ = refit.solve(u, free=new_idx, max_nfev=job.max_nfev_new)
+        u, o = refit.solve(u, max_nfev=job.screen_nfev, pre_nfev=job.screen_nfev)
         if best is None or o.cost < best[0]:
             best = (o.cost, u)
-    return refit.u0.copy() if best is None else best[1]
+    assert best is not None
+    return best[1], best[0]
+
+
+def _screen_variants(job: Job) -> tuple[Job, float]:
+    """The job with its candidate replaced by the best of the candidate and its variants
+    (:attr:`~.effects.base.Candidate.variants`), by the training cost of the second origin's
+    start (:func:`_alt_start`, from the nominal model when the job has one, else from the
+    parameter refit). From the parameter refit alone the variants hardly differ: it has
+    already bent the nominal parameters toward whatever the missing DOF does. Returns the
+    job and the best screening cost."""
+    cand = job.candidate
+    assert cand is not None
+    best: tuple[float, Candidate] | None = None
+    use_alt = job.alt_urdf is not None and job.alt_nominal is not None
+    urdf = job.alt_urdf if use_alt else job.urdf
+    nominal = job.alt_nominal if use_alt else job.nominal
+    assert urdf is not None and nominal is not None
+    for option in (cand, *cand.variants):
+        sub = replace(job, candidate=replace(option, variants=()))
+        refit = _setup(urdf, nominal, sub)[2]
+        _, cost = _alt_start(sub, refit, len(nominal), [])
+        if best is None or cost < best[0]:
+            best = (cost, option)
+    assert best is not None
+    return replace(job, candidate=replace(best[1], variants=())), best[0]
 
 
 def _run(job: Job, t0: float) -> JobResult:
+    extra: dict[str, Any] = {}
+    if job.candidate is not None and job.candidate.variants:
+        job, _ = _screen_variants(job)
+        extra["variant"] = job.candidate.description if job.candidate else ""
     cand = job.candidate
     doc, variables, refit, modifier = _setup(job.urdf, job.nominal, job)
     n_nom = len(job.nominal)
@@ -242,9 +284,7 @@ def _run(job: Job, t0: float) -> JobResult:
         n_alt = len(job.alt_nominal)
         alt = _setup(job.alt_urdf, job.alt_nominal, job)
         a_refit = alt[2]
-        u_a = a_refit.u0.copy()
-        if cand is not None:
-            u_a = _alt_start(job, a_refit, n_alt, found)
+        u_a = _alt_start(job, a_refit, n_alt, found)[0]
         u_a, o_a = a_refit.solve(u_a, max_nfev=job.max_nfev_alt, pre_nfev=job.pre_nfev)
         if o_a.cost < out.cost:
             doc, variables, refit, modifier = alt
@@ -272,4 +312,5 @@ def _run(job: Job, t0: float) -> JobResult:
         urdf=doc.to_string(),
         wall_s=time.perf_counter() - t0,
         status=status,
+        extra=extra,
     )

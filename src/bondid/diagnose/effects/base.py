@@ -72,6 +72,10 @@ class Candidate:
             initial values; scaling the ``scan = 1`` parameters by ``(f/ref_hz)²`` moves it
             to ``f``, which is how identified missing modes seed the scan. None = no such
             mode (FRF modifiers).
+        variants: alternatives of this candidate at the same location that differ in a detail
+            the refit does not vary continuously (e.g. the pivot of a rotational DOF, which
+            enters the kinematics); the runner screens them with a new-parameter-only fit and
+            refits the best one.
     """
 
     effect: str
@@ -81,6 +85,7 @@ class Candidate:
     scan_grid: tuple[float, ...] = ()
     description: str = ""
     ref_hz: float | None = None
+    variants: tuple[Candidate, ...] = ()
 
     @property
     def label(self) -> str:

@@ -5,7 +5,11 @@ ry rz`` (child-body frame) along which its chain does not move yet is one candid
 ``"PARENT->CHILD:AXIS"``. The DOF is inserted with
 :func:`bondid.model.insert_parasitic_joint` after the interface's last joint, so the child
 body keeps its placement and its parameters; a rotational DOF pivots about the interface's
-bearing centre (the mean of its existing parasitic pivots; the child's CoM when it has none).
+bearing centre (the mean of its existing parasitic pivots; the child's CoM when it has none);
+where a guide really pivots is seldom known, so the candidate carries variants
+(:attr:`~.base.Candidate.variants`, screened by the runner) whose pivot is moved, one
+direction across the axis at a time, to the child frame's origin, the child's CoM and the two
+faces of its collision hull (:func:`pivot_options`).
 New parameters: the joint's stiffness and damping. The start puts its mode at 300 Hz with 3 %
 damping (from the DOF's effective inertia); the starting-point scan moves it from 15 Hz to
 12 kHz keeping the damping ratio.
@@ -13,17 +17,48 @@ damping (from the DOF's effective inertia); the starting-point scan moves it fro
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ...model.authoring import insert_parasitic_joint
-from ...model.document import UrdfDocument
+from ...model.document import UrdfDocument, rotation_and_translation
 from . import register
 from .base import Candidate, Effect, NewParameter
-from .topology import axis_vector, effective_inertia, interfaces
+from .topology import Interface, axis_vector, effective_inertia, interfaces
 
 F_REF_HZ = 300.0
 ZETA = 0.03
 SCAN_HZ = tuple(float(f) for f in np.geomspace(15.0, 12000.0, 70))
+
+
+#: pivots closer than this to one already listed are not tried again [m]
+PIVOT_TOL = 0.003
+
+
+def pivot_options(doc: UrdfDocument, itf: Interface, axis: np.ndarray) -> list[np.ndarray]:
+    """Pivots (child frame, m) to try for a rotational DOF about ``axis`` at ``itf``: the
+    bearing centre first (:meth:`~.topology.Interface.pivot`), then, for each of the two
+    coordinate directions across the axis, that coordinate moved to the child frame's origin,
+    the child's CoM and the extremes of its collision hull (the others kept)."""
+    from ...consistency.hull import link_hull
+
+    centre = np.asarray(itf.pivot(doc), float)
+    lk = doc.link(itf.child)
+    levels = [np.zeros(3)]
+    if lk.inertial is not None:
+        levels.append(rotation_and_translation(lk.inertial.origin)[1])
+    hull = link_hull(lk)
+    if hull is not None:
+        levels += [hull.vertices.min(axis=0), hull.vertices.max(axis=0)]
+    out = [centre]
+    for d in np.flatnonzero(np.abs(axis) < 0.5):
+        for level in levels:
+            p = centre.copy()
+            p[d] = level[d]
+            if all(np.linalg.norm(p - q) > PIVOT_TOL for q in out):
+                out.append(p)
+    return out
 
 
 def joint_name(parent: str, child: str, axis: str) -> str:
@@ -40,44 +75,51 @@ class JointCompliance(Effect):
         for itf in interfaces(doc):
             for axis in itf.missing:
                 kind, vec = axis_vector(axis)
-                pivot = itf.pivot(doc) if kind == "revolute" else np.zeros(3)
-                jname = joint_name(itf.parent, itf.child, axis)
-                spec = {
-                    "after": itf.last_joint,
-                    "joint": jname,
-                    "kind": kind,
-                    "axis": [float(x) for x in vec],
-                    "pivot": [float(x) for x in pivot],
-                }
-                probe = self._insert(doc, spec, 1.0, 0.0)
-                m = effective_inertia(probe, jname)
-                w = 2 * np.pi * F_REF_HZ
-                k0 = m * w**2
-                d0 = 2 * ZETA * np.sqrt(k0 * m)
-                unit_k = "N/m" if kind == "prismatic" else "N*m/rad"
-                unit_d = "N*s/m" if kind == "prismatic" else "N*m*s/rad"
-                params = (
-                    NewParameter(
-                        "stiffness", k0, k0 * (3.0 / F_REF_HZ) ** 2, k0 * (40000 / F_REF_HZ) ** 2,
-                        unit_k, ((f"{jname}.stiffness", 1.0),), scan=1.0,
-                    ),
-                    NewParameter(
-                        "damping", d0, d0 * 1e-3, d0 * 1e3, unit_d,
-                        ((f"{jname}.damping", 1.0),), scan=0.5,
-                    ),
-                )  # fmt: skip
-                out.append(
-                    Candidate(
-                        self.name,
-                        f"{itf.parent}->{itf.child}:{axis}",
-                        params,
-                        spec,
-                        tuple((f / F_REF_HZ) ** 2 for f in SCAN_HZ),
-                        f"{kind} DOF along {axis} between {itf.parent} and {itf.child}",
-                        F_REF_HZ,
-                    )
-                )
+                if kind != "revolute":
+                    out.append(self._candidate(doc, itf, axis, np.zeros(3)))
+                    continue
+                main, *others = pivot_options(doc, itf, vec)
+                variants = tuple(self._candidate(doc, itf, axis, p) for p in others)
+                out.append(replace(self._candidate(doc, itf, axis, main), variants=variants))
         return out
+
+    def _candidate(
+        self, doc: UrdfDocument, itf: Interface, axis: str, pivot: np.ndarray
+    ) -> Candidate:
+        kind, vec = axis_vector(axis)
+        jname = joint_name(itf.parent, itf.child, axis)
+        spec = {
+            "after": itf.last_joint,
+            "joint": jname,
+            "kind": kind,
+            "axis": [float(x) for x in vec],
+            "pivot": [float(x) for x in pivot],
+        }
+        probe = self._insert(doc, spec, 1.0, 0.0)
+        m = effective_inertia(probe, jname)
+        k0 = m * (2 * np.pi * F_REF_HZ) ** 2
+        d0 = 2 * ZETA * np.sqrt(k0 * m)
+        unit_k = "N/m" if kind == "prismatic" else "N*m/rad"
+        unit_d = "N*s/m" if kind == "prismatic" else "N*m*s/rad"
+        params = (
+            NewParameter(
+                "stiffness", k0, k0 * (3.0 / F_REF_HZ) ** 2, k0 * (40000 / F_REF_HZ) ** 2,
+                unit_k, ((f"{jname}.stiffness", 1.0),), scan=1.0,
+            ),
+            NewParameter(
+                "damping", d0, d0 * 1e-3, d0 * 1e3, unit_d, ((f"{jname}.damping", 1.0),), scan=0.5,
+            ),
+        )  # fmt: skip
+        where = "" if kind == "prismatic" else f" pivot {np.round(pivot * 1e3, 1).tolist()} mm"
+        return Candidate(
+            self.name,
+            f"{itf.parent}->{itf.child}:{axis}",
+            params,
+            spec,
+            tuple((f / F_REF_HZ) ** 2 for f in SCAN_HZ),
+            f"{kind} DOF along {axis} between {itf.parent} and {itf.child}{where}",
+            F_REF_HZ,
+        )
 
     @staticmethod
     def _insert(doc: UrdfDocument, spec: dict, k: float, d: float) -> UrdfDocument:
