@@ -193,3 +193,54 @@ def test_blind_benchmark_quick_runs(capsys):
     out = capsys.readouterr().out
     assert "| none_a | none |" in out
     assert "cases 1 (0 failed)" in out
+
+
+def test_rotational_candidates_carry_pivot_variants(doc):
+    from bondid.diagnose.effects import get_effect
+    from bondid.diagnose.effects.topology import axis_vector
+
+    for c in get_effect("joint_compliance").candidates(doc):
+        kind, vec = axis_vector(c.location.rsplit(":", 1)[1])
+        if kind == "prismatic":
+            assert c.variants == ()
+            continue
+        assert len(c.variants) >= 4, c.location
+        main = np.array(c.spec["pivot"])
+        along = np.abs(vec) > 0.5
+        for v in c.variants:
+            moved = np.abs(np.array(v.spec["pivot"]) - main) > 1e-12
+            # one coordinate across the axis moves, nothing along it
+            assert moved.sum() == 1 and not np.any(moved & along), (c.location, v.spec)
+            assert v.location == c.location and v.variants == ()
+        # the child frame's origin is among the levels tried in each direction across
+        for d in np.flatnonzero(~along):
+            levels = [v.spec["pivot"][d] for v in c.variants] + [main[d]]
+            assert min(abs(x) for x in levels) < 0.003, (c.location, d, levels)
+
+
+def test_screening_picks_the_pivot_that_made_the_data(doc):
+    """Known answer: data from the nominal model plus a y-guide pitch DOF pivoting at one of
+    the variants' pivots; the screening (from the nominal model) keeps that variant."""
+    from dataclasses import replace
+
+    from bondid.cost.problem import CostOptions
+    from bondid.diagnose.effects import get_effect
+    from bondid.diagnose.engine import nominal_variables
+    from bondid.diagnose.runner import Job, _screen_variants
+
+    e = get_effect("joint_compliance")
+    c = next(c for c in e.candidates(doc) if c.location == "x_stage->y_stage:ry")
+    target = max(c.variants, key=lambda v: v.spec["pivot"][2])  # the top face of the stage
+    truth = _with_values(e, doc, replace(target, variants=()), scale=2.0)
+    data = _data(truth, n=150)
+    nom = nominal_variables(doc, ["x_stage.mass", "y_stage.mass", "z_stage.mass"])
+    text = doc.to_string()
+    job = Job(text, nom, data, data, data, c, CostOptions(), alt_urdf=text, alt_nominal=nom)
+    picked, cost = _screen_variants(job)
+    assert picked.candidate is not None and picked.candidate.variants == ()
+    assert picked.candidate.spec["pivot"] == target.spec["pivot"], picked.candidate.description
+    # a clear pick: every other pivot screens at least 20 % worse
+    for v in (c, *c.variants):
+        if v.spec["pivot"] != target.spec["pivot"]:
+            other = _screen_variants(replace(job, candidate=replace(v, variants=())))[1]
+            assert other > 1.2 * cost, (v.description, other, cost)
