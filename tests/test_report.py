@@ -154,9 +154,15 @@ def test_report_missing_parts_noted(tmp_path: Path):
     assert "could not read fit.json" in page
     assert "diagnosis.json not found" in page and "modes.json not found" in page
     assert "Other plots" in page and page.count("data:image/png;base64,") == 1
+    # the form, ``bondid.report --out DIR``, reports on DIR itself
+    (res / "report.html").unlink()
+    assert _run(["--out", res, "--quiet"]) == 0
+    assert (res / "report.html").read_text(encoding="utf-8") == page
 
 
 def test_report_bad_input_exit_2(tmp_path: Path, capsys):
+    assert _run([]) == 2  # neither RESULTS_DIR nor --out
+    capsys.readouterr()
     assert _run([tmp_path / "nope"]) == 2
     empty = tmp_path / "empty"
     empty.mkdir()

@@ -1,8 +1,9 @@
-"""``python -m bondid.report RESULTS_DIR [--out DIR]``: one self-contained HTML page.
+"""``python -m bondid.report [RESULTS_DIR] [--out DIR]``: one self-contained HTML page.
 
 Gathers fit.json, sensitivity.json, diagnosis.json, modes.json and the PNG plots found in
 RESULTS_DIR (and its sub-folders) into ``report.html`` (in --out, default RESULTS_DIR).
-Exit 2 when the folder does not exist or holds nothing to report.
+``python -m bondid.report --out DIR`` reports on DIR itself. Exit 2 when neither is given,
+the folder does not exist or it holds nothing to report.
 """
 
 from __future__ import annotations
@@ -16,17 +17,22 @@ from ..cli import make_parser, run
 
 def main(argv: Sequence[str] | None = None) -> int:
     p = make_parser("report", "One offline HTML page from a results folder.")
-    p.add_argument("results", type=Path, help="results folder (fit.json, modes.json, PNGs, ...)")
+    p.add_argument(
+        "results", type=Path, nargs="?", default=None,
+        help="results folder (fit.json, modes.json, PNGs, ...; default: --out)",
+    )  # fmt: skip
     p.add_argument(
         "--out", type=Path, default=None, help="folder for report.html (default: RESULTS)"
     )
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
     args = p.parse_args(argv)
+    if args.results is None and args.out is None:
+        p.error("give the results folder (RESULTS_DIR or --out DIR)")
 
     def body() -> int:
         from .build import build_report
 
-        path = build_report(args.results, args.out)
+        path = build_report(args.results or args.out, args.out)
         if not args.quiet:
             print(f"wrote {path} ({path.stat().st_size / 1024:.0f} KiB)")
         return 0
