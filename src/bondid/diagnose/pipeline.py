@@ -284,7 +284,7 @@ def diagnose(
                     max_nfev_all=s.max_nfev, n_starts=s.n_starts, alt_urdf=doc.to_string(),
                     alt_nominal=alt_vars, hints_hz=hints),
             )
-            for c in candidates
+            for c in sorted(candidates, key=_expected_work, reverse=True)
         ]  # fmt: skip
         nominal_H = [model_frf(doc, d) for d in full]
         results: list[JobResult] = []
@@ -312,6 +312,12 @@ def diagnose(
         antiresonances=anti, fit_info=fit_info, split_info=split_info,
         wall_s=time.perf_counter() - t0,
     )  # fmt: skip
+
+
+def _expected_work(c: Candidate) -> int:
+    """Rough relative cost of a candidate's job: the longest go to the workers first, so
+    that no long job starts last (parameters × screened variants)."""
+    return len(c.parameters) * (1 + len(c.variants))
 
 
 def missing_mode_hints(

@@ -208,8 +208,8 @@ def _candidate_fit(job: Job, refit: Refit, n_nom: int) -> tuple[np.ndarray, Any,
 
 
 def _alt_start(
-    job: Job, refit: Refit, n_nom: int, found: list[np.ndarray]
-) -> tuple[np.ndarray, float]:
+    job: Job, refit: Refit, n_nom: int, found: list[np.ndarray], only: int | None = None
+) -> tuple[np.ndarray, float, int]:
     """Start of the second origin and its training cost. Options for the new parameters: the
     best found from the parameter refit, the candidate's initial values, and those that put
     its mode at each missing mode (``Job.hints_hz``); each is fitted alone (nominal values
@@ -217,7 +217,8 @@ def _alt_start(
     complex error, as many of the complex-log error). The best after that short solve is
     kept: which basin a start leads to shows only once the nominal parameters move too.
     The parameter-only baseline (no candidate) gets the same short solve from the nominal
-    values, so that candidates do not win by a longer optimisation."""
+    values, so that candidates do not win by a longer optimisation. ``only``: try that option
+    alone. Returns the start, its cost and the index of its option."""
     cand = job.candidate
     new_idx = list(range(n_nom, len(refit.u0)))
     lo, hi = refit.lower[n_nom:], refit.upper[n_nom:]
@@ -226,26 +227,30 @@ def _alt_start(
         exps = np.array([p.scan for p in cand.parameters])
         for f in job.hints_hz:
             options.append(np.clip(refit.u0[n_nom:] + exps * 2.0 * np.log(f / cand.ref_hz), lo, hi))
-    best: tuple[float, np.ndarray] | None = None
-    for new in options:
+    best: tuple[float, np.ndarray, int] | None = None
+    for k, new in enumerate(options):
+        if only is not None and k != only:
+            continue
         u = refit.u0.copy()
         u[n_nom:] = new
         if new_idx:
             u, _ = refit.solve(u, free=new_idx, max_nfev=job.max_nfev_new)
         u, o = refit.solve(u, max_nfev=job.screen_nfev, pre_nfev=job.screen_nfev)
         if best is None or o.cost < best[0]:
-            best = (o.cost, u)
+            best = (o.cost, u, k)
     assert best is not None
-    return best[1], best[0]
+    return best[1], best[0], best[2]
 
 
 def _screen_variants(job: Job) -> tuple[Job, float]:
     """The job with its candidate replaced by the best of the candidate and its variants
     (:attr:`~.effects.base.Candidate.variants`), by the training cost of the second origin's
     start (:func:`_alt_start`, from the nominal model when the job has one, else from the
-    parameter refit). From the parameter refit alone the variants hardly differ: it has
-    already bent the nominal parameters toward whatever the missing DOF does. Returns the
-    job and the best screening cost."""
+    parameter refit). The candidate itself tries every starting option; its variants (which
+    differ in how the new DOF couples, not in its frequency) only the option it chose. From
+    the parameter refit alone the variants hardly differ: it has already bent the nominal
+    parameters toward whatever the missing DOF does. Returns the job and the best screening
+    cost."""
     cand = job.candidate
     assert cand is not None
     best: tuple[float, Candidate] | None = None
@@ -253,10 +258,12 @@ def _screen_variants(job: Job) -> tuple[Job, float]:
     urdf = job.alt_urdf if use_alt else job.urdf
     nominal = job.alt_nominal if use_alt else job.nominal
     assert urdf is not None and nominal is not None
+    pick: int | None = None
     for option in (cand, *cand.variants):
         sub = replace(job, candidate=replace(option, variants=()))
         refit = _setup(urdf, nominal, sub)[2]
-        _, cost = _alt_start(sub, refit, len(nominal), [])
+        _, cost, k = _alt_start(sub, refit, len(nominal), [], only=pick)
+        pick = k
         if best is None or cost < best[0]:
             best = (cost, option)
     assert best is not None
