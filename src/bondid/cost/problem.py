@@ -156,6 +156,20 @@ class FrfProblem:
         values = pmodel.values(x)
         return [b.affine.with_values(*values).linear_model().frf(b.freq_hz) for b in self.blocks]
 
+    def phase_wall_fraction(
+        self, pmodel: ParameterModel, x: np.ndarray, limit_rad: float = np.pi / 2
+    ) -> float:
+        """Share of the total weight on points where the model's phase differs from the
+        measured one by more than ``limit_rad`` — where a log cost sits on the far side of a
+        sign change (a wall a local method cannot cross). 0 … 1."""
+        total = bad = 0.0
+        for b, H in zip(self.blocks, self.model_frf(pmodel, x), strict=True):
+            Hs = H[b.rows, b.cols, b.fidx]
+            dphi = np.abs(np.angle(Hs * np.conj(b.Hm)))
+            total += float(b.weight.sum())
+            bad += float(b.weight[dphi > limit_rad].sum())
+        return bad / total if total > 0 else 0.0
+
     def residual(self, pmodel: ParameterModel, x: np.ndarray) -> np.ndarray:
         """Scaled residual vector ``(n_residuals,)``; ``cost = ‖r‖²``."""
         out = []

@@ -26,7 +26,9 @@ iterations where a quasi-Newton Hessian needs hundreds. It is a LOCAL method: fr
 every parameter the complex-log cost of lightly damped modes has other basins (measured on the
 bonder); use multistart or staged fitting for global search. A log-cost fit runs twice, from
 the start and from a start presolved on the normalised complex error (:data:`PRESOLVE_ITER`),
-and keeps the better: the log cost has walls where a cross term changes sign.
+and keeps the better: the log cost has walls where a cross term changes sign. The second fit
+is skipped when the direct one succeeded with the phase matched nearly everywhere
+(:data:`WALL_SHARE`).
 
 Kinematic joint placements are not fitted (they enter ``M`` non-linearly through Pinocchio's
 numbers, which are constants here); a name that asks for one raises
@@ -65,6 +67,11 @@ from .result import FitResult, parameter_statistics
 #: the presolved one converges to 7.430 (the truth's cost: 7.428); on noise-free data from a
 #: ±10–30 % start the direct fit reaches the truth and the presolved one a local minimum.
 PRESOLVE_ITER = 60
+#: the presolved second fit runs only when the direct one did not succeed or left more than
+#: this share of the (coherence) weight beyond 90° of phase error — the signature of a wall;
+#: a fit that matches the phase nearly everywhere does not sit behind one (the second fit
+#: then costs time for nothing: on tools/bench_fit.py it took the fit from ~16 s to 79 s)
+WALL_SHARE = 0.01
 #: residual kinds whose cost is a log error (these get the presolve)
 LOG_KINDS = frozenset({"complex_log", "log_magnitude"})
 
@@ -254,6 +261,18 @@ def _ipopt(setup: FitSetup, **solve_kw: Any) -> NlpOutcome:
     return out
 
 
+def _wall_fraction(doc: UrdfDocument, setup: FitSetup, out: NlpOutcome) -> float:
+    """Phase-wall share (:meth:`bondid.cost.FrfProblem.phase_wall_fraction`) at a fit's
+    solution; 1.0 when IPOPT did not succeed (the presolve then always runs)."""
+    if out.status not in SUCCESS_STATUSES:
+        return 1.0
+    fitted = np.clip(setup.layout.named(out.z), setup.lower, setup.upper)
+    fitted_doc = _fitted_document(doc, setup, out.z, fitted)
+    affine = setup.problem.affines[0].with_values(*setup.layout.values(out.z))
+    pmap = ParameterMap(fitted_doc, affine, setup.names)
+    return setup.problem.phase_wall_fraction(pmap, get_parameters(fitted_doc, setup.names))
+
+
 def fit(
     doc: UrdfDocument,
     datasets: list[FrfData],
@@ -291,7 +310,8 @@ def fit(
         ipopt_options: extra IPOPT options (e.g. ``{"max_wall_time": 60}``).
         presolve_iter: for a log cost (``complex_log``, ``log_magnitude``), a second fit runs
             from a start presolved with this many IPOPT iterations on the normalised complex
-            error, and the fit with the lower final cost is kept (see :data:`PRESOLVE_ITER`);
+            error, and the fit with the lower final cost is kept (see :data:`PRESOLVE_ITER`),
+            unless the direct fit succeeded without phase walls (:data:`WALL_SHARE`);
             0 = the direct fit only.
 
     Returns:
@@ -321,7 +341,13 @@ def fit(
         runs.append((setup, _ipopt(setup, **solve_kw), 0))
     except SolverError as exc:
         error = exc
-    if presolve_iter > 0 and setup.problem.options.kind in LOG_KINDS:
+    walls = _wall_fraction(doc, setup, runs[0][1]) if runs else 1.0
+    if presolve_iter > 0 and setup.problem.options.kind in LOG_KINDS and walls <= WALL_SHARE:
+        notes.append(
+            f"presolve skipped: the direct fit succeeded with {walls:.1%} of the weight beyond"
+            f" 90° of phase error (the presolve runs above {WALL_SHARE:.0%})"
+        )
+    elif presolve_iter > 0 and setup.problem.options.kind in LOG_KINDS:
         pre_options = replace(setup.problem.options, kind="normalised_complex", norm="l2")
         try:
             pre = fit(
