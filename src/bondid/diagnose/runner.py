@@ -44,7 +44,8 @@ from ..exceptions import BondidError
 from ..model.document import UrdfDocument
 from ..model.parameters import set_parameter
 from .effects import Candidate, get_effect
-from .engine import Refit, Variable
+from .engine import Refit
+from .variables import Variable
 
 DAMPING_FACTORS = (1.0, 4.0)
 COORD_GRID = tuple(float(x) for x in np.geomspace(1 / 30, 30, 25))
@@ -274,7 +275,8 @@ def _run(job: Job, t0: float) -> JobResult:
     extra: dict[str, Any] = {}
     if job.candidate is not None and job.candidate.variants:
         job, _ = _screen_variants(job)
-        extra["variant"] = job.candidate.description if job.candidate else ""
+        assert job.candidate is not None
+        extra["variant"] = job.candidate.description
     cand = job.candidate
     doc, variables, refit, modifier = _setup(job.urdf, job.nominal, job)
     n_nom = len(job.nominal)

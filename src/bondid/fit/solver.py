@@ -261,16 +261,25 @@ def _ipopt(setup: FitSetup, **solve_kw: Any) -> NlpOutcome:
     return out
 
 
+def _solution(
+    doc: UrdfDocument, setup: FitSetup, out: NlpOutcome
+) -> tuple[np.ndarray, UrdfDocument, ParameterMap, np.ndarray]:
+    """A fit's solution as named values (clipped to the bounds), the fitted document, its
+    parameter map and the values the map reads (for :class:`bondid.cost.FrfProblem`)."""
+    fitted = np.clip(setup.layout.named(out.z), setup.lower, setup.upper)
+    fitted_doc = _fitted_document(doc, setup, out.z, fitted)
+    affine = setup.problem.affines[0].with_values(*setup.layout.values(out.z))
+    pmap = ParameterMap(fitted_doc, affine, setup.names)
+    return fitted, fitted_doc, pmap, get_parameters(fitted_doc, setup.names)
+
+
 def _wall_fraction(doc: UrdfDocument, setup: FitSetup, out: NlpOutcome) -> float:
     """Phase-wall share (:meth:`bondid.cost.FrfProblem.phase_wall_fraction`) at a fit's
     solution; 1.0 when IPOPT did not succeed (the presolve then always runs)."""
     if out.status not in SUCCESS_STATUSES:
         return 1.0
-    fitted = np.clip(setup.layout.named(out.z), setup.lower, setup.upper)
-    fitted_doc = _fitted_document(doc, setup, out.z, fitted)
-    affine = setup.problem.affines[0].with_values(*setup.layout.values(out.z))
-    pmap = ParameterMap(fitted_doc, affine, setup.names)
-    return setup.problem.phase_wall_fraction(pmap, get_parameters(fitted_doc, setup.names))
+    _, _, pmap, x = _solution(doc, setup, out)
+    return setup.problem.phase_wall_fraction(pmap, x)
 
 
 def fit(
@@ -375,11 +384,8 @@ def fit(
             f"two fits: direct and after {runs[-1][2]} presolve iterations on the normalised "
             f"complex error; final costs {costs}; kept the {which} one"
         )
-    fitted = np.clip(setup.layout.named(out.z), setup.lower, setup.upper)
-    fitted_doc = _fitted_document(doc, setup, out.z, fitted)
-    affine = setup.problem.affines[0].with_values(*setup.layout.values(out.z))
-    pmap = ParameterMap(fitted_doc, affine, setup.names)
-    r, J = setup.problem.residual_and_jacobian(pmap, get_parameters(fitted_doc, setup.names))
+    fitted, fitted_doc, pmap, x = _solution(doc, setup, out)
+    r, J = setup.problem.residual_and_jacobian(pmap, x)
     std, corr = parameter_statistics(J, r)
     return FitResult(
         status=out.status,
