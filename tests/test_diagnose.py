@@ -90,9 +90,10 @@ def test_joint_compliance_candidates_cover_missing_axes(doc):
 
 def test_refit_jacobian_matches_finite_differences(doc):
     from bondid.diagnose.effects import get_effect
-    from bondid.diagnose.engine import Refit, Variable, nominal_variables
+    from bondid.diagnose.engine import Refit
     from bondid.diagnose.pipeline import default_names
     from bondid.diagnose.runner import _modifier
+    from bondid.diagnose.variables import Variable, nominal_variables
 
     data = _data(doc, n=40)
     names = [n for n in default_names(doc, None) if n.startswith(("z_stage", "z_bearing"))]
@@ -225,8 +226,8 @@ def test_screening_picks_the_pivot_that_made_the_data(doc):
 
     from bondid.cost.problem import CostOptions
     from bondid.diagnose.effects import get_effect
-    from bondid.diagnose.engine import nominal_variables
     from bondid.diagnose.runner import Job, _screen_variants
+    from bondid.diagnose.variables import nominal_variables
 
     e = get_effect("joint_compliance")
     c = next(c for c in e.candidates(doc) if c.location == "x_stage->y_stage:ry")

@@ -33,9 +33,9 @@ from ..model.document import UrdfDocument
 from ..model.parameters import get_parameter, select_parameters
 from . import scoring
 from .effects import Candidate, get_effects
-from .engine import nominal_variables
 from .runner import Job, JobResult, run_job
 from .split import decimate, holdout_split, limit_bands
+from .variables import nominal_variables
 
 #: default free parameters of the parameter refit (zero-valued springs/dampers are dropped)
 DEFAULT_FREE = ("all",)
