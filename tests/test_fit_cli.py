@@ -16,6 +16,7 @@ from bondid.data import FrfData, write_csv
 from bondid.exceptions import ConfigError
 from bondid.fit.cli import build_parser, main, resolve_settings
 from bondid.fit.multistart import lhs_starts
+from bondid.fit.continuation import FIRST_BAND_SHARE, continuation_fit, continuation_tops
 from bondid.fit.staged import automatic_stage_bands, model_modes, staged_fit
 from bondid.fit.study import load_study, study_from_dict
 from bondid.linear import build_affine_model
@@ -205,6 +206,7 @@ def test_study_values_used_and_cli_overrides(case: dict[str, Path], tmp_path: Pa
         ({"cost": {"bands": [[10, 1]]}}, "cost.bands[0]"),
         ({"search": {"multistart": 0}}, "search.multistart"),
         ({"search": {"staged": "yes"}}, "search.staged"),
+        ({"search": {"continuation": -1}}, "search.continuation"),
         ({"search": {"stage_bands": {"mass": [1, 2]}}}, "search.stage_bands.mass"),
         ({"bounds": {"mass": -0.1}}, "bounds.mass"),
         ({"bounds": {"mass": [2, 1]}}, "bounds.mass"),
@@ -230,6 +232,40 @@ def test_study_file_errors(tmp_path: Path) -> None:
     good.write_text('model = "m.urdf"\ndata = "d.csv"\n[search]\nstaged = true\n')
     s = load_study(good)
     assert s.model == good.parent / "m.urdf" and s.data == [good.parent / "d.csv"] and s.staged
+
+
+def test_continuation_command(case: dict[str, Path], tmp_path: Path, capsys) -> None:
+    """``--continuation 3``: two growing-band stages, then the full fit, in fit.json."""
+    model, d0 = case["model"], case["data0"]
+    out = tmp_path / "cont"
+    code, stdout, _ = _run(
+        capsys, "--model", model, "--data", d0, "--continuation", 3, "--out", out, "--quiet"
+    )
+    assert code == 0, stdout
+    res = json.loads((out / "fit.json").read_text())
+    assert res["settings"]["continuation"] == 3
+    stages = res["stages"]
+    assert [s["name"] for s in stages][-1] == "all" and len(stages) == 3
+    tops = [s["bands_hz"][-1][1] for s in stages]
+    assert tops == sorted(tops) and tops[0] < 300.0 and math.isclose(tops[-1], 300.0)
+    assert all(s["bands_hz"][0][0] == pytest.approx(2.0) for s in stages)
+    for q in res["parameters"]:
+        assert math.isclose(q["fitted"], TRUTH[q["name"]], rel_tol=1e-5)
+    assert res["cost_initial"] == pytest.approx(res["cost_model"])
+    for bad in (["--continuation", "1"], ["--continuation", "4", "--staged"]):
+        code, _, err = _run(capsys, "--model", model, "--data", d0, *bad, "--quiet")
+        assert code == 2 and "--continuation" in err and "at least 2" in err
+
+
+def test_continuation_bands_and_errors(case: dict[str, Path]) -> None:
+    tops = continuation_tops(1.0, 4000.0, 8)
+    assert len(tops) == 7 and tops == sorted(tops) and tops[-1] < 4000.0
+    assert tops[0] == pytest.approx(4000.0**FIRST_BAND_SHARE)
+    assert continuation_tops(1.0, 4000.0, 1) == []
+    doc = UrdfDocument.load(case["model"])
+    lo, hi = np.array([0.0]), np.array([np.inf])
+    with pytest.raises(ConfigError, match="at least 2 bands"):
+        continuation_fit(doc, [], ["p.damping"], lower=lo, upper=hi, n_bands=1)
 
 
 def test_lhs_starts_within_bounds() -> None:

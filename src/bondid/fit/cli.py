@@ -106,6 +106,11 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"band of a stage ({', '.join(STAGES)}) for --staged; repeatable",
     )  # fmt: skip
     p.add_argument(
+        "--continuation", type=int, metavar="N",
+        help="band continuation: fit a band growing from the lowest frequencies in N steps (the"
+        " last is the full fit), for starts far from the truth (default 0 = off; try 8)",
+    )  # fmt: skip
+    p.add_argument(
         "--max-iter", type=int, metavar="N", help="IPOPT iterations per fit (default 200)"
     )
     p.add_argument(
@@ -176,6 +181,14 @@ def resolve_settings(args: argparse.Namespace) -> StudySettings:
         except argparse.ArgumentTypeError as exc:
             raise ConfigError(f"--stage-band: {exc}") from None
     s.stage_bands.update(cli_stage)
+    if args.continuation is not None:
+        s.continuation = int(_positive(args.continuation, "--continuation", 0) or 0)
+    if s.continuation == 1 or (s.continuation and s.staged):
+        where = "--continuation" if s.source is None else f"{s.source} / --continuation"
+        raise ConfigError(
+            f"{where}: {s.continuation} with staged={s.staged}; valid: 0 (off) or at least 2"
+            " bands, and not together with --staged (choose one search strategy)"
+        )
     if args.max_iter is not None:
         s.max_iter = int(_positive(args.max_iter, "--max-iter", 0) or 0)
     if args.presolve is not None:
@@ -338,13 +351,13 @@ def _body(args: argparse.Namespace) -> int:
     ms = run_multistart(
         doc, datasets, names, lower=lower, upper=upper, options=options, n_starts=s.multistart,
         seed=s.seed, max_iter=s.max_iter, workers=s.workers, staged=s.staged,
-        stage_bands=s.stage_bands or None, on_run=on_run, on_iteration=on_iteration,
-        presolve_iter=s.presolve,
+        continuation=s.continuation, stage_bands=s.stage_bands or None, on_run=on_run,
+        on_iteration=on_iteration, presolve_iter=s.presolve,
     )  # fmt: skip
     result = ms.best
     prog.close(f"{result.status}, cost {result.cost_final:.4g}")
     start0 = ms.runs[0].result
-    if start0 is not None and not s.staged:
+    if start0 is not None and not (s.staged or s.continuation):
         cost_model = float(start0.cost_initial)
     else:
         cost_model = cost_at(

@@ -145,6 +145,7 @@ class _Job:
     staged: bool
     stage_bands: dict[str, list[tuple[float, float]]] | None
     presolve_iter: int = PRESOLVE_ITER
+    continuation: int = 0
 
 
 def _run_job(job: _Job, progress: Callable[[int, float], None] | None = None) -> RunOutcome:
@@ -155,14 +156,22 @@ def _run_job(job: _Job, progress: Callable[[int, float], None] | None = None) ->
     """
     t0 = time.perf_counter()
     try:
-        if job.staged:
+        if job.staged or job.continuation:
+            from .continuation import continuation_fit
             from .staged import staged_fit
 
-            st = staged_fit(
-                job.doc, job.datasets, job.names, options=job.options, lower=job.lower,
-                upper=job.upper, start=job.start, max_iter=job.max_iter,
-                stage_bands=job.stage_bands, progress=progress, presolve_iter=job.presolve_iter,
-            )  # fmt: skip
+            common: dict[str, Any] = {
+                "options": job.options, "lower": job.lower, "upper": job.upper,
+                "start": job.start, "max_iter": job.max_iter, "progress": progress,
+                "presolve_iter": job.presolve_iter,
+            }  # fmt: skip
+            st = (
+                staged_fit(job.doc, job.datasets, job.names, stage_bands=job.stage_bands, **common)
+                if job.staged
+                else continuation_fit(
+                    job.doc, job.datasets, job.names, n_bands=job.continuation, **common
+                )
+            )
             return RunOutcome(
                 job.index, job.start, st.result, stages=st.stages,
                 wall_s=time.perf_counter() - t0,
@@ -197,6 +206,7 @@ def run_multistart(
     max_iter: int = 200,
     workers: int = 2,
     staged: bool = False,
+    continuation: int = 0,
     stage_bands: dict[str, list[tuple[float, float]]] | None = None,
     on_run: RunProgress | None = None,
     on_iteration: Callable[[int, float], None] | None = None,
@@ -215,6 +225,8 @@ def run_multistart(
         max_iter: IPOPT iteration limit per fit.
         workers: processes to use (1 = run the starts one after another here).
         staged: run each start as a staged fit (:func:`bondid.fit.staged.staged_fit`).
+        continuation: run each start as a band continuation with this many bands
+            (:func:`bondid.fit.continuation.continuation_fit`); 0 = off.
         stage_bands: user bands per stage for the staged fit.
         on_run: called in this process as each run finishes.
         on_iteration: per-iteration progress ``(iteration, cost)``, only for runs done in
@@ -238,7 +250,7 @@ def run_multistart(
     starts = lhs_starts(x0, lo, hi, n_starts, seed)
     common = (list(datasets), names, opts, lo, hi)
     jobs = [
-        _Job(i, doc, *common, starts[i], max_iter, staged, stage_bands, presolve_iter)
+        _Job(i, doc, *common, starts[i], max_iter, staged, stage_bands, presolve_iter, continuation)
         for i in range(n_starts)
     ]
     runs: list[RunOutcome | None] = [None] * n_starts

@@ -24,7 +24,8 @@ IPOPT with its gradient ``2Jᵀr`` and a Gauss–Newton Hessian ``2JᵀJ`` of th
 constraints' symbolic Hessians, convexified): the least-squares structure converges in tens of
 iterations where a quasi-Newton Hessian needs hundreds. It is a LOCAL method: from ±30 % on
 every parameter the complex-log cost of lightly damped modes has other basins (measured on the
-bonder); use multistart or staged fitting for global search. A log-cost fit runs twice, from
+bonder); use the band continuation (:mod:`bondid.fit.continuation`), multistart or
+staged fitting for global search. A log-cost fit runs twice, from
 the start and from a start presolved on the normalised complex error (:data:`PRESOLVE_ITER`),
 and keeps the better: the log cost has walls where a cross term changes sign. The second fit
 is skipped when the direct one succeeded with the phase matched nearly everywhere

@@ -30,6 +30,7 @@ Every section and key is optional::
     seed = 0                                 # --seed
     workers = 2                              # --workers
     staged = true                            # --staged
+    continuation = 8                         # --continuation (bands; 0 = off)
     max_iter = 200                           # --max-iter
     presolve = 60                            # --presolve (0 = none)
     [search.stage_bands]                     # staged fitting bands (Hz); default: from the modes
@@ -67,6 +68,7 @@ _SECTION_KEYS = {
         "seed",
         "workers",
         "staged",
+        "continuation",
         "max_iter",
         "presolve",
         "stage_bands",
@@ -96,6 +98,8 @@ class StudySettings:
         workers: parallel processes for the multistart.
         staged: fit by bands first (stiffness, damping, inertia), then everything.
         stage_bands: stage -> bands (Hz); a missing stage takes bands from the modes.
+        continuation: number of bands of a band continuation (growing band from the lowest
+            frequencies, :mod:`bondid.fit.continuation`); 0 = off. Not with ``staged``.
         max_iter: IPOPT iteration limit per fit.
         presolve: IPOPT iterations on the normalised complex error before a log-cost fit
             (:data:`bondid.fit.solver.PRESOLVE_ITER`; 0 = none).
@@ -119,6 +123,7 @@ class StudySettings:
     workers: int = 2
     staged: bool = False
     stage_bands: dict[str, list[Band]] = field(default_factory=dict)
+    continuation: int = 0
     max_iter: int = 200
     presolve: int = 60
     source: Path | None = None
@@ -144,6 +149,7 @@ class StudySettings:
             "workers": self.workers,
             "staged": self.staged,
             "stage_bands": {k: [list(b) for b in v] for k, v in self.stage_bands.items()},
+            "continuation": self.continuation,
             "max_iter": self.max_iter,
             "presolve": self.presolve,
         }
@@ -358,6 +364,8 @@ def study_from_dict(
         s.workers = check_int(search["workers"], where, "search.workers", 1)
     if "staged" in search:
         s.staged = check_bool(search["staged"], where, "search.staged")
+    if "continuation" in search:
+        s.continuation = check_int(search["continuation"], where, "search.continuation", 0)
     if "max_iter" in search:
         s.max_iter = check_int(search["max_iter"], where, "search.max_iter", 0)
     if "presolve" in search:

@@ -1,9 +1,10 @@
 """Exact FRF derivatives: dH/dp = −C Z⁻¹ (∂Z/∂p) Z⁻¹ B, batched over frequencies.
 
 With ``X = Z⁻¹B`` ``(n_f, nv, n_in)`` and ``Y = C Z⁻¹`` ``(n_f, n_out, nv)``, the outer product
-``P[f,o,i,n,m] = Y[f,o,n]·X[f,m,i]`` contracted with the real parameter directions of
-``∂Z/∂p = G_p − ω²M_p + jω D_p`` gives every derivative in three real matrix products.
-Frequencies are processed in blocks to bound memory.
+``P[o,i,f,n,m] = Y[f,o,n]·X[f,m,i]``, formed as separate contiguous real and imaginary parts,
+contracted with the real parameter directions of ``∂Z/∂p = G_p − ω²M_p + jω D_p`` (stiffness
+and mass directions side by side, damping on the diagonal) gives every derivative in a few
+real matrix products. Frequencies are processed in small blocks that stay in cache.
 """
 
 from __future__ import annotations
@@ -14,7 +15,10 @@ from ..linear.affine import AffineModel
 from .engine import dynamic_stiffness, omega, solve_columns
 from .quantity import quantity_factor
 
-_BLOCK_BYTES = 64 * 2**20
+#: Frequencies per block: the outer products of a block (2 × 8 bytes × n_out·n_in·nv² per
+#: frequency) then stay in the processor's cache (measured on the bonder, 11 DOF, 3×3 channels:
+#: 64–256 frequencies per block twice as fast as one block of 2000).
+_BLOCK_FREQ = 128
 
 
 def frf_and_jacobian(
@@ -35,7 +39,8 @@ def frf_and_jacobian(
         quantity: receptance, mobility or accelerance.
 
     Returns:
-        ``H`` ``(n_out, n_in, n_f)`` and ``J`` ``(n_out, n_in, n_f, n_p)``, complex.
+        ``H`` ``(n_out, n_in, n_f)`` and ``J`` ``(n_out, n_in, n_f, n_p)``, complex, both
+        C-contiguous.
     """
     w = omega(freq_hz)
     M = affine.mass_matrix()
@@ -45,27 +50,34 @@ def frf_and_jacobian(
     Kp = np.einsum("bkp,bkij->pij", dpi, affine.G_basis)
     Kp[:, np.arange(affine.nv), np.arange(affine.nv)] += dk.T
     n, n_p = affine.nv, dpi.shape[2]
-    Mp2 = Mp.reshape(n_p, n * n).T  # (n*n, n_p)
-    Kp2 = Kp.reshape(n_p, n * n).T
-    n_out, n_in = affine.C.shape[0], affine.B.shape[1]
-    H = np.empty((w.size, n_out, n_in), dtype=complex)
-    J = np.empty((w.size, n_out, n_in, n_p), dtype=complex)
-    step = max(1, _BLOCK_BYTES // (16 * n_out * n_in * n * n))
-    for s in range(0, w.size, step):
-        ws = w[s : s + step]
+    # stiffness and mass directions side by side: one real product per part of P
+    G = np.concatenate([Kp.reshape(n_p, n * n).T, Mp.reshape(n_p, n * n).T], axis=1)
+    C, B = affine.C, affine.B
+    n_out, n_in = C.shape[0], B.shape[1]
+    H = np.empty((n_out, n_in, w.size), dtype=complex)
+    J = np.empty((n_out, n_in, w.size, n_p), dtype=complex)
+    for s in range(0, w.size, _BLOCK_FREQ):
+        ws = w[s : s + _BLOCK_FREQ]
         Z = dynamic_stiffness(M, K, D, ws)
-        X = solve_columns(Z, affine.B)  # (f, n, n_in)
-        Yt = solve_columns(np.swapaxes(Z, 1, 2), affine.C.T)  # (f, n, n_out) = (C Z^-1)^T
-        H[s : s + step] = np.einsum("on,fni->foi", affine.C, X)
-        P = np.einsum("fno,fmi->foinm", Yt, X).reshape(ws.size * n_out * n_in, n * n)
-        PD = np.einsum("fno,fni->foin", Yt, X).reshape(ws.size * n_out * n_in, n)
-        PK = P.real @ Kp2 + 1j * (P.imag @ Kp2)
-        PM = P.real @ Mp2 + 1j * (P.imag @ Mp2)
-        PDd = PD.real @ dd + 1j * (PD.imag @ dd)
-        wf = np.repeat(ws, n_out * n_in)[:, None]
-        J[s : s + step] = -(PK - wf**2 * PM + 1j * wf * PDd).reshape(ws.size, n_out, n_in, n_p)
-    H = np.moveaxis(H, 0, 2)
-    J = np.moveaxis(J, 0, 2)
+        X = solve_columns(Z, B)  # (f, m, i)
+        Y = solve_columns(np.swapaxes(Z, 1, 2), C.T)  # (f, n, o) = (C Z^-1)^T
+        H[:, :, s : s + ws.size] = np.einsum("on,fni->oif", C, X)
+        # P[o,i,f,n,m] = Y[f,n,o]·X[f,m,i], real and imaginary parts, contiguous
+        Yt = np.transpose(Y, (2, 0, 1))[:, None, :, :, None]  # (o, 1, f, n, 1)
+        Xt = np.transpose(X, (2, 0, 1))[None, :, :, None, :]  # (1, i, f, 1, m)
+        yr, yi, xr, xi = Yt.real, Yt.imag, Xt.real, Xt.imag
+        Pr = (yr * xr - yi * xi).reshape(-1, n * n)
+        Pi = (yr * xi + yi * xr).reshape(-1, n * n)
+        Ar, Ai = Pr @ G, Pi @ G  # (o·i·f, 2 n_p): [∂K part | ∂M part]
+        diag = np.arange(n) * (n + 1)  # damping is diagonal: P[..., n, n] only
+        Dr, Di = Pr[:, diag] @ dd, Pi[:, diag] @ dd
+        wf = np.tile(ws, n_out * n_in)[:, None]
+        w2 = wf * wf
+        # J = −P·(∂K − ω²∂M + jω∂D), split into real and imaginary parts
+        blk = J[:, :, s : s + ws.size]
+        shape = (n_out, n_in, ws.size, n_p)
+        blk.real[...] = (w2 * Ar[:, n_p:] - Ar[:, :n_p] + wf * Di).reshape(shape)
+        blk.imag[...] = (w2 * Ai[:, n_p:] - Ai[:, :n_p] - wf * Dr).reshape(shape)
     if quantity != "receptance":
         fac = quantity_factor(freq_hz, quantity)
         H = H * fac
