@@ -15,8 +15,8 @@ import pytest
 from bondid.data import FrfData, write_csv
 from bondid.exceptions import ConfigError
 from bondid.fit.cli import build_parser, main, resolve_settings
-from bondid.fit.multistart import lhs_starts
 from bondid.fit.continuation import FIRST_BAND_SHARE, continuation_fit, continuation_tops
+from bondid.fit.multistart import lhs_starts
 from bondid.fit.staged import automatic_stage_bands, model_modes, staged_fit
 from bondid.fit.study import load_study, study_from_dict
 from bondid.linear import build_affine_model
