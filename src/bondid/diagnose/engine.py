@@ -28,7 +28,8 @@ from ..cost.problem import CostOptions, FrfProblem
 from ..cost.residuals import RESIDUAL_KINDS, residual, residual_jacobian
 from ..data.measurement import FrfData
 from ..exceptions import ComputationError, ConfigError
-from ..frf.engine import dynamic_stiffness, omega
+from ..frf.engine import dynamic_stiffness, omega, solve_columns
+from ..linear.affine import AffineModel
 from ..linear.parameter_map import ParameterMap
 from ..model.document import UrdfDocument
 from ..model.parameters import parameter_infos
@@ -136,7 +137,7 @@ class Refit:
             f = b.freq_hz if freq_hz is None else np.asarray(freq_hz, float)
             aff, M, K, D = self._matrices(b, values)
             Z = dynamic_stiffness(M, K, D, omega(f))
-            X = _solve(Z, aff.B)
+            X = solve_columns(Z, aff.B)
             H = np.einsum("on,fni->oif", aff.C, X)
             if self.modifier is not None:
                 G, _ = self.modifier(mv, f, aff.outputs, aff.inputs)
@@ -175,24 +176,23 @@ class Refit:
         dpi_v = dpi @ Tv if dpi.size else np.zeros((dpi.shape[0], 10, len(v)))
         dk_v, dd_v = dk @ Tv, dd @ Tv
         dense = [k for k in range(len(v)) if np.any(dpi_v[:, :, k] != 0)]
+        dpi_d = dpi_v[:, :, dense]
         mv = self._mod_values(v)
         rs, Js = [], []
         for b in self.problem.blocks:
             aff, M, K, D = self._matrices(b, values)
             w = omega(b.freq_hz)
             Z = dynamic_stiffness(M, K, D, w)
-            X = _solve(Z, aff.B)  # (f, n, n_in)
-            Yt = _solve(np.swapaxes(Z, 1, 2), aff.C.T)  # (f, n, n_out)
+            X = solve_columns(Z, aff.B)  # (f, n, n_in)
+            Yt = solve_columns(np.swapaxes(Z, 1, 2), aff.C.T)  # (f, n, n_out)
             Xs = X[b.fidx, :, b.cols]  # (s, n)
             Ys = Yt[b.fidx, :, b.rows]  # (s, n)
             ws = w[b.fidx]
             Hs = np.einsum("sn,sn->s", aff.C[b.rows], Xs)
             YX = Ys * Xs
             dH = -(YX @ dk_v + 1j * ws[:, None] * (YX @ dd_v))  # (s, n_var)
-            for k in dense:
-                Mp = np.einsum("bc,bcij->ij", dpi_v[:, :, k], aff.M_basis)
-                Kp = np.einsum("bc,bcij->ij", dpi_v[:, :, k], aff.G_basis)
-                dH[:, k] -= np.sum((Ys @ Kp) * Xs, axis=1) - ws**2 * np.sum((Ys @ Mp) * Xs, axis=1)
+            if dense:
+                dH[:, dense] -= _inertial_columns(aff, dpi_d, Ys, Xs, ws)
             if self.modifier is not None:
                 G, dG = self.modifier(mv, b.freq_hz, aff.outputs, aff.inputs)
                 Gs = G[b.rows, b.cols, b.fidx]
@@ -364,7 +364,7 @@ class Refit:
         v = self.values(u)
         aff, M, K, D = self._matrices(block, self.pmap.values(self.T @ v))
         f = np.asarray(freq_hz, float)
-        X = _solve(dynamic_stiffness(M, K, D, omega(f)), aff.B)
+        X = solve_columns(dynamic_stiffness(M, K, D, omega(f)), aff.B)
         H = np.einsum("on,fni->oif", aff.C, X)
         if self.modifier is not None:
             H = H * self.modifier(self._mod_values(v), f, aff.outputs, aff.inputs)[0]
@@ -376,8 +376,16 @@ class Refit:
         return dict(zip(self.pmap.names, (float(x) for x in vals), strict=True))
 
 
-def _solve(Z: np.ndarray, B: np.ndarray) -> np.ndarray:
-    try:
-        return np.linalg.solve(Z, np.broadcast_to(B.astype(complex), (Z.shape[0], *B.shape)))
-    except np.linalg.LinAlgError as exc:
-        raise ComputationError("the dynamic stiffness is singular at some frequency") from exc
+def _inertial_columns(
+    aff: AffineModel, dpi: np.ndarray, Ys: np.ndarray, Xs: np.ndarray, ws: np.ndarray
+) -> np.ndarray:
+    """``Σ_nm Y[s,n] (∂K − ω²∂M)[n,m] X[s,m]`` ``(s, n_dense)`` for the variables that move
+    body parameters (``dpi`` ``(nb, 10, n_dense)``): one real product per part of the outer
+    products ``Y Xᵀ`` with the stiffness and mass directions side by side."""
+    n, k = Ys.shape[1], dpi.shape[2]
+    Kp = np.einsum("bck,bcij->kij", dpi, aff.G_basis).reshape(k, n * n)
+    Mp = np.einsum("bck,bcij->kij", dpi, aff.M_basis).reshape(k, n * n)
+    G = np.concatenate([Kp, Mp]).T  # (n², 2k)
+    P = (Ys[:, :, None] * Xs[:, None, :]).reshape(-1, n * n)
+    A = P.real @ G + 1j * (P.imag @ G)
+    return A[:, :k] - (ws**2)[:, None] * A[:, k:]
