@@ -29,6 +29,7 @@ from ..cost.residuals import RESIDUAL_KINDS, residual, residual_jacobian
 from ..data.measurement import FrfData
 from ..exceptions import ComputationError, ConfigError
 from ..frf.engine import dynamic_stiffness, omega, solve_columns
+from ..frf.jacobian import body_directions
 from ..linear.affine import AffineModel
 from ..linear.parameter_map import ParameterMap
 from ..model.document import UrdfDocument
@@ -383,9 +384,7 @@ def _inertial_columns(
     body parameters (``dpi`` ``(nb, 10, n_dense)``): one real product per part of the outer
     products ``Y Xᵀ`` with the stiffness and mass directions side by side."""
     n, k = Ys.shape[1], dpi.shape[2]
-    Kp = np.einsum("bck,bcij->kij", dpi, aff.G_basis).reshape(k, n * n)
-    Mp = np.einsum("bck,bcij->kij", dpi, aff.M_basis).reshape(k, n * n)
-    G = np.concatenate([Kp, Mp]).T  # (n², 2k)
+    G = body_directions(aff, dpi)  # (n², 2k)
     P = (Ys[:, :, None] * Xs[:, None, :]).reshape(-1, n * n)
     A = P.real @ G + 1j * (P.imag @ G)
     return A[:, :k] - (ws**2)[:, None] * A[:, k:]

@@ -44,7 +44,7 @@ from ..exceptions import ComputationError, ConfigError
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameters
 from .solver import PRESOLVE_ITER
-from .staged import Band, StagedResult, StageResult, cost_at
+from .staged import Band, StagedResult, StageResult, finish_stages, stage_fit
 
 #: Number of bands (the last one is the full fit), the default of ``--continuation``.
 CONTINUATION_BANDS = 8
@@ -114,8 +114,6 @@ def continuation_fit(
     Raises:
         ConfigError: ``n_bands < 2`` or ``band_iter < 1``.
     """
-    from .solver import fit
-
     if n_bands < 2 or band_iter < 1:
         raise ConfigError(
             f"band continuation: {n_bands} band(s) of {band_iter} iteration(s); valid: at "
@@ -144,14 +142,9 @@ def continuation_fit(
             band_opts = dataclasses.replace(opts, kind=BAND_KIND, norm="l2", bands=bands)
             cap = np.where(np.isfinite(hi) | (x <= 0.0), hi, BAND_CAP * x)
             try:
-                res = fit(
-                    current, list(datasets), names, options=band_opts, lower=lo, upper=cap,
-                    start=x, max_iter=band_iter, progress=progress, presolve_iter=0,
-                )  # fmt: skip
-            except ConfigError as exc:
-                if "no data" not in str(exc):
-                    raise
-                skip = f"no data: {exc}"
+                res, skip = stage_fit(
+                    current, datasets, names, band_opts, lo, cap, x, band_iter, progress
+                )
             except ComputationError as exc:
                 skip = f"solver failed ({getattr(exc, 'status', None)}); kept its start: {exc}"
         if res is not None and not res.cost_final <= res.cost_initial:
@@ -168,20 +161,7 @@ def continuation_fit(
         stages.append(st)
         if on_stage is not None:
             on_stage(st)
-    final = fit(
-        current, list(datasets), names, options=opts, lower=lo, upper=hi, start=x,
-        max_iter=max_iter, progress=progress, presolve_iter=presolve_iter,
+    return finish_stages(
+        doc, current, datasets, names, opts, lo, hi, x_start, x, max_iter, progress,
+        presolve_iter, stages, on_stage, iterations, t0, (f_min, f_max),
     )  # fmt: skip
-    iterations += int(final.iterations)
-    last = StageResult("all", list(opts.bands or [(f_min, f_max)]), names, final)
-    stages.append(last)
-    if on_stage is not None:
-        on_stage(last)
-    overall = dataclasses.replace(
-        final,
-        initial=x_start,
-        cost_initial=cost_at(doc, datasets, names, x_start, opts),
-        iterations=iterations,
-        wall_s=time.perf_counter() - t0,
-    )
-    return StagedResult(overall, stages)

@@ -222,7 +222,6 @@ def staged_fit(
         :class:`StagedResult`: ``result`` is the final all-parameter fit, with ``initial``,
         ``cost_initial``, ``iterations`` and ``wall_s`` covering the whole staged run.
     """
-    from .solver import fit
 
     t0 = time.perf_counter()
     opts = options or CostOptions()
@@ -256,17 +255,10 @@ def staged_fit(
             skip = "no band within the data and the selected bands"
         res = None
         if skip is None:
-            stage_opts = dataclasses.replace(opts, bands=bands)
-            try:
-                res = fit(
-                    current, list(datasets), sub, options=stage_opts, lower=lo[idx],
-                    upper=hi[idx], start=x[idx], max_iter=stage_iter, progress=progress,
-                    presolve_iter=0,
-                )  # fmt: skip
-            except ConfigError as exc:
-                if "no data" not in str(exc):
-                    raise
-                skip = f"no data: {exc}"
+            res, skip = stage_fit(
+                current, datasets, sub, dataclasses.replace(opts, bands=bands), lo[idx],
+                hi[idx], x[idx], stage_iter, progress,
+            )  # fmt: skip
         if res is not None:
             x[idx] = res.fitted
             current = res.document
@@ -275,21 +267,77 @@ def staged_fit(
         stages.append(st)
         if on_stage is not None:
             on_stage(st)
+    return finish_stages(
+        doc, current, datasets, names, opts, lo, hi, x_start, x, max_iter, progress,
+        presolve_iter, stages, on_stage, iterations, t0, (f_min, f_max),
+    )  # fmt: skip
+
+
+def stage_fit(
+    current: UrdfDocument,
+    datasets: Sequence[FrfData],
+    names: list[str],
+    options: CostOptions,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    start: np.ndarray,
+    max_iter: int,
+    progress: Callable[[int, float], None] | None,
+) -> tuple[FitResult | None, str | None]:
+    """One preparatory stage (no presolve): ``(result, None)``, or ``(None, reason)`` when its
+    bands hold no data. Other errors propagate."""
+    from .solver import fit
+
+    try:
+        res = fit(
+            current, list(datasets), names, options=options, lower=lower, upper=upper,
+            start=start, max_iter=max_iter, progress=progress, presolve_iter=0,
+        )  # fmt: skip
+    except ConfigError as exc:
+        if "no data" not in str(exc):
+            raise
+        return None, f"no data: {exc}"
+    return res, None
+
+
+def finish_stages(
+    doc: UrdfDocument,
+    current: UrdfDocument,
+    datasets: Sequence[FrfData],
+    names: list[str],
+    options: CostOptions,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    x_start: np.ndarray,
+    x: np.ndarray,
+    max_iter: int,
+    progress: Callable[[int, float], None] | None,
+    presolve_iter: int,
+    stages: list[StageResult],
+    on_stage: Callable[[StageResult], None] | None,
+    iterations: int,
+    t0: float,
+    span: Band,
+) -> StagedResult:
+    """The final all-parameter fit from the stages' point ``x`` (``current``), appended as
+    stage ``all``; the result reports the whole run from ``x_start`` on ``doc`` (iterations
+    of every stage, wall time since ``t0``). ``span``: the data's band (Hz) when the user
+    selected none."""
+    from .solver import fit
+
     final = fit(
-        current, list(datasets), names, options=opts, lower=lo, upper=hi, start=x,
+        current, list(datasets), names, options=options, lower=lower, upper=upper, start=x,
         max_iter=max_iter, progress=progress, presolve_iter=presolve_iter,
     )  # fmt: skip
-    iterations += int(final.iterations)
-    all_stage = StageResult("all", list(opts.bands or [(f_min, f_max)]), names, final)
-    stages.append(all_stage)
+    last = StageResult("all", list(options.bands or [span]), names, final)
+    stages.append(last)
     if on_stage is not None:
-        on_stage(all_stage)
-    cost0 = cost_at(doc, datasets, names, x_start, opts)
+        on_stage(last)
     overall = dataclasses.replace(
         final,
         initial=x_start,
-        cost_initial=cost0,
-        iterations=iterations,
+        cost_initial=cost_at(doc, datasets, names, x_start, options),
+        iterations=iterations + int(final.iterations),
         wall_s=time.perf_counter() - t0,
     )
     return StagedResult(overall, stages)

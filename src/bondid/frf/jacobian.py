@@ -21,6 +21,24 @@ from .quantity import quantity_factor
 _BLOCK_FREQ = 128
 
 
+def body_directions(affine: AffineModel, dpi: np.ndarray) -> np.ndarray:
+    """Stiffness and mass directions of body-parameter changes, side by side.
+
+    Args:
+        affine: the model (its gravity-stiffness and mass bases).
+        dpi: ``(nb, 10, n_p)`` derivative of the body parameters w.r.t. each parameter.
+
+    Returns:
+        ``(nv², 2 n_p)`` real: column ``p`` is ``∂G/∂p`` flattened (row-major), column
+        ``n_p + p`` is ``∂M/∂p``; a contraction with the outer products ``Y Xᵀ`` is then one
+        real matrix product per part.
+    """
+    n, n_p = affine.nv, dpi.shape[2]
+    Kp = np.einsum("bkp,bkij->pij", dpi, affine.G_basis).reshape(n_p, n * n)
+    Mp = np.einsum("bkp,bkij->pij", dpi, affine.M_basis).reshape(n_p, n * n)
+    return np.concatenate([Kp, Mp]).T.copy()
+
+
 def frf_and_jacobian(
     affine: AffineModel,
     freq_hz: np.ndarray,
@@ -46,12 +64,9 @@ def frf_and_jacobian(
     M = affine.mass_matrix()
     K = affine.stiffness_matrix()
     D = affine.damping_matrix()
-    Mp = np.einsum("bkp,bkij->pij", dpi, affine.M_basis)
-    Kp = np.einsum("bkp,bkij->pij", dpi, affine.G_basis)
-    Kp[:, np.arange(affine.nv), np.arange(affine.nv)] += dk.T
     n, n_p = affine.nv, dpi.shape[2]
-    # stiffness and mass directions side by side: one real product per part of P
-    G = np.concatenate([Kp.reshape(n_p, n * n).T, Mp.reshape(n_p, n * n).T], axis=1)
+    G = body_directions(affine, dpi)  # (n², 2 n_p): [∂K | ∂M]
+    G[np.arange(n) * (n + 1), :n_p] += dk  # joint springs: on the diagonal of ∂K
     C, B = affine.C, affine.B
     n_out, n_in = C.shape[0], B.shape[1]
     H = np.empty((n_out, n_in, w.size), dtype=complex)
