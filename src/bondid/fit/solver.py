@@ -351,13 +351,14 @@ def fit(
         runs.append((setup, _ipopt(setup, **solve_kw), 0))
     except SolverError as exc:
         error = exc
-    walls = _wall_fraction(doc, setup, runs[0][1]) if runs else 1.0
-    if presolve_iter > 0 and setup.problem.options.kind in LOG_KINDS and walls <= WALL_SHARE:
+    presolve = presolve_iter > 0 and setup.problem.options.kind in LOG_KINDS
+    walls = _wall_fraction(doc, setup, runs[0][1]) if presolve and runs else 1.0
+    if presolve and walls <= WALL_SHARE:
         notes.append(
             f"presolve skipped: the direct fit succeeded with {walls:.1%} of the weight beyond"
             f" 90° of phase error (the presolve runs above {WALL_SHARE:.0%})"
         )
-    elif presolve_iter > 0 and setup.problem.options.kind in LOG_KINDS:
+    elif presolve:
         pre_options = replace(setup.problem.options, kind="normalised_complex", norm="l2")
         try:
             pre = fit(
