@@ -106,17 +106,13 @@ def test_quantities_follow_the_exp_plus_jwt_convention(quantity):
     assert _max_rel(back[0, 0], rec) < TOL_CLOSED_FORM
 
 
-def test_frf_jacobian_matches_central_differences():
-    doc = sprung_robot("ur5")
-    am = build_affine_model(doc, random_pose(doc))
-    names = select_parameters(doc, ["all"])
-    pmap = ParameterMap(doc, am, names)
-    p0 = pmap.p0
-    f = np.logspace(0, 3, 60)
+def _fd_jacobian_error(am, pmap, p0, f):
+    """Worst column-wise relative difference between ``frf_and_jacobian`` and central
+    differences of the plain engine (``LinearModel.frf``)."""
     H, J = frf_and_jacobian(am, f, *pmap.jacobian(p0))
     assert _max_rel(H, am.linear_model().frf(f)) < 1e-12
     worst = 0.0
-    for col in range(len(names)):
+    for col in range(p0.size):
         h = 1e-6 * max(1.0, abs(p0[col]))
         up, dn = p0.copy(), p0.copy()
         up[col] += h
@@ -126,7 +122,35 @@ def test_frf_jacobian_matches_central_differences():
             - am.with_values(*pmap.values(dn)).linear_model().frf(f)
         ) / (2 * h)
         worst = max(worst, np.abs(fd - J[..., col]).max() / np.abs(J[..., col]).max())
-    assert worst < 1e-6
+    return worst
+
+
+def test_frf_jacobian_matches_central_differences():
+    """Inputs = outputs (every joint driven and measured): the mirrored-channel path."""
+    doc = sprung_robot("ur5")
+    am = build_affine_model(doc, random_pose(doc))
+    pmap = ParameterMap(doc, am, select_parameters(doc, ["all"]))
+    assert _fd_jacobian_error(am, pmap, pmap.p0, np.logspace(0, 3, 60)) < 1e-6
+
+
+@pytest.mark.parametrize("symmetric", [True, False])
+def test_frf_jacobian_with_outputs_other_than_inputs(symmetric):
+    """The paths the bonder does not take: outputs that are not the inputs (no mirrored
+    channels; one solve with [B, Cᵀ]) and, with a non-symmetric gravity stiffness, a second
+    solve with Zᵀ and the full n² contraction."""
+    from dataclasses import replace
+
+    doc = sprung_robot("ur5")
+    pose = random_pose(doc)
+    joints = doc.movable_joint_names
+    am = build_affine_model(doc, pose, outputs=[joints[1], joints[4]])
+    if not symmetric:
+        skew = np.random.default_rng(3).standard_normal(am.G_basis.shape)
+        am = replace(am, G_basis=am.G_basis + 5.0 * (skew - np.swapaxes(skew, 2, 3)))
+    assert am.C.shape[0] == 2 and am.B.shape[1] > 2
+    names = select_parameters(doc, ["all"])
+    pmap = ParameterMap(doc, am, names)
+    assert _fd_jacobian_error(am, pmap, pmap.p0, np.logspace(0, 3, 60)) < 1e-6
 
 
 def test_engine_rejects_non_positive_frequencies():

@@ -22,10 +22,18 @@ import numpy as np
 from ..data.io import check_against_model
 from ..data.measurement import FrfData
 from ..exceptions import ChannelError, ConfigError
-from ..frf.jacobian import frf_and_jacobian
+from ..frf.jacobian import frf_and_jacobian, jacobian_blocks
 from ..linear.affine import AffineModel, build_affine_model
 from ..model.document import UrdfDocument
-from .residuals import check_kind, parts, residual, residual_jacobian, robust
+from ..threads import thread_map
+from .residuals import (
+    check_kind,
+    parts,
+    residual,
+    residual_jacobian,
+    residual_jacobian_parts,
+    robust,
+)
 
 
 class ParameterModel(Protocol):
@@ -72,10 +80,16 @@ class _Block:
     rows: np.ndarray  # (n_sel,) output index into data/model outputs
     cols: np.ndarray  # (n_sel,) input index into the model inputs
     fidx: np.ndarray  # (n_sel,) index into freq_hz
+    flat: np.ndarray | None  # (n_sel,) index into the model FRF's flattened (o, i, f); None = all
     Hm: np.ndarray  # (n_sel,) measured
     weight: np.ndarray  # (n_sel,) weights (unnormalised)
     scale: np.ndarray  # (n_sel,) channel scale for linear_magnitude
     channel: np.ndarray  # (n_sel,) channel name per point
+
+
+def _block_frf(b: _Block, values: tuple[np.ndarray, np.ndarray, np.ndarray]) -> np.ndarray:
+    """Model FRF ``(n_out, n_in_model, n_fu)`` of a data set at parameter ``values``."""
+    return b.affine.with_values(*values).linear_model().frf(b.freq_hz)
 
 
 class FrfProblem:
@@ -142,9 +156,14 @@ class FrfProblem:
         for ch in np.unique(names):
             m = names == ch
             scale[m] = np.sqrt(np.mean(np.abs(Hm[m]) ** 2))
+        cols = np.array(col_of, dtype=int)[b]
+        n_o, n_i, n_f = len(affine.outputs), len(affine.inputs), used.size
+        flat = (a * n_i + cols) * n_f + fidx
+        whole = flat.size == n_o * n_i * n_f and np.array_equal(flat, np.arange(flat.size))
         return _Block(
-            ds, affine, ds.freq_hz[used], a, np.array(col_of)[b], fidx, Hm, w, scale, names
-        )
+            ds, affine, ds.freq_hz[used], a, cols, fidx, None if whole else flat, Hm, w, scale,
+            names,
+        )  # fmt: skip
 
     # -- evaluation -----------------------------------------------------------------------
     @property
@@ -154,7 +173,7 @@ class FrfProblem:
     def model_frf(self, pmodel: ParameterModel, x: np.ndarray) -> list[np.ndarray]:
         """Model FRF at each data set's used frequencies, ``(n_out, n_in_model, n_fu)`` each."""
         values = pmodel.values(x)
-        return [b.affine.with_values(*values).linear_model().frf(b.freq_hz) for b in self.blocks]
+        return thread_map(lambda b: _block_frf(b, values), self.blocks)
 
     def phase_wall_fraction(
         self, pmodel: ParameterModel, x: np.ndarray, limit_rad: float = np.pi / 2
@@ -172,38 +191,71 @@ class FrfProblem:
 
     def residual(self, pmodel: ParameterModel, x: np.ndarray) -> np.ndarray:
         """Scaled residual vector ``(n_residuals,)``; ``cost = ‖r‖²``."""
-        out = []
-        for b, H in zip(self.blocks, self.model_frf(pmodel, x), strict=True):
-            Hs = H[b.rows, b.cols, b.fidx]
-            out.append(self._finish(b, residual(self.options.kind, Hs, b.Hm, b.scale))[0])
-        return np.concatenate(out)
+        values = pmodel.values(x)
+
+        def one(b: _Block) -> np.ndarray:
+            Hs = _block_frf(b, values)[b.rows, b.cols, b.fidx]
+            return self._weighted(b, residual(self.options.kind, Hs, b.Hm, b.scale))[0]
+
+        return np.concatenate(thread_map(one, self.blocks))
 
     def residual_and_jacobian(
         self, pmodel: ParameterModel, x: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Residuals ``(n_r,)`` and exact Jacobian ``(n_r, pmodel.size)``."""
+        """Residuals ``(n_r,)`` and exact Jacobian ``(n_r, pmodel.size)``.
+
+        The data sets (one linearisation each) are evaluated on parallel threads, each writing
+        its rows of the result.
+        """
         values = pmodel.values(x)
         dpi, dk, dd = pmodel.jacobian(x)
-        rs, Js = [], []
-        for b in self.blocks:
-            H, J = frf_and_jacobian(b.affine.with_values(*values), b.freq_hz, dpi, dk, dd)
-            Hs = H[b.rows, b.cols, b.fidx]
-            dHs = J[b.rows, b.cols, b.fidx]
-            r = residual(self.options.kind, Hs, b.Hm, b.scale)
-            dr = residual_jacobian(self.options.kind, Hs, b.Hm, dHs, b.scale)
-            r2, dr2 = self._finish(b, r, dr)
-            rs.append(r2)
-            Js.append(dr2)
-        return np.concatenate(rs), np.concatenate(Js)
+        n_p, k = dpi.shape[2], parts(self.options.kind)
+        sizes = [k * b.Hm.size for b in self.blocks]
+        start = np.concatenate([[0], np.cumsum(sizes)])
+        r = np.empty(int(start[-1]))
+        J = np.empty((int(start[-1]), n_p))
 
-    def _finish(self, b: _Block, r: np.ndarray, dr: np.ndarray | None = None):
+        def one(i: int) -> None:
+            b = self.blocks[i]
+            rb = r[start[i] : start[i + 1]]
+            Jb = J[start[i] : start[i + 1]].reshape(k, b.Hm.size, n_p)
+            if b.flat is None:
+                self._grid_rows(b, b.affine.with_values(*values), dpi, dk, dd, rb, Jb)
+                return
+            H, dH = frf_and_jacobian(b.affine.with_values(*values), b.freq_hz, dpi, dk, dd)
+            Hs = H[b.rows, b.cols, b.fidx]
+            res = residual(self.options.kind, Hs, b.Hm, b.scale)
+            rb[:], weight = self._weighted(b, res)
+            dHs = dH.reshape(-1, n_p)[b.flat]
+            residual_jacobian(self.options.kind, Hs, b.Hm, dHs, b.scale, weight, out=Jb)
+
+        thread_map(one, range(len(self.blocks)))
+        return r, J
+
+    def _grid_rows(self, b: _Block, affine: AffineModel, dpi, dk, dd, r, J) -> None:  # type: ignore[no-untyped-def]
+        """Residuals and Jacobian rows of a data set that uses every channel at every one of
+        its frequencies, one block of frequencies at a time while the FRF derivatives are in
+        cache (no complex Jacobian is assembled)."""
+        kind, k = self.options.kind, parts(self.options.kind)
+        grid = (len(affine.outputs), len(affine.inputs), b.freq_hz.size)
+        Hm, scale = b.Hm.reshape(grid), b.scale.reshape(grid)
+        sw = (np.sqrt(b.weight) * self._norm).reshape(grid)
+        rg, Jg = r.reshape(k, *grid), J.reshape(k, *grid, J.shape[-1])
+        for sl, H, dH in jacobian_blocks(affine, b.freq_hz, dpi, dk, dd):
+            res = residual(kind, H, Hm[:, :, sl], scale[:, :, sl])
+            rt, drt = robust(res, self.options.norm, self.options.l1_delta)
+            rg[:, :, :, sl] = rt * sw[:, :, sl]
+            residual_jacobian_parts(
+                kind, H, Hm[:, :, sl], dH[0], dH[1], scale[:, :, sl], drt * sw[:, :, sl],
+                out=Jg[:, :, :, sl],
+            )  # fmt: skip
+
+    def _weighted(self, b: _Block, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Weighted residuals ``(parts·n_sel,)`` (norm mapping, √weight, normalisation) and
+        the factor ``(parts, n_sel)`` their derivatives take."""
         sw = np.sqrt(b.weight) * self._norm
         rt, drt = robust(r, self.options.norm, self.options.l1_delta)
-        out = (rt * sw).reshape(-1)
-        if dr is None:
-            return out, None
-        Jr = (dr * (drt * sw)[..., None]).reshape(-1, dr.shape[-1])
-        return out, Jr
+        return (rt * sw).reshape(-1), drt * sw
 
     def cost(self, pmodel: ParameterModel, x: np.ndarray) -> float:
         r = self.residual(pmodel, x)

@@ -69,30 +69,71 @@ def residual(
     raise ConfigError(f"unknown cost {kind!r}; valid: {', '.join(RESIDUAL_KINDS)}")
 
 
+def _derivative_factor(
+    kind: str, Hs: np.ndarray, Hm: np.ndarray, scale: np.ndarray | None
+) -> np.ndarray:
+    """Complex ``c`` per point such that the residual's derivatives are the real (and, for the
+    complex kinds, imaginary) part of ``c · dHs``."""
+    if kind in ("complex_log", "log_magnitude"):
+        return DB / Hs
+    if kind == "normalised_complex":
+        return 1.0 / np.abs(Hm)
+    if kind == "linear_magnitude":
+        s = 1.0 if scale is None else np.asarray(scale)
+        return np.conj(Hs) / (np.abs(Hs) * s)
+    raise ConfigError(f"unknown cost {kind!r}; valid: {', '.join(RESIDUAL_KINDS)}")
+
+
 def residual_jacobian(
     kind: str,
     Hs: np.ndarray,
     Hm: np.ndarray,
     dHs: np.ndarray,
     scale: np.ndarray | None = None,
+    weight: np.ndarray | None = None,
+    out: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Derivatives ``(parts, *Hs.shape, n_p)`` of :func:`residual`.
+    """Derivatives ``(parts, *Hs.shape, n_p)`` of :func:`residual`, optionally weighted.
 
-    ``dHs`` is ``(*Hs.shape, n_p)``: the model FRF's derivatives.
+    Args:
+        kind: residual kind.
+        Hs, Hm: model and measured FRF values (same shape), complex.
+        dHs: ``(*Hs.shape, n_p)`` complex: the model FRF's derivatives.
+        scale: per-point channel scale, only for ``linear_magnitude``.
+        weight: ``(parts, *Hs.shape)`` real factor per residual (e.g. √weight × the robust
+            norm's slope); None = 1.
+        out: where to write the result (real, ``(parts, *Hs.shape, n_p)``); None = new.
     """
-    if kind == "complex_log":
-        g = dHs / Hs[..., None]
-        return DB * np.stack([g.real, g.imag])
-    if kind == "log_magnitude":
-        return DB * (dHs / Hs[..., None]).real[None]
-    if kind == "normalised_complex":
-        g = dHs / np.abs(Hm)[..., None]
-        return np.stack([g.real, g.imag])
-    if kind == "linear_magnitude":
-        s = 1.0 if scale is None else np.asarray(scale)[..., None]
-        g = (np.conj(Hs)[..., None] * dHs).real / np.abs(Hs)[..., None]
-        return (g / s)[None]
-    raise ConfigError(f"unknown cost {kind!r}; valid: {', '.join(RESIDUAL_KINDS)}")
+    return residual_jacobian_parts(kind, Hs, Hm, dHs.real, dHs.imag, scale, weight, out)
+
+
+def residual_jacobian_parts(
+    kind: str,
+    Hs: np.ndarray,
+    Hm: np.ndarray,
+    dRe: np.ndarray,
+    dIm: np.ndarray,
+    scale: np.ndarray | None = None,
+    weight: np.ndarray | None = None,
+    out: np.ndarray | None = None,
+) -> np.ndarray:
+    """:func:`residual_jacobian` from the real and imaginary parts ``(*Hs.shape, n_p)`` of
+    the model FRF's derivatives (each residual is ``Re`` or ``Im`` of ``c · dHs``)."""
+    k = parts(kind)
+    c = _derivative_factor(kind, Hs, Hm, scale)
+    if out is None:
+        out = np.empty((k, *dRe.shape))
+    for part in range(k):  # Re(c·d) = cr·dRe − ci·dIm, Im(c·d) = cr·dIm + ci·dRe
+        cp = c if weight is None else c * weight[part]
+        first, second = (dRe, dIm) if part == 0 else (dIm, dRe)
+        np.multiply(first, np.real(cp)[..., None], out=out[part])
+        if np.iscomplexobj(cp):
+            cross = second * np.imag(cp)[..., None]
+            if part == 0:
+                out[part] -= cross
+            else:
+                out[part] += cross
+    return out
 
 
 def robust(r: np.ndarray, norm: str, delta: float) -> tuple[np.ndarray, np.ndarray]:
@@ -104,9 +145,9 @@ def robust(r: np.ndarray, norm: str, delta: float) -> tuple[np.ndarray, np.ndarr
     if norm == "l2":
         return r, np.ones_like(r)
     s = np.sqrt(1.0 + (r / delta) ** 2)
-    rho = 2.0 * delta**2 * (s - 1.0)
-    rt = np.sign(r) * np.sqrt(rho)
-    # d r̃/dr = ρ'(r) / (2 √ρ) with ρ' = 2 r / s; limit 1 at r = 0
-    with np.errstate(invalid="ignore", divide="ignore"):
-        d = np.where(rho > 0, np.abs(r) / (s * np.sqrt(np.maximum(rho, 1e-300))), 1.0)
+    # ρ = 2δ²(s − 1) = 2r²/(1 + s), so r̃ = r·g with g = √(2/(1 + s)) (no cancellation near
+    # r = 0) and dr̃/dr = ρ'/(2√ρ) = 1/(s·g) (ρ' = 2r/s); both → 1 at r = 0
+    g = np.sqrt(2.0 / (1.0 + s))
+    rt = r * g
+    d = 1.0 / (s * g)
     return rt, d

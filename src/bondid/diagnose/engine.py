@@ -28,9 +28,8 @@ from ..cost.problem import CostOptions, FrfProblem
 from ..cost.residuals import RESIDUAL_KINDS, residual, residual_jacobian
 from ..data.measurement import FrfData
 from ..exceptions import ComputationError, ConfigError
+from ..frf.directions import Directions
 from ..frf.engine import dynamic_stiffness, omega, solve_columns
-from ..frf.jacobian import body_directions
-from ..linear.affine import AffineModel
 from ..linear.parameter_map import ParameterMap
 from ..model.document import UrdfDocument
 from ..model.parameters import parameter_infos
@@ -176,8 +175,6 @@ class Refit:
         Tv = self.T * dv[None, :]
         dpi_v = dpi @ Tv if dpi.size else np.zeros((dpi.shape[0], 10, len(v)))
         dk_v, dd_v = dk @ Tv, dd @ Tv
-        dense = [k for k in range(len(v)) if np.any(dpi_v[:, :, k] != 0)]
-        dpi_d = dpi_v[:, :, dense]
         mv = self._mod_values(v)
         rs, Js = [], []
         for b in self.problem.blocks:
@@ -190,10 +187,8 @@ class Refit:
             Ys = Yt[b.fidx, :, b.rows]  # (s, n)
             ws = w[b.fidx]
             Hs = np.einsum("sn,sn->s", aff.C[b.rows], Xs)
-            YX = Ys * Xs
-            dH = -(YX @ dk_v + 1j * ws[:, None] * (YX @ dd_v))  # (s, n_var)
-            if dense:
-                dH[:, dense] -= _inertial_columns(aff, dpi_d, Ys, Xs, ws)
+            dR = Directions.build(aff, dpi_v, dk_v, dd_v).derivatives(Ys, Xs, ws)
+            dH = dR[0] + 1j * dR[1]  # (s, n_var)
             if self.modifier is not None:
                 G, dG = self.modifier(mv, b.freq_hz, aff.outputs, aff.inputs)
                 Gs = G[b.rows, b.cols, b.fidx]
@@ -375,16 +370,3 @@ class Refit:
         """URDF parameter values set by the structural variables at ``u``."""
         vals = self.T @ self.values(u)
         return dict(zip(self.pmap.names, (float(x) for x in vals), strict=True))
-
-
-def _inertial_columns(
-    aff: AffineModel, dpi: np.ndarray, Ys: np.ndarray, Xs: np.ndarray, ws: np.ndarray
-) -> np.ndarray:
-    """``Σ_nm Y[s,n] (∂K − ω²∂M)[n,m] X[s,m]`` ``(s, n_dense)`` for the variables that move
-    body parameters (``dpi`` ``(nb, 10, n_dense)``): one real product per part of the outer
-    products ``Y Xᵀ`` with the stiffness and mass directions side by side."""
-    n, k = Ys.shape[1], dpi.shape[2]
-    G = body_directions(aff, dpi)  # (n², 2k)
-    P = (Ys[:, :, None] * Xs[:, None, :]).reshape(-1, n * n)
-    A = P.real @ G + 1j * (P.imag @ G)
-    return A[:, :k] - (ws**2)[:, None] * A[:, k:]

@@ -1,42 +1,85 @@
 """Exact FRF derivatives: dH/dp = −C Z⁻¹ (∂Z/∂p) Z⁻¹ B, batched over frequencies.
 
-With ``X = Z⁻¹B`` ``(n_f, nv, n_in)`` and ``Y = C Z⁻¹`` ``(n_f, n_out, nv)``, the outer product
-``P[o,i,f,n,m] = Y[f,o,n]·X[f,m,i]``, formed as separate contiguous real and imaginary parts,
-contracted with the real parameter directions of ``∂Z/∂p = G_p − ω²M_p + jω D_p`` (stiffness
-and mass directions side by side, damping on the diagonal) gives every derivative in a few
-real matrix products. Frequencies are processed in small blocks that stay in cache.
+Per block of frequencies: one batched LU solve gives ``X = Z⁻¹B`` and ``Y = C Z⁻¹`` (one solve
+with ``[B, Cᵀ]`` when ``Z`` is symmetric, none extra when also ``C = Bᵀ``: then ``Y = Xᵀ``);
+the outer products ``Y[o,:] ⊗ X[:,i]`` of each channel are contracted with the parameters'
+real directions (:class:`bondid.frf.directions.Directions`) in a few real matrix products.
+When ``Y = Xᵀ`` the FRF and its derivatives are symmetric in (output, input), so only the
+channels ``o ≤ i`` are computed and the others copied. Frequencies are processed in small
+blocks that stay in the processor's cache.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import numpy as np
 
 from ..linear.affine import AffineModel
+from .directions import Directions, is_symmetric
 from .engine import dynamic_stiffness, omega, solve_columns
 from .quantity import quantity_factor
 
-#: Frequencies per block: the outer products of a block (2 × 8 bytes × n_out·n_in·nv² per
-#: frequency) then stay in the processor's cache (measured on the bonder, 11 DOF, 3×3 channels:
-#: 64–256 frequencies per block twice as fast as one block of 2000).
+#: Frequencies per block: the products of a block then stay in the processor's cache
+#: (measured on the bonder, 11 DOF, 3×3 channels: 64–256 frequencies per block twice as fast
+#: as one block of 2000).
 _BLOCK_FREQ = 128
 
 
-def body_directions(affine: AffineModel, dpi: np.ndarray) -> np.ndarray:
-    """Stiffness and mass directions of body-parameter changes, side by side.
+def _channels(n_out: int, n_in: int, mirrored: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Channel pairs (output, input) to compute: ``o ≤ i`` when mirrored, else all."""
+    if mirrored:
+        return np.triu_indices(n_out)
+    co, ci = np.indices((n_out, n_in))
+    return co.reshape(-1), ci.reshape(-1)
 
-    Args:
-        affine: the model (its gravity-stiffness and mass bases).
-        dpi: ``(nb, 10, n_p)`` derivative of the body parameters w.r.t. each parameter.
 
-    Returns:
-        ``(nv², 2 n_p)`` real: column ``p`` is ``∂G/∂p`` flattened (row-major), column
-        ``n_p + p`` is ``∂M/∂p``; a contraction with the outer products ``Y Xᵀ`` is then one
-        real matrix product per part.
+def jacobian_blocks(
+    affine: AffineModel, freq_hz: np.ndarray, dpi: np.ndarray, dk: np.ndarray, dd: np.ndarray
+) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
+    """Receptance and its derivatives, one block of frequencies at a time.
+
+    Args: as for :func:`frf_and_jacobian` (no quantity: receptance only).
+
+    Yields:
+        ``(sl, H, dH)``: the slice of ``freq_hz`` the block covers, ``H`` ``(n_out, n_in, nf)``
+        complex and ``dH`` ``(2, n_out, n_in, nf, n_p)`` real (real and imaginary parts of the
+        derivatives), both only valid until the next block is asked for.
     """
-    n, n_p = affine.nv, dpi.shape[2]
-    Kp = np.einsum("bkp,bkij->pij", dpi, affine.G_basis).reshape(n_p, n * n)
-    Mp = np.einsum("bkp,bkij->pij", dpi, affine.M_basis).reshape(n_p, n * n)
-    return np.concatenate([Kp, Mp]).T.copy()
+    w = omega(freq_hz)
+    M = affine.mass_matrix()
+    K = affine.stiffness_matrix()
+    D = affine.damping_matrix()
+    dirs = Directions.build(affine, dpi, dk, dd)
+    C, B = affine.C, affine.B
+    n_out, n_in, n_p = C.shape[0], B.shape[1], dirs.n_p
+    symmetric = is_symmetric(np.stack([M, K, D]))
+    mirrored = symmetric and C.shape == B.T.shape and np.array_equal(C, B.T)
+    co, ci = _channels(n_out, n_in, mirrored)
+    pair = np.zeros((n_out, n_in), dtype=int)  # computed channel of each (output, input)
+    pair[co, ci] = np.arange(co.size)
+    if mirrored:
+        pair[ci, co] = pair[co, ci]
+    rhs = B if mirrored or not symmetric else np.concatenate([B, C.T], axis=1)
+    for s in range(0, w.size, _BLOCK_FREQ):
+        ws = w[s : s + _BLOCK_FREQ]
+        nf = ws.size
+        Z = dynamic_stiffness(M, K, D, ws)
+        Xa = solve_columns(Z, rhs)
+        X = Xa[:, :, :n_in]  # (f, m, i)
+        if mirrored:
+            Yt = X  # (f, n, o): C Z⁻¹ = (Z⁻¹ Cᵀ)ᵀ = Xᵀ
+        elif symmetric:
+            Yt = Xa[:, :, n_in:]
+        else:
+            Yt = solve_columns(np.swapaxes(Z, 1, 2), C.T)
+        H = np.einsum("on,fni->oif", C, X)
+        # rows (computed channel, frequency): Y[o,:] and X[:,i]
+        Yr = np.transpose(Yt[:, :, co], (2, 0, 1)).reshape(-1, Yt.shape[1])
+        Xr = np.transpose(X[:, :, ci], (2, 0, 1)).reshape(-1, X.shape[1])
+        dH = dirs.derivatives(Yr, Xr, np.tile(ws, co.size)).reshape(2, co.size, nf, n_p)
+        dH = dH[:, pair] if mirrored else dH.reshape(2, n_out, n_in, nf, n_p)
+        yield slice(s, s + nf), H, dH
 
 
 def frf_and_jacobian(
@@ -60,39 +103,13 @@ def frf_and_jacobian(
         ``H`` ``(n_out, n_in, n_f)`` and ``J`` ``(n_out, n_in, n_f, n_p)``, complex, both
         C-contiguous.
     """
-    w = omega(freq_hz)
-    M = affine.mass_matrix()
-    K = affine.stiffness_matrix()
-    D = affine.damping_matrix()
-    n, n_p = affine.nv, dpi.shape[2]
-    G = body_directions(affine, dpi)  # (n², 2 n_p): [∂K | ∂M]
-    G[np.arange(n) * (n + 1), :n_p] += dk  # joint springs: on the diagonal of ∂K
-    C, B = affine.C, affine.B
-    n_out, n_in = C.shape[0], B.shape[1]
-    H = np.empty((n_out, n_in, w.size), dtype=complex)
-    J = np.empty((n_out, n_in, w.size, n_p), dtype=complex)
-    for s in range(0, w.size, _BLOCK_FREQ):
-        ws = w[s : s + _BLOCK_FREQ]
-        Z = dynamic_stiffness(M, K, D, ws)
-        X = solve_columns(Z, B)  # (f, m, i)
-        Y = solve_columns(np.swapaxes(Z, 1, 2), C.T)  # (f, n, o) = (C Z^-1)^T
-        H[:, :, s : s + ws.size] = np.einsum("on,fni->oif", C, X)
-        # P[o,i,f,n,m] = Y[f,n,o]·X[f,m,i], real and imaginary parts, contiguous
-        Yt = np.transpose(Y, (2, 0, 1))[:, None, :, :, None]  # (o, 1, f, n, 1)
-        Xt = np.transpose(X, (2, 0, 1))[None, :, :, None, :]  # (1, i, f, 1, m)
-        yr, yi, xr, xi = Yt.real, Yt.imag, Xt.real, Xt.imag
-        Pr = (yr * xr - yi * xi).reshape(-1, n * n)
-        Pi = (yr * xi + yi * xr).reshape(-1, n * n)
-        Ar, Ai = Pr @ G, Pi @ G  # (o·i·f, 2 n_p): [∂K part | ∂M part]
-        diag = np.arange(n) * (n + 1)  # damping is diagonal: P[..., n, n] only
-        Dr, Di = Pr[:, diag] @ dd, Pi[:, diag] @ dd
-        wf = np.tile(ws, n_out * n_in)[:, None]
-        w2 = wf * wf
-        # J = −P·(∂K − ω²∂M + jω∂D), split into real and imaginary parts
-        blk = J[:, :, s : s + ws.size]
-        shape = (n_out, n_in, ws.size, n_p)
-        blk.real[...] = (w2 * Ar[:, n_p:] - Ar[:, :n_p] + wf * Di).reshape(shape)
-        blk.imag[...] = (w2 * Ai[:, n_p:] - Ai[:, :n_p] - wf * Dr).reshape(shape)
+    n_out, n_in, n_p = affine.C.shape[0], affine.B.shape[1], dpi.shape[2]
+    H = np.empty((n_out, n_in, freq_hz.size), dtype=complex)
+    J = np.empty((n_out, n_in, freq_hz.size, n_p), dtype=complex)
+    for sl, Hb, dH in jacobian_blocks(affine, freq_hz, dpi, dk, dd):
+        H[:, :, sl] = Hb
+        J.real[:, :, sl] = dH[0]
+        J.imag[:, :, sl] = dH[1]
     if quantity != "receptance":
         fac = quantity_factor(freq_hz, quantity)
         H = H * fac

@@ -1,0 +1,123 @@
+"""Parameter directions ``∂Z/∂p = ∂K/∂p − ω²∂M/∂p + jω∂D/∂p`` in a form fit for contraction.
+
+The FRF derivative of parameter ``p`` for output ``o`` and input ``i`` is
+
+    dH[o,i]/dp = −Σ_nm Y[o,n] (∂Z/∂p)[n,m] X[m,i],     X = Z⁻¹B, Y = CZ⁻¹,
+
+a contraction of the outer products ``S[n,m] = Y[o,n]·X[m,i]`` with the real direction
+matrices. :class:`Directions` keeps only what is not zero:
+
+* when every direction is symmetric (mass matrices always are; the gravity stiffness is the
+  Hessian of the potential energy) only the pairs ``n ≤ m`` are contracted, with
+  ``S[n,m] + S[m,n]`` off the diagonal;
+* of those, only the pairs some parameter's stiffness (resp. mass) direction touches enter the
+  stiffness (resp. mass) part, and the damping part uses the diagonal of the joint dampers only.
+
+So a fit of joint springs and dampers alone contracts ``2n`` products, not ``n²``; on the
+bonder with all 52 parameters free it is 31 stiffness, 56 mass and 11 damping products
+instead of 3 × 121.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..linear.affine import AffineModel
+
+#: relative asymmetry below which a direction matrix counts as symmetric
+SYMMETRY_RTOL = 1e-10
+
+
+def is_symmetric(A: np.ndarray, rtol: float = SYMMETRY_RTOL) -> bool:
+    """Whether the square matrices in the last two axes of ``A`` are symmetric to ``rtol``."""
+    scale = float(np.abs(A).max(initial=0.0))
+    return bool(np.abs(A - np.swapaxes(A, -1, -2)).max(initial=0.0) <= rtol * max(scale, 1e-300))
+
+
+@dataclass(frozen=True)
+class Directions:
+    """The non-zero parameter directions, stacked for one real matrix product.
+
+    Attributes:
+        n_p: number of parameters.
+        pn, pm: ``(n_pairs,)`` the index pairs ``(n, m)`` whose products are formed.
+        mirror: positions in the pair list whose mirrored product ``S[m,n]`` is added (the
+            off-diagonal pairs when the directions are symmetric, else empty).
+        k_sel, m_sel, d_sel: positions in the pair list entering the stiffness, mass and
+            damping parts.
+        W: ``(n_k + n_m + n_d, n_p)`` real: ``[−∂K; ∂M; ∂D]`` on those pairs (SI per parameter
+            unit), so that with ``T = [S_k, ω² S_m, −jω S_d]`` the derivatives are ``T @ W``.
+    """
+
+    n_p: int
+    pn: np.ndarray
+    pm: np.ndarray
+    mirror: np.ndarray
+    k_sel: np.ndarray
+    m_sel: np.ndarray
+    d_sel: np.ndarray
+    W: np.ndarray
+
+    @classmethod
+    def build(
+        cls, affine: AffineModel, dpi: np.ndarray, dk: np.ndarray, dd: np.ndarray
+    ) -> Directions:
+        """Directions of ``n_p`` parameters from their derivatives.
+
+        Args:
+            affine: the model (its gravity-stiffness and mass bases).
+            dpi: ``(nb, 10, n_p)`` derivative of the body parameters w.r.t. each parameter.
+            dk, dd: ``(nv, n_p)`` derivatives of the joint springs (N/m or N·m/rad) and
+                dampers (N·s/m or N·m·s/rad).
+        """
+        n, n_p = affine.nv, dpi.shape[2]
+        Kp = np.einsum("bkp,bkij->pij", dpi, affine.G_basis)
+        Mp = np.einsum("bkp,bkij->pij", dpi, affine.M_basis)
+        idx = np.arange(n)
+        Kp[:, idx, idx] += dk.T
+        symmetric = is_symmetric(Kp) and is_symmetric(Mp)
+        if symmetric:
+            pn, pm = np.triu_indices(n)
+            Kp = 0.5 * (Kp + np.swapaxes(Kp, 1, 2))
+            Mp = 0.5 * (Mp + np.swapaxes(Mp, 1, 2))
+        else:
+            pn, pm = (a.reshape(-1) for a in np.indices((n, n)))
+        K2, M2 = Kp[:, pn, pm].T, Mp[:, pn, pm].T  # (pairs, n_p)
+        D2 = np.zeros_like(K2)
+        D2[pn == pm] = dd
+        used = [np.any(A != 0, axis=1) for A in (K2, M2, D2)]
+        keep = np.flatnonzero(used[0] | used[1] | used[2])
+        k_sel, m_sel, d_sel = (np.flatnonzero(u[keep]) for u in used)
+        pn, pm = pn[keep], pm[keep]
+        W = np.concatenate([-K2[keep][k_sel], M2[keep][m_sel], D2[keep][d_sel]])
+        mirror = np.flatnonzero(pn != pm) if symmetric else np.zeros(0, dtype=int)
+        return cls(n_p, pn, pm, mirror, k_sel, m_sel, d_sel, np.ascontiguousarray(W))
+
+    def derivatives(self, Y: np.ndarray, X: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """``dH = −Σ_nm Y[n] (∂K − ω²∂M + jω∂D)[n,m] X[m]`` per row, as real parts.
+
+        Args:
+            Y, X: ``(rows, n)`` complex: per row, the output row ``Y[o, :]`` of ``C Z⁻¹`` and
+                the input column ``X[:, i]`` of ``Z⁻¹ B``.
+            w: ``(rows,)`` angular frequency of each row (rad/s).
+
+        Returns:
+            ``(2, rows, n_p)`` real: ``Re dH`` and ``Im dH``.
+        """
+        S = Y[:, self.pn] * X[:, self.pm]
+        if self.mirror.size:
+            k = self.mirror
+            S[:, k] += Y[:, self.pm[k]] * X[:, self.pn[k]]
+        rows = S.shape[0]
+        nk, nm = self.k_sel.size, self.m_sel.size
+        w = w[:, None]
+        T = np.empty((2, rows, self.W.shape[0]))
+        for part, Sp in enumerate((S.real, S.imag)):
+            T[part, :, :nk] = Sp[:, self.k_sel]
+            np.multiply(w * w, Sp[:, self.m_sel], out=T[part, :, nk : nk + nm])
+        Sd = S[:, self.d_sel]
+        np.multiply(w, Sd.imag, out=T[0, :, nk + nm :])  # Re(−jω S) = ω Im S
+        np.multiply(-w, Sd.real, out=T[1, :, nk + nm :])  # Im(−jω S) = −ω Re S
+        return (T.reshape(2 * rows, -1) @ self.W).reshape(2, rows, self.n_p)
