@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from ..blas import THREAD_VARS
 from ..cost.problem import CostOptions
 from ..data.measurement import FrfData
 from ..exceptions import ConfigError, DataError
@@ -186,8 +187,8 @@ class _Pool:
             import multiprocessing as mp
             from concurrent.futures import ProcessPoolExecutor
 
-            saved = {k: os.environ.get(k) for k in _THREAD_VARS}
-            for k in _THREAD_VARS:
+            saved = {k: os.environ.get(k) for k in THREAD_VARS}
+            for k in THREAD_VARS:
                 os.environ[k] = "1"
             try:
                 self.ex = ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"))
@@ -213,9 +214,6 @@ class _Pool:
     def close(self) -> None:
         if self.ex is not None:
             self.ex.shutdown(cancel_futures=True)
-
-
-_THREAD_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 
 
 def diagnose(

@@ -1,10 +1,21 @@
 """The constrained FRF fit: :func:`fit`, :class:`FitResult`, :func:`default_bounds`.
 
-Submodules import numpy-only code at import time; CasADi is imported when a fit is built.
+The public names are imported lazily, so ``python -m bondid.fit`` can choose the BLAS
+threading (:mod:`bondid.blas`) before NumPy loads; CasADi is imported when a fit is built.
 """
 
-from .bounds import DEFAULT_REL, default_bounds
-from .result import FitResult
-from .solver import fit, prepare
+from __future__ import annotations
 
-__all__ = ["DEFAULT_REL", "FitResult", "default_bounds", "fit", "prepare"]
+from ..lazy import lazy_getattr
+
+_LAZY = {
+    "DEFAULT_REL": "bounds",
+    "default_bounds": "bounds",
+    "FitResult": "result",
+    "fit": "solver",
+    "prepare": "solver",
+}
+
+__all__ = sorted(_LAZY)
+
+__getattr__ = lazy_getattr(__name__, _LAZY)

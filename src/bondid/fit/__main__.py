@@ -4,7 +4,11 @@ from __future__ import annotations
 
 import sys
 
-from .cli import main
+from ..blas import prefer_single_threaded_blas
+
+prefer_single_threaded_blas()  # before numpy loads (see bondid.blas)
+
+from .cli import main  # noqa: E402
 
 if __name__ == "__main__":
     sys.exit(main())
