@@ -220,7 +220,7 @@ class FrfProblem:
             rb = r[start[i] : start[i + 1]]
             Jb = J[start[i] : start[i + 1]].reshape(k, b.Hm.size, n_p)
             if b.flat is None:
-                self._grid_rows(b, b.affine.with_values(*values), dpi, dk, dd, rb, Jb)
+                self._grid_rows(b, b.affine.with_values(*values), (dpi, dk, dd), rb, Jb)
                 return
             H, dH = frf_and_jacobian(b.affine.with_values(*values), b.freq_hz, dpi, dk, dd)
             Hs = H[b.rows, b.cols, b.fidx]
@@ -232,16 +232,24 @@ class FrfProblem:
         thread_map(one, range(len(self.blocks)))
         return r, J
 
-    def _grid_rows(self, b: _Block, affine: AffineModel, dpi, dk, dd, r, J) -> None:  # type: ignore[no-untyped-def]
+    def _grid_rows(
+        self,
+        b: _Block,
+        affine: AffineModel,
+        derivatives: tuple[np.ndarray, np.ndarray, np.ndarray],
+        r: np.ndarray,
+        J: np.ndarray,
+    ) -> None:
         """Residuals and Jacobian rows of a data set that uses every channel at every one of
-        its frequencies, one block of frequencies at a time while the FRF derivatives are in
-        cache (no complex Jacobian is assembled)."""
+        its frequencies, written into ``r`` ``(k·n_sel,)`` and ``J`` ``(k, n_sel, n_p)`` (views
+        of the result) one block of frequencies at a time while the FRF derivatives are in
+        cache (no complex Jacobian is assembled). ``derivatives`` = ``(dπ, dk, dd)``."""
         kind, k = self.options.kind, parts(self.options.kind)
         grid = (len(affine.outputs), len(affine.inputs), b.freq_hz.size)
         Hm, scale = b.Hm.reshape(grid), b.scale.reshape(grid)
         sw = (np.sqrt(b.weight) * self._norm).reshape(grid)
         rg, Jg = r.reshape(k, *grid), J.reshape(k, *grid, J.shape[-1])
-        for sl, H, dH in jacobian_blocks(affine, b.freq_hz, dpi, dk, dd):
+        for sl, H, dH in jacobian_blocks(affine, b.freq_hz, *derivatives):
             res = residual(kind, H, Hm[:, :, sl], scale[:, :, sl])
             rt, drt = robust(res, self.options.norm, self.options.l1_delta)
             rg[:, :, :, sl] = rt * sw[:, :, sl]
