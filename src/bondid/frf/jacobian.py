@@ -103,6 +103,7 @@ def frf_and_jacobian(
         ``H`` ``(n_out, n_in, n_f)`` and ``J`` ``(n_out, n_in, n_f, n_p)``, complex, both
         C-contiguous.
     """
+    freq_hz = np.asarray(freq_hz, dtype=float)
     n_out, n_in, n_p = affine.C.shape[0], affine.B.shape[1], dpi.shape[2]
     H = np.empty((n_out, n_in, freq_hz.size), dtype=complex)
     J = np.empty((n_out, n_in, freq_hz.size, n_p), dtype=complex)
