@@ -1,0 +1,280 @@
+"""``python -m bondid.fleet``: fit (and diagnose) every machine of a fleet on Dask.
+
+``--model NOMINAL.urdf --machines DIR --out OUT [--diagnose] [--scheduler ADDRESS]
+[--workers N] [fit options]``. Each machine runs as ``python -m bondid.fit`` would (and
+``bondid.diagnose`` with ``--diagnose``) into ``OUT/machines/<id>/``; the fleet's statistics
+and outliers go to ``OUT/fleet.json``, ``OUT/fleet.csv`` and ``OUT/fleet_strip.png``.
+Exit codes: 0 every machine succeeded, 1 any failed, 2 bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import fcntl
+import hashlib
+import json
+import re
+import sys
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+from ..cli import EXIT_FAILED, EXIT_OK, make_parser, parse_band, run, split_names
+from ..exceptions import ConfigError
+from .machines import Machine
+
+LOCK_NAME = ".fleet.lock"
+_BOUND = re.compile(r"^[^=\s]+=([0-9.eE+-]+|[0-9.eE+-]+:[0-9.eE+-]+)$")
+#: fit options passed through unchanged: (option, takes a list, help)
+_FIT_VALUE_OPTIONS = (
+    ("--channels", "channels to fit, e.g. x.x,y.y"),
+    ("--cost", "residual kind of the fit (default complex_log)"),
+    ("--norm", "norm of the fit (default l2)"),
+)
+_FIT_INT_OPTIONS = (
+    ("--max-iter", "IPOPT iterations per fit (default 200)", 0),
+    ("--presolve", "presolve iterations of a log-cost fit (default 60)", 0),
+    ("--continuation", "band-continuation steps (default 0 = off)", 0),
+    ("--multistart", "starts per machine (default 1)", 1),
+    ("--seed", "Latin-hypercube seed of --multistart", 0),
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = make_parser("fleet", "Fit (and diagnose) every machine of a fleet on Dask.")
+    p.add_argument("--model", required=True, type=Path, help="the nominal URDF of the design")
+    p.add_argument(
+        "--machines", required=True, type=Path,
+        help="folder with one sub-folder per machine (its data files; optional model.urdf)",
+    )  # fmt: skip
+    p.add_argument("--out", required=True, type=Path, help="folder for the fleet's results")
+    p.add_argument("--diagnose", action="store_true", help="also run bondid.diagnose per machine")
+    p.add_argument(
+        "--scheduler", metavar="ADDRESS",
+        help="tcp://HOST:PORT of a running Dask scheduler (default: $DASK_SCHEDULER_ADDRESS,"
+        " else a local cluster)",
+    )  # fmt: skip
+    p.add_argument("--workers", type=int, help="local worker processes (default 2)")
+    p.add_argument(
+        "--retries", type=int, default=2, help="Dask retries of a machine's task (default 2)"
+    )
+    p.add_argument("--quiet", action="store_true", help="no progress display")
+    g = p.add_argument_group("fit options (passed to bondid.fit for every machine)")
+    g.add_argument("--free", nargs="+", action="extend", help="parameters to fit")
+    g.add_argument("--fixed", nargs="+", action="extend", help="parameters to hold")
+    g.add_argument("--bound", action="append", metavar="KEY=REL|KEY=LO:HI", help="bounds")
+    g.add_argument("--band", action="append", metavar="F_LO:F_HI", help="band, Hz")
+    g.add_argument("--weight", action="append", metavar="OUT.IN=W", help="channel weight")
+    for opt, text in _FIT_VALUE_OPTIONS:
+        g.add_argument(opt, help=text)
+    for opt, text, _ in _FIT_INT_OPTIONS:
+        g.add_argument(opt, type=int, metavar="N", help=text)
+    d = p.add_argument_group("diagnosis options (with --diagnose)")
+    d.add_argument("--effects", help="candidate effects, comma-separated (default all)")
+    d.add_argument("--points", type=int, help="frequencies per data set for the refits")
+    return p
+
+
+def fit_argv(args: argparse.Namespace) -> list[str]:
+    """The bondid.fit options of every machine (without --model/--data/--out)."""
+    argv: list[str] = []
+    if args.free:
+        argv += ["--free", *split_names(args.free)]
+    if args.fixed:
+        argv += ["--fixed", *split_names(args.fixed)]
+    for b in args.bound or ():
+        argv += ["--bound", b]
+    for b in args.band or ():
+        argv += ["--band", b]
+    for w in args.weight or ():
+        argv += ["--weight", w]
+    for opt, _ in _FIT_VALUE_OPTIONS:
+        value = getattr(args, opt[2:].replace("-", "_"))
+        if value is not None:
+            argv += [opt, value]
+    for opt, _, _ in _FIT_INT_OPTIONS:
+        value = getattr(args, opt[2:].replace("-", "_"))
+        if value is not None:
+            argv += [opt, str(value)]
+    return [*argv, "--workers", "1"]
+
+
+def diagnose_argv(args: argparse.Namespace) -> list[str] | None:
+    """The bondid.diagnose options of every machine, or None without --diagnose."""
+    if not args.diagnose:
+        return None
+    argv: list[str] = []
+    for b in args.band or ():
+        argv += ["--band", b]
+    if args.channels:
+        argv += ["--channels", args.channels]
+    if args.effects:
+        argv += ["--effects", args.effects]
+    if args.points is not None:
+        argv += ["--points", str(args.points)]
+    return argv
+
+
+def check_options(args: argparse.Namespace) -> None:
+    """Option checks that need no machine (one ConfigError naming the item)."""
+    from ..model.document import UrdfDocument
+    from ..model.parameters import select_parameters
+    from .cluster import scheduler_address
+
+    if args.workers is not None and args.workers < 1:
+        raise ConfigError(f"--workers {args.workers}: give an integer >= 1")
+    if args.workers is not None and scheduler_address(args.scheduler):
+        raise ConfigError(
+            f"--workers {args.workers}: not with a scheduler address (--scheduler or"
+            " $DASK_SCHEDULER_ADDRESS): the cluster's own workers are used"
+        )
+    if args.retries < 0:
+        raise ConfigError(f"--retries {args.retries}: give an integer >= 0")
+    for opt, _, minimum in _FIT_INT_OPTIONS:
+        value = getattr(args, opt[2:].replace("-", "_"))
+        if value is not None and value < minimum:
+            raise ConfigError(f"{opt} {value}: give an integer >= {minimum}")
+    for text in args.band or ():
+        try:
+            parse_band(text)
+        except argparse.ArgumentTypeError as exc:
+            raise ConfigError(f"--band: {exc}") from None
+    for text in args.bound or ():
+        if not _BOUND.match(text):
+            raise ConfigError(f"--bound {text!r}: not KEY=REL or KEY=LO:HI")
+    if args.points is not None and not args.diagnose:
+        raise ConfigError("--points: only with --diagnose")
+    doc = UrdfDocument.load(args.model)
+    free = [n for n in split_names(args.free) if n != "auto"]
+    if free:
+        select_parameters(doc, free, split_names(args.fixed))
+    if args.machines.resolve() in (args.out.resolve(), *args.out.resolve().parents):
+        raise ConfigError(f"--out {args.out}: must not be inside --machines {args.machines}")
+    if args.out.exists() and not args.out.is_dir():
+        raise ConfigError(f"--out {args.out}: exists and is not a folder")
+
+
+@contextlib.contextmanager
+def fleet_lock(out: Path) -> Iterator[None]:
+    """Hold ``OUT/.fleet.lock`` (one fleet run per results folder at a time)."""
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / LOCK_NAME, "a+") as fh:
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            raise ConfigError(
+                f"--out {out}: another bondid.fleet run is writing this folder; wait for it or"
+                " choose another --out"
+            ) from None
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def _settings_hash(fit: Sequence[str], diag: Sequence[str] | None) -> str:
+    text = json.dumps({"fit": list(fit), "diagnose": None if diag is None else list(diag)})
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def plan(
+    machines: Sequence[Machine], machines_dir: Path, fit: list[str], diag: list[str] | None
+) -> tuple[list[Any], list[dict[str, Any]]]:
+    """(jobs to run, status records of machines already done with the same inputs/settings)."""
+    from .state import read_status, skip_reason
+    from .worker import MachineJob
+
+    settings = _settings_hash(fit, diag)
+    jobs, done = [], []
+    for m in machines:
+        fp = f"{m.fingerprint()}-{settings}"
+        status = read_status(machines_dir / m.id)
+        if status is not None and skip_reason(status, fp):
+            done.append(status)
+            continue
+        jobs.append(
+            MachineJob(
+                machine_id=m.id, model=str(m.model.resolve()),
+                data=tuple(str(p.resolve()) for p in m.data),
+                machines_dir=str(machines_dir.resolve()), fit_args=tuple(fit),
+                diagnose_args=None if diag is None else tuple(diag), fingerprint=fp,
+            )
+        )  # fmt: skip
+    return jobs, done
+
+
+def _summary(statuses: Sequence[dict[str, Any]], stats: Any, n_skipped: int) -> str:
+    from .aggregate import ok_count
+
+    n_ok = ok_count(statuses)
+    lines = [
+        f"bondid.fleet: {len(statuses)} machines, {n_ok} ok, {len(statuses) - n_ok} failed"
+        f" ({n_skipped} skipped: already done)"
+    ]
+    for st in statuses:
+        if st.get("status") != "ok":
+            lines.append(f"failed: {st.get('machine')}: {st.get('reason')}")
+    for p in stats.parameters:
+        spread = p["robust_rel_spread"]
+        rel = "—" if spread is None else f"{100 * spread:.1f} %"
+        lines.append(f"{p['name']}: median {p['median']:.6g}, robust spread {rel} (n={p['n']})")
+    lines += [f"outlier: {o['machine']}: {o['reason']}" for o in stats.outliers]
+    if not stats.outliers:
+        lines.append("outliers: none")
+    if stats.effects is not None:
+        counts = ", ".join(f"{k} {v}" for k, v in stats.effects["counts"].items())
+        lines.append(f"effects found: {counts or 'none'}")
+    return "\n".join(lines)
+
+
+def _body(args: argparse.Namespace) -> int:
+    from .aggregate import aggregate
+    from .cluster import open_client, scheduler_address
+    from .machines import discover
+    from .outputs import write_fleet_outputs
+    from .runner import run_jobs
+    from .state import clean_stale
+
+    check_options(args)
+    machines = discover(args.machines, args.model)
+    fit, diag = fit_argv(args), diagnose_argv(args)
+    machines_dir = args.out / "machines"
+    with fleet_lock(args.out):
+        clean_stale(machines_dir)
+        jobs, done = plan(machines, machines_dir, fit, diag)
+        if done:
+            print(f"skipping {len(done)} of {len(machines)} machines already done", flush=True)
+        results = {str(st.get("machine")): st for st in done}
+        if jobs:
+            address = scheduler_address(args.scheduler)
+            with open_client(address, args.workers or 2) as client:
+                for st in run_jobs(client, jobs, retries=args.retries, quiet=args.quiet):
+                    results[str(st.get("machine"))] = st
+        statuses = [results[m.id] for m in machines if m.id in results]
+        stats = aggregate(statuses, diagnose=args.diagnose)
+        header = {
+            "command": "bondid.fleet",
+            "model": str(args.model),
+            "machines_dir": str(args.machines),
+            "fit_args": fit,
+            "diagnose_args": diag,
+            "skipped": sorted(str(st.get("machine")) for st in done),
+        }
+        written = write_fleet_outputs(args.out, statuses, stats, header)
+    print(_summary(statuses, stats, len(done)))
+    print(f"results: {args.out} ({', '.join(p.name for p in written)}, machines/)")
+    return EXIT_OK if all(st.get("status") == "ok" for st in statuses) else EXIT_FAILED
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command; returns the exit code (0 all ok, 1 a machine failed, 2 bad input)."""
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:  # --help (0) or a bad option (2, message already printed)
+        return exc.code if isinstance(exc.code, int) else 2
+    return run(lambda: _body(args))
+
+
+if __name__ == "__main__":
+    sys.exit(main())
