@@ -73,6 +73,10 @@ def build_parser() -> argparse.ArgumentParser:
     d = p.add_argument_group("diagnosis options (with --diagnose)")
     d.add_argument("--effects", help="candidate effects, comma-separated (default all)")
     d.add_argument("--points", type=int, help="frequencies per data set for the refits")
+    d.add_argument(
+        "--diagnose-free", nargs="+", action="extend", metavar="NAME",
+        help="parameters of the diagnosis's refit (bondid.diagnose --free; default its own)",
+    )  # fmt: skip
     return p
 
 
@@ -113,6 +117,8 @@ def diagnose_argv(args: argparse.Namespace) -> list[str] | None:
         argv += ["--effects", args.effects]
     if args.points is not None:
         argv += ["--points", str(args.points)]
+    if args.diagnose_free:
+        argv += ["--free", *split_names(args.diagnose_free)]
     return argv
 
 
@@ -143,12 +149,15 @@ def check_options(args: argparse.Namespace) -> None:
     for text in args.bound or ():
         if not _BOUND.match(text):
             raise ConfigError(f"--bound {text!r}: not KEY=REL or KEY=LO:HI")
-    if args.points is not None and not args.diagnose:
-        raise ConfigError("--points: only with --diagnose")
+    for opt in ("points", "effects", "diagnose_free"):
+        if getattr(args, opt) is not None and not args.diagnose:
+            raise ConfigError(f"--{opt.replace('_', '-')}: only with --diagnose")
     doc = UrdfDocument.load(args.model)
     free = [n for n in split_names(args.free) if n != "auto"]
     if free:
         select_parameters(doc, free, split_names(args.fixed))
+    if args.diagnose_free:
+        select_parameters(doc, split_names(args.diagnose_free), [])
     if args.machines.resolve() in (args.out.resolve(), *args.out.resolve().parents):
         raise ConfigError(f"--out {args.out}: must not be inside --machines {args.machines}")
     if args.out.exists() and not args.out.is_dir():
@@ -251,6 +260,7 @@ def _body(args: argparse.Namespace) -> int:
             with open_client(address, args.workers or 2) as client:
                 for st in run_jobs(client, jobs, retries=args.retries, quiet=args.quiet):
                     results[str(st.get("machine"))] = st
+            clean_stale(machines_dir)  # what killed workers left (every task has ended)
         statuses = [results[m.id] for m in machines if m.id in results]
         stats = aggregate(statuses, diagnose=args.diagnose)
         header = {

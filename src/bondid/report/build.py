@@ -20,15 +20,27 @@ from ..exceptions import ConfigError
 from . import sections
 from .html import esc, note, page, png_figure
 
-RESULT_FILES = ("fit.json", "sensitivity.json", "diagnosis.json", "modes.json")
+RESULT_FILES = ("fit.json", "sensitivity.json", "diagnosis.json", "modes.json", "fleet.json")
+#: in a fleet's results folder (fleet.json at the top), the per-machine results are not
+#: gathered into the fleet's page (report on OUT/machines/<id> for one machine)
+FLEET_MACHINES = "machines"
 REPORT_NAME = "report.html"
 
 # (section, words in a PNG's file name that put it there), first match wins
 _FIGURE_GROUPS = (
+    ("fleet", ("fleet",)),
     ("fit", ("bode", "conver", "cost")),
     ("sensitivity", ("sensitiv", "heat", "sweep")),
     ("diagnosis", ("residual", "diagnos", "gap", "candidate")),
 )
+
+
+_SINGLE = {
+    "fit": "fit.json",
+    "sensitivity": "sensitivity.json",
+    "diagnosis": "diagnosis.json",
+    "modes": "modes.json",
+}
 
 
 @dataclass
@@ -46,12 +58,14 @@ class Found:
 def scan(results: Path) -> Found:
     """Find the result files under ``results`` (shallowest first; hidden folders skipped)."""
     found = Found()
+    fleet = (results / "fleet.json").is_file()
     files = sorted(
         (
             p
             for p in results.rglob("*")
             if p.is_file()
             and not any(part.startswith(".") for part in p.relative_to(results).parts)
+            and not (fleet and p.relative_to(results).parts[0] == FLEET_MACHINES)
         ),
         key=lambda p: (len(p.relative_to(results).parts), p.as_posix()),
     )
@@ -90,7 +104,11 @@ def build_report_html(results: Path, out_dir: Path) -> tuple[str, Found]:
     parts: list[str] = []
     nav: list[str] = []
 
+    fleet_page = "fleet.json" in found.json_paths
+
     def section(key: str, title: str, body: str) -> None:
+        if fleet_page and key in _SINGLE and _SINGLE[key] not in found.json_paths:
+            return  # a fleet's page: no "not found" notes for single-machine results
         nav.append(f'<a href="#{key}">{esc(title)}</a>')
         parts.append(f'<section id="{key}"><h2>{esc(title)}</h2>{body}</section>')
 
@@ -111,6 +129,13 @@ def build_report_html(results: Path, out_dir: Path) -> tuple[str, Found]:
             data
         )
 
+    if "fleet.json" in found.json_paths:
+        section(
+            "fleet",
+            "Fleet",
+            json_part("fleet.json", sections.fleet_section, "run python -m bondid.fleet")
+            + figures("fleet", results),
+        )
     section(
         "fit",
         "Fit",

@@ -182,6 +182,50 @@ def diagnosis_section(diag: Any) -> str:
     return "".join(out)
 
 
+def fleet_section(fleet: Any) -> str:
+    """Counts, per-parameter statistics, outliers, failed machines and effects of fleet.json."""
+    if not isinstance(fleet, Mapping):
+        return note("fleet.json is not a JSON object; skipped")
+    out = []
+    counts = fleet.get("counts")
+    if isinstance(counts, Mapping):
+        out.append(key_values(dict(counts)))
+    params = _records(fleet.get("parameters"))
+    if params:
+        out.append("<h3>Parameters over the fleet</h3>")
+        rows = []
+        for p in params:
+            rel = _num(p.get("robust_rel_spread"))
+            spread = "—" if rel is None else f"{100 * rel:.3g} %"
+            row = [esc(p.get("name", "?")), fmt(p.get("n")), fmt(p.get("median")), spread]
+            rows.append([*row, fmt(p.get("min")), fmt(p.get("max"))])
+        head = ["parameter", "machines", "median", "robust spread", "min", "max"]
+        out.append(table(head, rows))
+    outliers = _records(fleet.get("outliers"))
+    out.append("<h3>Outliers</h3>")
+    if fleet.get("outlier_rule"):
+        out.append(note(f"rule: {fleet['outlier_rule']}"))
+    rows = [
+        [esc(o.get(k)) for k in ("machine", "parameter")] + [fmt(o.get("value"))]
+        + [esc(o.get("reason", ""))]
+        for o in outliers
+    ]  # fmt: skip
+    head = ["machine", "parameter", "value", "reason"]
+    out.append(table(head, rows, left=(0, 1, 3)) if rows else note("no outlier"))
+    failed = [m for m in _records(fleet.get("machines")) if m.get("status") != "ok"]
+    if failed:
+        out.append("<h3>Failed machines</h3>")
+        rows = [[esc(m.get("id")), esc(m.get("reason") or "")] for m in failed]
+        out.append(table(["machine", "reason"], rows, left=(0, 1)))
+    effects = fleet.get("effects")
+    if isinstance(effects, Mapping) and isinstance(effects.get("counts"), Mapping):
+        out.append("<h3>Effects found (diagnosis)</h3>")
+        out.append(
+            table(["effect", "machines"], [[esc(k), fmt(v)] for k, v in effects["counts"].items()])
+        )
+    return "".join(out)
+
+
 def sensitivity_section(sens: Any) -> str:
     """``sensitivity.json`` rendered generically (its keys are not fixed by the spec)."""
     return generic_json(sens)
