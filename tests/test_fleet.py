@@ -225,3 +225,32 @@ def test_outlier_rule_known_answer():
     assert param["median"] == 100.0 and param["mad"] == 2.0
     assert [o["machine"] for o in stats.outliers] == ["f"]
     assert stats.outliers[0]["reason"].startswith("k.stiffness 11 % above the fleet median")
+
+
+def test_discover_and_plan(tmp_path):
+    """A machine's own model.urdf is used; hidden folders are not machines; a finished machine
+    is skipped until its data or the settings change."""
+    from bondid.fleet.cli import plan
+    from bondid.fleet.machines import discover
+
+    root = tmp_path / "m"
+    for mid in ("a1", "b2", ".hidden"):
+        (root / mid).mkdir(parents=True)
+        (root / mid / "q0.csv").write_text("x\n", encoding="utf-8")
+    (root / "b2" / "model.urdf").write_text(NOMINAL.read_text(), encoding="utf-8")
+    found = discover(root, NOMINAL)
+    assert [m.id for m in found] == ["a1", "b2"]
+    assert not found[0].own_model and found[1].own_model and found[1].model.name == "model.urdf"
+    out = tmp_path / "out" / "machines"
+    jobs, done = plan(found, out, ["--max-iter", "5"], None)
+    assert len(jobs) == 2 and not done
+    (out / "a1").mkdir(parents=True)
+    status = {"machine": "a1", "status": "ok", "fingerprint": jobs[0].fingerprint}
+    (out / "a1" / "status.json").write_text(json.dumps(status), encoding="utf-8")
+    jobs, done = plan(found, out, ["--max-iter", "5"], None)
+    assert [j.machine_id for j in jobs] == ["b2"] and [d["machine"] for d in done] == ["a1"]
+    jobs, done = plan(found, out, ["--max-iter", "6"], None)  # other settings: run again
+    assert len(jobs) == 2
+    (root / "a1" / "q0.csv").write_text("xy\n", encoding="utf-8")  # changed data: run again
+    jobs, done = plan(found, out, ["--max-iter", "5"], None)
+    assert len(jobs) == 2

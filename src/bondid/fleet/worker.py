@@ -19,10 +19,12 @@ import json
 import os
 import shutil
 import socket
+import sys
+import threading
 import time
 import traceback
 import uuid
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -61,6 +63,45 @@ class _Tee(io.TextIOBase):
         return False
 
 
+_LOCAL = threading.local()
+_INSTALL = threading.Lock()
+
+
+class _PerThread(io.TextIOBase):
+    """Stand-in for ``sys.stdout``/``sys.stderr`` in a worker process: a thread that captures
+    writes to its own stream, every other thread to the original one (so the machines of a
+    worker with several threads keep their logs apart)."""
+
+    def __init__(self, name: str, original: Any):
+        self.name, self.original = name, original
+
+    def _target(self) -> Any:
+        return getattr(_LOCAL, self.name, None) or self.original
+
+    def write(self, s: str) -> int:
+        return self._target().write(s)
+
+    def flush(self) -> None:
+        self._target().flush()
+
+    def isatty(self) -> bool:
+        return bool(self._target().isatty())
+
+
+@contextlib.contextmanager
+def _capture(out: io.TextIOBase, err: io.TextIOBase) -> Iterator[None]:
+    """Send this thread's ``print`` output to ``out`` and ``err`` for the block."""
+    with _INSTALL:
+        for name in ("stdout", "stderr"):
+            if not isinstance(getattr(sys, name), _PerThread):
+                setattr(sys, name, _PerThread(name, getattr(sys, name)))
+    _LOCAL.stdout, _LOCAL.stderr = out, err
+    try:
+        yield
+    finally:
+        _LOCAL.stdout = _LOCAL.stderr = None
+
+
 def _run_command(
     main: Callable[[Sequence[str]], int], argv: list[str], log: Path
 ) -> tuple[int, str | None]:
@@ -74,7 +115,7 @@ def _run_command(
     out, both = _Tee(text), _Tee(text, err)
     raised = None
     try:
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(both):
+        with _capture(out, both):
             code = int(main(argv))
     except SystemExit as exc:  # an argparse error or --help inside the command
         code = exc.code if isinstance(exc.code, int) else 2
