@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from ..cli import EXIT_FAILED, EXIT_OK, make_parser, parse_band, run, split_names
-from ..exceptions import ConfigError
+from ..exceptions import ComputationError, ConfigError
 from .machines import Machine
 
 LOCK_NAME = ".fleet.lock"
@@ -257,9 +257,15 @@ def _body(args: argparse.Namespace) -> int:
         results = {str(st.get("machine")): st for st in done}
         if jobs:
             address = scheduler_address(args.scheduler)
-            with open_client(address, args.workers or 2) as client:
-                for st in run_jobs(client, jobs, retries=args.retries, quiet=args.quiet):
-                    results[str(st.get("machine"))] = st
+            try:
+                with open_client(address, args.workers or 2) as client:
+                    for st in run_jobs(client, jobs, retries=args.retries, quiet=args.quiet):
+                        results[str(st.get("machine"))] = st
+            except (OSError, TimeoutError) as exc:  # the scheduler went away mid-run
+                raise ComputationError(
+                    f"Dask scheduler {address or '(local cluster)'}: lost ({exc}); the machines"
+                    " finished so far are saved: re-run the same command to resume"
+                ) from None
             clean_stale(machines_dir)  # what killed workers left (every task has ended)
         statuses = [results[m.id] for m in machines if m.id in results]
         stats = aggregate(statuses, diagnose=args.diagnose)
