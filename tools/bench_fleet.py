@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
 import statistics
 import subprocess
@@ -66,9 +67,11 @@ def run_fleet(machines: Path, out: Path, workers: int) -> dict[str, Any]:
     cmd = [sys.executable, "-m", "bondid.fleet", "--model", str(NOMINAL)]
     cmd += ["--machines", str(machines), "--out", str(out), "--workers", str(workers)]
     cmd += ["--free", *FREE]
+    load0 = os.getloadavg()[0]
     t0 = time.perf_counter()
     proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
     wall = time.perf_counter() - t0
+    load1 = os.getloadavg()[0]
     if proc.returncode == 2:
         sys.exit(f"bench_fleet: the fleet command refused its input:\n{proc.stderr}")
     doc = json.loads((out / "fleet.json").read_text())
@@ -81,6 +84,7 @@ def run_fleet(machines: Path, out: Path, workers: int) -> dict[str, Any]:
     n = doc["counts"]["machines"]
     return {
         "workers": workers,
+        "load_1min": [load0, load1],  # the machine's load average before / after (shared)
         "exit_code": proc.returncode,
         "machines": n,
         "failed": doc["counts"]["failed"],
@@ -99,8 +103,8 @@ def report(runs: list[dict[str, Any]]) -> str:
     lines = [
         "| workers | machines | failed | wall [s] | machines / min | one machine in a worker,"
         " median [s] | of which the fit's solve [s] | outliers found | planted found |"
-        " false alarms |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        " false alarms | load before / after |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in runs:
         found = {tuple(o) for o in r["outliers"]}
@@ -110,6 +114,7 @@ def report(runs: list[dict[str, Any]]) -> str:
             f" {r['machines_per_min']:.1f} | {r['machine_s_median']:.2f} |"
             f" {r['solve_s_median']:.2f} | {len(found)} |"
             f" {hit}/{len(planted)} | {len(found) - hit} |"
+            f" {r['load_1min'][0]:.1f} / {r['load_1min'][1]:.1f} |"
         )
     for r in runs[-1:]:
         lines += [f"outlier ({r['workers']} workers): {t}" for t in r["reasons"]]

@@ -59,6 +59,7 @@ def build_strip(
         ax.plot([-thr, -thr], [i - 0.3, i + 0.3], color="0.55", linewidth=1)
         ax.plot([thr, thr], [i - 0.3, i + 0.3], color="0.55", linewidth=1)
     ax.axvline(0.0, color="0.3", linewidth=0.8)
+    ax.margins(x=0.08)  # room for the outliers' labels
     ax.set_yticks(range(len(names)), names, fontsize=font_scale(len(names)))
     ax.set_ylim(len(names) - 0.5, -0.5)
     ax.set_xlabel("value relative to the fleet median [%]")
