@@ -1,8 +1,9 @@
 """The case list: designs × regimes × withheld effects, single and two-effect.
 
-Per design, six single-effect truths (a translational and a rotational joint compliance, a
-flexible base, soft mounts, a sensor delay, an actuator lag), each in two regimes, plus two
-"none" truths (parameter errors only) in one regime each: 14 cases, 42 over the three designs.
+Per design, seven single-effect truths (two translational joint compliances at different
+interfaces, a rotational one, a flexible base, soft mounts, a sensor delay, an actuator lag),
+each in two regimes, plus two "none" truths (parameter errors only) in one regime each: 16
+cases, 48 over the three designs (42 with an effect).
 The regimes rotate with the effect and the design so that every regime sees every effect
 class. Then 8 two-effect cases (structural + signal, two structural at different places).
 """
@@ -45,6 +46,7 @@ SINGLE: dict[str, dict[str, E]] = {
         "sm": E("soft_mounts", "base", {"f": 20.0}),
         "sd": E("sensor_delay", "z", {"tau": 60e-6}),
         "al": E("actuator_lag", "y", {"T": 80e-6}),
+        "jct2": _jc("base->x_stage:tz", 1300.0),
     },
     "bonder_b": {
         "jct": _jc("carriage_y->slide_x:tz", 700.0),
@@ -53,6 +55,7 @@ SINGLE: dict[str, dict[str, E]] = {
         "sm": E("soft_mounts", "machine_bed", {"f": 15.0}),
         "sd": E("sensor_delay", "all", {"tau": 25e-6}),
         "al": E("actuator_lag", "head", {"T": 120e-6}),
+        "jct2": _jc("slide_x->rocker:tz", 1200.0),
     },
     "gantry": {
         "jct": _jc("bridge->carriage:tz", 600.0),
@@ -61,6 +64,7 @@ SINGLE: dict[str, dict[str, E]] = {
         "sm": E("soft_mounts", "frame", {"f": 12.0}),
         "sd": E("sensor_delay", "gx", {"tau": 40e-6}),
         "al": E("actuator_lag", "all", {"T": 50e-6}),
+        "jct2": _jc("carriage->rotary_head:tx", 1400.0),
     },
 }
 
