@@ -98,13 +98,21 @@ def _fit_status(proc: subprocess.CompletedProcess, path: Path) -> str:
 
 def truth_db(paths: list[Path], exact: list[np.ndarray], diag: dict[str, Any]) -> float | None:
     """The truth model's own gap on the diagnosis's channels and points (the package's
-    ``gap_report`` on the files, incoherent points masked as the diagnosis does)."""
+    ``gap_report`` on the files, incoherent points masked as the diagnosis does; with the
+    weighting ``diagnosis.json`` names under ``weighting`` or ``scoring.weighting``, if any)."""
     from bondid.data.io import read_frf
     from bondid.diagnose.gap import gap_report
     from bondid.diagnose.split import limit_bands, mask_incoherent
 
+    weighting = diag.get("weighting") or (diag.get("scoring") or {}).get("weighting")
     try:
         data = [mask_incoherent(limit_bands(read_frf(p), None)) for p in paths]
+        if isinstance(weighting, str):  # the diagnosis says how its db_rms is weighted
+            try:
+                return float(gap_report(data, exact, channels=diag.get("channels"),
+                                        weighting=weighting).db_rms)  # fmt: skip
+            except Exception:
+                pass
         return float(gap_report(data, exact, channels=diag.get("channels")).db_rms)
     except Exception as exc:  # the package's API moved: say so, do not guess
         print(f"truth gap not computed: {exc}", file=sys.stderr)
