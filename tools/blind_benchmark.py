@@ -55,16 +55,17 @@ def _names(text: str | None, valid: tuple[str, ...] | list[str], what: str) -> l
 
 
 def select(args: argparse.Namespace) -> list[Case]:
+    """The cases named by ``--cases`` (else ``--quick``'s or all), kept to ``--designs`` and
+    ``--regimes``."""
     cases = all_cases()
-    if args.quick and not args.cases:
-        return [c for c in cases if c.name in QUICK]
+    if args.cases:
+        wanted = _names(args.cases, [c.name for c in cases], "case")
+        cases = [c for c in cases if c.name in wanted]
+    elif args.quick:
+        cases = [c for c in cases if c.name in QUICK]
     designs = _names(args.designs, list(DESIGNS), "design")
     regimes = _names(args.regimes, REGIMES, "regime")
-    cases = [c for c in cases if c.design in designs and c.regime in regimes]
-    if args.cases:
-        wanted = _names(args.cases, [c.name for c in all_cases()], "case")
-        cases = [c for c in cases if c.name in wanted]
-    return cases
+    return [c for c in cases if c.design in designs and c.regime in regimes]
 
 
 def parse(argv: list[str] | None) -> argparse.Namespace:
