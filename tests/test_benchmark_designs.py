@@ -15,7 +15,7 @@ sys.path.insert(0, str(ROOT / "tools"))
 from benchmark.cases import DOUBLE, SINGLE, all_cases  # noqa: E402
 from benchmark.designs import DESIGNS  # noqa: E402
 from benchmark.regimes import REGIMES, measure, quantity_of  # noqa: E402
-from benchmark.runner import score, screening  # noqa: E402
+from benchmark.runner import score, screening, truth_db  # noqa: E402
 from benchmark.truth import (  # noqa: E402
     EFFECTS,
     STRUCTURAL,
@@ -28,6 +28,7 @@ from benchmark.truth import (  # noqa: E402
 )
 
 from bondid.data.io import read_frf  # noqa: E402
+from bondid.diagnose.gap import gap_report  # noqa: E402
 from bondid.linear import build_affine_model  # noqa: E402
 from bondid.model import UrdfDocument  # noqa: E402
 
@@ -146,6 +147,13 @@ def test_regime_files_read_back(regime: str, tmp_path: Path) -> None:
     # 2 % relative noise dominates where the response is strong: the diagonal is close
     rel = np.abs(data.H[0, 0] / exact[1][0, 0] - 1)
     assert np.median(rel) < 0.1
+    # the truth's own gap is read in whatever quantity the diagnosis converts the files to
+    direct = gap_report([read_frf(p) for p in paths], exact, channels=["xa.xa", "ya.ya"])
+    assert truth_db(paths, exact, {"channels": ["xa.xa", "ya.ya"]}) == pytest.approx(
+        direct.db_rms, rel=1e-9
+    )
+    if regime in ("coh", "nocoh"):  # a floor that follows the response: diagonals clean
+        assert direct.db_rms < 1.0
     if regime == "acc":  # accelerance = −ω² × receptance
         rec = measure(truth, d.operating_points[1:], f, "nocoh", factor, tmp_path, seed=3)[1]
         np.testing.assert_allclose(exact[1], -((2 * np.pi * f) ** 2) * rec[0], rtol=1e-9)

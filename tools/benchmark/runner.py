@@ -98,15 +98,20 @@ def _fit_status(proc: subprocess.CompletedProcess, path: Path) -> str:
 
 def truth_db(paths: list[Path], exact: list[np.ndarray], diag: dict[str, Any]) -> float | None:
     """The truth model's own gap on the diagnosis's channels and points (the package's
-    ``gap_report`` on the files, incoherent points masked as the diagnosis does; with the
-    weighting ``diagnosis.json`` names under ``weighting`` or ``scoring.weighting``, if any)."""
+    ``gap_report`` on the files, converted and incoherent points masked as the diagnosis does;
+    with the weighting ``diagnosis.json`` names under ``weighting`` or ``scoring.weighting``,
+    if any)."""
     from bondid.data.io import read_frf
     from bondid.diagnose.gap import gap_report
     from bondid.diagnose.split import limit_bands, mask_incoherent
+    from bondid.frf.quantity import convert_quantity
 
     weighting = diag.get("weighting") or (diag.get("scoring") or {}).get("weighting")
     try:
-        data = [mask_incoherent(limit_bands(read_frf(p), None)) for p in paths]
+        raw = [read_frf(p) for p in paths]
+        data = [mask_incoherent(limit_bands(r, None)) for r in raw]  # may convert the quantity
+        exact = [convert_quantity(H, r.freq_hz, r.quantity, d.quantity)
+                 for H, r, d in zip(exact, raw, data, strict=True)]  # fmt: skip
         if isinstance(weighting, str):  # the diagnosis says how its db_rms is weighted
             try:
                 return float(gap_report(data, exact, channels=diag.get("channels"),
