@@ -203,3 +203,20 @@ def test_scores_two_effect_cases_and_screening() -> None:
     assert screening(case, _diag([sm], cands)) is False
     cands[1]["refitted"] = True
     assert screening(case, _diag([sm], cands)) is True
+
+
+def test_tables_keep_their_columns_with_failed_cases() -> None:
+    from benchmark.tables import case_table, summary_table
+
+    ok = {"case": "gantry/none_a/harsh", "design": "gantry", "regime": "harsh", "truth": [],
+          "claimed": [["soft_mounts", "frame"]], "class_ok": False, "location_ok": None,
+          "extra_claims": 1, "gap_refit": 3.0, "db_truth": 2.9, "gap_closed": 0.2,
+          "truth_gap_closed": 0.03, "ratio": None, "screen_ok": None, "diagnosis_s": 90.0,
+          "fit_s": 30.0, "fit_status": "Solve_Succeeded"}  # fmt: skip
+    bad = {"case": "gantry/sd/harsh", "design": "gantry", "regime": "harsh",
+           "truth": [["sensor_delay", "gx"]], "error": "diagnose: exit 1"}  # fmt: skip
+    lines = case_table([ok, bad]).splitlines()
+    assert len({line.count("|") for line in lines}) == 1
+    assert "| 3.0 |" in lines[2]  # diagnose / fit time ratio
+    summary = summary_table([ok, bad])
+    assert "| gantry | harsh | 2 (1) | 0% (0/1) | – | 1/1 |" in summary

@@ -99,11 +99,21 @@ def main(argv: list[str] | None = None) -> int:
                  args.points or (120 if args.quick else 500), args.workers, args.effects,
                  not args.no_fit)  # fmt: skip
 
+    done: list[dict[str, Any]] = []
+
     def one(c: Case) -> dict[str, Any]:
-        r = run_case(c, s)
+        try:
+            r = run_case(c, s)
+        except Exception as exc:  # one broken case must not lose the others
+            truth = [[e.effect, e.location] for e in c.effects]
+            r = {"case": c.name, "design": c.design, "regime": c.regime, "truth": truth,
+                 "error": repr(exc)}  # fmt: skip
         got = r.get("error") or ", ".join(f"{e}@{loc}" for e, loc in r["claimed"]) or "none"
         took = f"diagnose {r.get('diagnosis_s', 0):.0f} s, fit {r.get('fit_s', 0):.0f} s"
         print(f"{c.name}: {got} (truth {c.label} @ {c.where}) {took}", flush=True)
+        done.append(r)
+        if args.out:  # rows so far, so a long run that stops keeps what it did
+            args.out.write_text(json.dumps(done, indent=2, default=float) + "\n")
         return r
 
     with ThreadPoolExecutor(max_workers=args.jobs) as pool:

@@ -29,6 +29,12 @@ def time_ratio(r: dict[str, Any]) -> float | None:
     return d / f if d is not None and f else None
 
 
+def _fit(r: dict[str, Any]) -> str:
+    """The fit's wall time, marked when the fit failed."""
+    bad = str(r.get("fit_status", "")).startswith("failed")
+    return _f(r.get("fit_s"), ".0f") + (" (failed)" if bad else "")
+
+
 def case_table(rows: list[dict[str, Any]]) -> str:
     head = ("| case | truth | truth location | claimed (verdict first) | class | loc | extra"
             " | gap refit | truth db | gap_closed | truth gap_closed | ratio | screened"
@@ -47,7 +53,7 @@ def case_table(rows: list[dict[str, Any]]) -> str:
             f" {_mark(r['location_ok'])} | {r['extra_claims']} | {_f(r['gap_refit'])} |"
             f" {_f(r['db_truth'])} | {_f(r['gap_closed'])} | {_f(r['truth_gap_closed'])} |"
             f" {_f(r['ratio'])} | {_mark(r['screen_ok'])} | {_f(r.get('diagnosis_s'), '.0f')} |"
-            f" {_f(r.get('fit_s'), '.0f')} | {_f(time_ratio(r), '.1f')} |"
+            f" {_fit(r)} | {_f(time_ratio(r), '.1f')} |"
         )
     return "\n".join(lines)
 
