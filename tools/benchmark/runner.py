@@ -91,7 +91,9 @@ def run_case(case: Case, s: Settings) -> dict[str, Any]:
 
 
 def _fit_status(proc: subprocess.CompletedProcess, path: Path) -> str:
-    if proc.returncode != 0 or not path.exists():
+    """IPOPT's status from ``fit.json`` (written also when the fit ends unconverged, exit 1),
+    else ``failed: <last line>``."""
+    if not path.exists():
         return f"failed: {_error(proc)}"
     return str(json.loads(path.read_text()).get("status"))
 

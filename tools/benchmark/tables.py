@@ -30,9 +30,11 @@ def time_ratio(r: dict[str, Any]) -> float | None:
 
 
 def _fit(r: dict[str, Any]) -> str:
-    """The fit's wall time, marked when the fit failed."""
-    bad = str(r.get("fit_status", "")).startswith("failed")
-    return _f(r.get("fit_s"), ".0f") + (" (failed)" if bad else "")
+    """The fit's wall time, marked when the fit failed or stopped at its iteration limit."""
+    status = str(r.get("fit_status", ""))
+    mark = " (failed)" if status.startswith("failed") else ""
+    mark = " (max iter)" if "Maximum_Iterations" in status else mark
+    return _f(r.get("fit_s"), ".0f") + mark
 
 
 def case_table(rows: list[dict[str, Any]]) -> str:
