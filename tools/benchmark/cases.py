@@ -1,0 +1,116 @@
+"""The case list: designs × regimes × withheld effects, single and two-effect.
+
+Per design, seven single-effect truths (two translational joint compliances at different
+interfaces, a rotational one, a flexible base, soft mounts, a sensor delay, an actuator lag),
+each in two regimes, plus two "none" truths (parameter errors only) in one regime each: 16
+cases, 48 over the three designs (42 with an effect).
+The regimes rotate with the effect and the design so that every regime sees every effect
+class. Then 8 two-effect cases (structural + signal, two structural at different places).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .regimes import REGIMES
+from .truth import TruthEffect as E
+
+
+@dataclass(frozen=True)
+class Case:
+    name: str
+    design: str
+    regime: str
+    effects: tuple[E, ...]
+    seed: int
+
+    @property
+    def label(self) -> str:
+        return " + ".join(e.effect for e in self.effects) or "none"
+
+    @property
+    def where(self) -> str:
+        return " + ".join(e.location for e in self.effects) or "–"
+
+
+def _jc(loc: str, f: float, offset=(0.02, -0.015)) -> E:
+    return E("joint_compliance", loc, {"f": f, "offset": offset})
+
+
+# per design: tag → effect; the order fixes the regime rotation
+SINGLE: dict[str, dict[str, E]] = {
+    "bonder": {
+        "jct": _jc("x_stage->y_stage:tz", 900.0),
+        "jcr": _jc("base->x_stage:rx", 450.0, (0.02, 0.015)),
+        "fb": E("flexible_base", "base", {"f": 1200.0}),
+        "sm": E("soft_mounts", "base", {"f": 20.0}),
+        "sd": E("sensor_delay", "z", {"tau": 60e-6}),
+        "al": E("actuator_lag", "y", {"T": 80e-6}),
+        "jct2": _jc("base->x_stage:tz", 1300.0),
+    },
+    "bonder_b": {
+        "jct": _jc("carriage_y->slide_x:tz", 700.0),
+        "jcr": _jc("machine_bed->carriage_y:ry", 350.0, (0.025, 0.012)),
+        "fb": E("flexible_base", "machine_bed", {"f": 1000.0}),
+        "sm": E("soft_mounts", "machine_bed", {"f": 15.0}),
+        "sd": E("sensor_delay", "all", {"tau": 25e-6}),
+        "al": E("actuator_lag", "head", {"T": 120e-6}),
+        "jct2": _jc("slide_x->rocker:tz", 1200.0),
+    },
+    "gantry": {
+        "jct": _jc("bridge->carriage:tz", 600.0),
+        "jcr": _jc("frame->bridge:ry", 250.0, (-0.06, 0.03)),
+        "fb": E("flexible_base", "frame", {"f": 700.0}),
+        "sm": E("soft_mounts", "frame", {"f": 12.0}),
+        "sd": E("sensor_delay", "gx", {"tau": 40e-6}),
+        "al": E("actuator_lag", "all", {"T": 50e-6}),
+        "jct2": _jc("carriage->rotary_head:tx", 1400.0),
+    },
+}
+
+DOUBLE: dict[str, dict[str, tuple[E, E]]] = {
+    "bonder": {
+        "jcr+al": (_jc("x_stage->y_stage:ry", 300.0, (0.015, 0.01)),
+                   E("actuator_lag", "all", {"T": 40e-6})),
+        "sm+sd": (E("soft_mounts", "base", {"f": 25.0}), E("sensor_delay", "x", {"tau": 40e-6})),
+        "jct+jcr": (_jc("y_stage->z_stage:ty", 1500.0), _jc("base->x_stage:rx", 450.0)),
+    },
+    "bonder_b": {
+        "jct+sd": (_jc("slide_x->rocker:tx", 1800.0), E("sensor_delay", "ya", {"tau": 50e-6})),
+        "jcr+al": (_jc("carriage_y->slide_x:rz", 600.0, (0.02, 0.01)),
+                   E("actuator_lag", "xa", {"T": 60e-6})),
+        "fb+jct": (E("flexible_base", "machine_bed", {"f": 1500.0}),
+                   _jc("carriage_y->slide_x:tz", 700.0)),
+    },
+    "gantry": {
+        "jcr+sd": (_jc("bridge->carriage:rz", 450.0, (0.03, -0.02)),
+                   E("sensor_delay", "all", {"tau": 30e-6})),
+        "sm+al": (E("soft_mounts", "frame", {"f": 18.0}), E("actuator_lag", "gy", {"T": 100e-6})),
+    },
+}  # fmt: skip
+
+NONE_TAGS = ("none_a", "none_b")
+
+
+def all_cases() -> list[Case]:
+    """Every case, in a fixed order (designs, then single, none and two-effect cases)."""
+    out: list[Case] = []
+    seed = 0
+    for d, (design, singles) in enumerate(SINGLE.items()):
+        for i, (tag, eff) in enumerate(singles.items()):
+            for shift in (0, 2):
+                regime = REGIMES[(i + d + shift) % 4]
+                seed += 1
+                out.append(Case(f"{design}/{tag}/{regime}", design, regime, (eff,), seed))
+        for i, tag in enumerate(NONE_TAGS):
+            regime = REGIMES[(d + i) % 4]
+            seed += 1
+            out.append(Case(f"{design}/{tag}/{regime}", design, regime, (), seed))
+        for i, (tag, pair) in enumerate(DOUBLE[design].items()):
+            regime = REGIMES[(d + i) % 4]
+            seed += 1
+            out.append(Case(f"{design}/{tag}/{regime}", design, regime, pair, seed))
+    return out
+
+
+QUICK = ("gantry/jct/harsh", "bonder_b/none_a/nocoh", "bonder/al/acc")

@@ -1,0 +1,189 @@
+"""One case end to end: truth machine, data files, ``python -m bondid.diagnose`` and
+``python -m bondid.fit --free all`` on the same files (subprocesses: they see the nominal URDF
+and the data files only), and the case's scores."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bondid.model import UrdfDocument
+
+from .cases import Case
+from .designs import ROOT, design
+from .regimes import measure
+from .truth import signal_factor, truth_model
+
+
+@dataclass(frozen=True)
+class Settings:
+    """How a case is run: frequencies per file, diagnose ``--points`` and ``--workers``,
+    optional ``--effects`` subset, whether to time the fit too."""
+
+    freq: int = 2000
+    points: int = 500
+    workers: int = 2
+    effects: str | None = None
+    fit: bool = True
+
+
+def _run(cmd: list[str]) -> tuple[subprocess.CompletedProcess, float]:
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
+    for v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        env.setdefault(v, "1")
+    t0 = time.perf_counter()
+    proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    return proc, time.perf_counter() - t0
+
+
+def _error(proc: subprocess.CompletedProcess) -> str:
+    lines = (proc.stderr or proc.stdout or "").strip().splitlines()
+    return lines[-1] if lines else f"exit {proc.returncode}"
+
+
+def diagnose_cmd(model: Path, paths: list[Path], out: Path, s: Settings) -> list[str]:
+    cmd = [sys.executable, "-m", "bondid.diagnose", "--model", str(model), "--data",
+           *map(str, paths), "--out", str(out), "--quiet", "--no-plots",
+           "--points", str(s.points), "--workers", str(s.workers)]  # fmt: skip
+    return cmd + (["--effects", s.effects] if s.effects else [])
+
+
+def fit_cmd(model: Path, paths: list[Path], out: Path) -> list[str]:
+    return [sys.executable, "-m", "bondid.fit", "--model", str(model), "--data",
+            *map(str, paths), "--out", str(out), "--quiet", "--free", "all"]  # fmt: skip
+
+
+def run_case(case: Case, s: Settings) -> dict[str, Any]:
+    """Build, measure, diagnose (and fit); the row of the case (``error`` when a step failed)."""
+    dz = design(case.design)
+    nominal = UrdfDocument.load(dz.path)
+    truth = truth_model(nominal, case.effects, case.seed)
+    f = np.logspace(0.0, np.log10(4000.0), s.freq)
+
+    def factor(ff, outs, ins):  # type: ignore[no-untyped-def]
+        return signal_factor(case.effects, ff, outs, ins)
+
+    row: dict[str, Any] = {"case": case.name, "design": case.design, "regime": case.regime,
+                           "truth": [[e.effect, e.location] for e in case.effects]}  # fmt: skip
+    with tempfile.TemporaryDirectory(prefix="bondid_blind_") as tmp:
+        folder = Path(tmp)
+        paths, exact = measure(
+            truth, dz.operating_points, f, case.regime, factor, folder, case.seed
+        )
+        proc, row["diagnosis_s"] = _run(diagnose_cmd(dz.path, paths, folder / "diag", s))
+        if proc.returncode != 0:
+            return {**row, "error": f"diagnose: {_error(proc)}"}
+        diag = json.loads((folder / "diag" / "diagnosis.json").read_text())
+        if s.fit:
+            fproc, row["fit_s"] = _run(fit_cmd(dz.path, paths, folder / "fit"))
+            row["fit_status"] = _fit_status(fproc, folder / "fit" / "fit.json")
+        row["db_truth"] = truth_db(paths, exact, diag)
+    return {**row, **score(case, diag, row["db_truth"])}
+
+
+def _fit_status(proc: subprocess.CompletedProcess, path: Path) -> str:
+    """IPOPT's status from ``fit.json`` (written also when the fit ends unconverged, exit 1),
+    else ``failed: <last line>``."""
+    if not path.exists():
+        return f"failed: {_error(proc)}"
+    return str(json.loads(path.read_text()).get("status"))
+
+
+def truth_db(paths: list[Path], exact: list[np.ndarray], diag: dict[str, Any]) -> float | None:
+    """The truth model's own gap on the diagnosis's channels and points (the package's
+    ``gap_report`` on the files, converted and incoherent points masked as the diagnosis does;
+    with the weighting ``diagnosis.json`` names under ``weighting`` or ``scoring.weighting``,
+    if any)."""
+    from bondid.data.io import read_frf
+    from bondid.diagnose.gap import gap_report
+    from bondid.diagnose.split import limit_bands, mask_incoherent
+    from bondid.frf.quantity import convert_quantity
+
+    weighting = diag.get("weighting") or (diag.get("scoring") or {}).get("weighting")
+    try:
+        raw = [read_frf(p) for p in paths]
+        data = [mask_incoherent(limit_bands(r, None)) for r in raw]  # may convert the quantity
+        exact = [convert_quantity(H, r.freq_hz, r.quantity, d.quantity)
+                 for H, r, d in zip(exact, raw, data, strict=True)]  # fmt: skip
+        if isinstance(weighting, str):  # the diagnosis says how its db_rms is weighted
+            try:
+                return float(gap_report(data, exact, channels=diag.get("channels"),
+                                        weighting=weighting).db_rms)  # fmt: skip
+            except Exception:
+                pass
+        return float(gap_report(data, exact, channels=diag.get("channels")).db_rms)
+    except Exception as exc:  # the package's API moved: say so, do not guess
+        print(f"truth gap not computed: {exc}", file=sys.stderr)
+        return None
+
+
+def claimed_effects(diag: dict[str, Any]) -> list[dict[str, Any]]:
+    """The accepted effects: ``effects`` (issue 14's ordered list) when present, else the
+    verdict alone; ``none`` entries dropped."""
+    items = diag.get("effects")
+    if not isinstance(items, list):
+        items = [diag.get("verdict") or {}]
+    return [e for e in items if isinstance(e, dict) and e.get("effect") not in (None, "none")]
+
+
+def screening(case: Case, diag: dict[str, Any]) -> bool | None:
+    """Did every true effect's candidate survive the screening (``refitted``, else
+    ``screened``)? None when the candidates carry neither field."""
+    cands = [c for c in diag.get("candidates") or [] if isinstance(c, dict)]
+    key = next((k for k in ("refitted", "screened") if any(k in c for c in cands)), None)
+    if key is None or not case.effects:
+        return None
+    return all(
+        any(c.get("effect") == e.effect and c.get("location") == e.location and bool(c.get(key))
+            for c in cands)
+        for e in case.effects
+    )  # fmt: skip
+
+
+def _gap_closed_final(diag: dict[str, Any], claimed: list[dict[str, Any]]) -> float:
+    """gap_closed of the whole accepted list (its last step's, when it says), else the
+    verdict's."""
+    if claimed and isinstance(claimed[-1].get("gap_closed"), int | float):
+        return float(claimed[-1]["gap_closed"])
+    return float((diag.get("verdict") or {}).get("gap_closed") or 0.0)
+
+
+def score(case: Case, diag: dict[str, Any], db_truth: float | None) -> dict[str, Any]:
+    """Class, location, extra claims, gap figures and the ratio to the truth's gap_closed."""
+    v = diag.get("verdict") or {}
+    claimed = claimed_effects(diag)
+    got = [(c.get("effect"), c.get("location")) for c in claimed]
+    truth = [(e.effect, e.location) for e in case.effects]
+    before = (diag.get("gap") or {}).get("db_rms")
+    truth_closed = None
+    if db_truth is not None and before:
+        truth_closed = 1.0 - db_truth / before
+    if len(truth) <= 1:
+        class_ok = (v.get("effect") or "none") == (truth[0][0] if truth else "none")
+        loc_ok = None if not truth else class_ok and v.get("location") == truth[0][1]
+        closed = float(v.get("gap_closed") or 0.0)
+    else:
+        class_ok = all(t[0] in [g[0] for g in got] for t in truth)
+        loc_ok = all(t in got for t in truth)
+        closed = _gap_closed_final(diag, claimed)
+    ratio = None
+    if truth and truth_closed is not None and truth_closed > 0.02:
+        ratio = closed / truth_closed
+    stages = diag.get("stages") or {}
+    return {
+        "claimed": [list(g) for g in got], "verdict": v.get("effect"),
+        "location": v.get("location"), "class_ok": class_ok, "location_ok": loc_ok,
+        "extra_claims": max(0, len(got) - len(truth)),
+        "gap_nominal": (stages.get("nominal") or {}).get("db_rms"), "gap_refit": before,
+        "gap_closed": closed, "truth_gap_closed": truth_closed, "ratio": ratio,
+        "screen_ok": screening(case, diag),
+    }  # fmt: skip

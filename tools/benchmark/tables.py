@@ -1,0 +1,112 @@
+"""Markdown tables: one row per case, and summaries per design × regime and overall."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from typing import Any
+
+import numpy as np
+
+GOALS = ("goals: class ≥ 90 %, location ≥ 80 %, 0 effects claimed on 'none' cases, median"
+         " gap_closed / truth's ≥ 0.8; two-effect: both found ≥ 70 %, no third; diagnosis ≤ 4×"
+         " the fit; screening recall: every case")  # fmt: skip
+
+
+def _f(v: Any, fmt: str = ".2f") -> str:
+    return "–" if v is None else format(v, fmt)
+
+
+def _mark(v: bool | None) -> str:
+    return "–" if v is None else ("✓" if v else "✗")
+
+
+def _pct(k: int, n: int) -> str:
+    return f"{k / n:.0%} ({k}/{n})" if n else "–"
+
+
+def time_ratio(r: dict[str, Any]) -> float | None:
+    d, f = r.get("diagnosis_s"), r.get("fit_s")
+    return d / f if d is not None and f else None
+
+
+def _fit(r: dict[str, Any]) -> str:
+    """The fit's wall time, marked when the fit failed or stopped at its iteration limit."""
+    status = str(r.get("fit_status", ""))
+    mark = " (failed)" if status.startswith("failed") else ""
+    mark = " (max iter)" if "Maximum_Iterations" in status else mark
+    return _f(r.get("fit_s"), ".0f") + mark
+
+
+def case_table(rows: list[dict[str, Any]]) -> str:
+    head = ("| case | truth | truth location | claimed (verdict first) | class | loc | extra"
+            " | gap refit | truth db | gap_closed | truth gap_closed | ratio | screened"
+            " | diagnose s | fit s | diag/fit |")  # fmt: skip
+    lines = [head, "|" + "---|" * 16]
+    for r in rows:
+        truth = " + ".join(t[0] for t in r["truth"]) or "none"
+        where = " + ".join(t[1] for t in r["truth"]) or "–"
+        if "error" in r:
+            lines.append(f"| {r['case']} | {truth} | {where} | error: {r['error']} |"
+                         + " |" * 12)  # fmt: skip
+            continue
+        got = ", ".join(f"{e}@{loc}" for e, loc in r["claimed"]) or "none"
+        lines.append(
+            f"| {r['case']} | {truth} | {where} | {got} | {_mark(r['class_ok'])} |"
+            f" {_mark(r['location_ok'])} | {r['extra_claims']} | {_f(r['gap_refit'])} |"
+            f" {_f(r['db_truth'])} | {_f(r['gap_closed'])} | {_f(r['truth_gap_closed'])} |"
+            f" {_f(r['ratio'])} | {_mark(r['screen_ok'])} | {_f(r.get('diagnosis_s'), '.0f')} |"
+            f" {_fit(r)} | {_f(time_ratio(r), '.1f')} |"
+        )
+    return "\n".join(lines)
+
+
+def _median(xs: Iterable[float | None]) -> float | None:
+    v = [x for x in xs if x is not None]
+    return float(np.median(v)) if v else None
+
+
+def _group(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    ok = [r for r in rows if "error" not in r]
+    single = [r for r in ok if len(r["truth"]) <= 1]
+    eff = [r for r in single if r["truth"]]
+    none = [r for r in single if not r["truth"]]
+    double = [r for r in ok if len(r["truth"]) > 1]
+    screened = [r["screen_ok"] for r in ok if r["screen_ok"] is not None]
+    return {
+        "n": len(rows), "failed": len(rows) - len(ok),
+        "class": _pct(sum(r["class_ok"] for r in single), len(single)),
+        "loc": _pct(sum(bool(r["location_ok"]) for r in eff), len(eff)),
+        "none": f"{sum(bool(r['claimed']) for r in none)}/{len(none)}",
+        "both": _pct(sum(bool(r["location_ok"]) for r in double), len(double)),
+        "third": f"{sum(r['extra_claims'] > 0 for r in double)}/{len(double)}",
+        "ratio": _f(_median(r["ratio"] for r in eff)),
+        "diag_s": _f(_median(r.get("diagnosis_s") for r in ok), ".0f"),
+        "fit_s": _f(_median(r.get("fit_s") for r in ok), ".0f"),
+        "t_ratio": _f(_median(time_ratio(r) for r in ok), ".1f"),
+        "recall": f"{sum(screened)}/{len(screened)}" if screened else "n/a",
+    }  # fmt: skip
+
+
+def summary_table(rows: list[dict[str, Any]]) -> str:
+    """One line per design × regime present, then per design, per regime and overall."""
+    head = ("| design | regime | cases (failed) | class right | location right | claimed on"
+            " none | two-effect both found | third claimed | median ratio | median diagnose s"
+            " | median fit s | median diag/fit | screening recall |")  # fmt: skip
+    lines = [head, "|" + "---|" * 13]
+    designs = list(dict.fromkeys(r["design"] for r in rows))
+    regimes = list(dict.fromkeys(r["regime"] for r in rows))
+    groups = [((d, g), [r for r in rows if r["design"] == d and r["regime"] == g])
+              for d in designs for g in regimes]  # fmt: skip
+    groups += [((d, "all"), [r for r in rows if r["design"] == d]) for d in designs]
+    groups += [(("all", g), [r for r in rows if r["regime"] == g]) for g in regimes]
+    groups.append((("all", "all"), rows))
+    for (d, g), rs in groups:
+        if not rs:
+            continue
+        s = _group(rs)
+        lines.append(
+            f"| {d} | {g} | {s['n']} ({s['failed']}) | {s['class']} | {s['loc']} | {s['none']} |"
+            f" {s['both']} | {s['third']} | {s['ratio']} | {s['diag_s']} | {s['fit_s']} |"
+            f" {s['t_ratio']} | {s['recall']} |"
+        )
+    return "\n".join(lines) + "\n\n" + GOALS
