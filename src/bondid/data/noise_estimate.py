@@ -40,6 +40,9 @@ OCTAVES = 0.25
 MIN_HALF = 8
 #: quantile over windows of the relative level that sets ρ²
 RHO_QUANTILE = 0.1
+#: the floor is capped at CAP_FACTOR × the window's CAP_QUANTILE of |H|² over that of |noise|²
+CAP_QUANTILE = 0.25
+CAP_FACTOR = 2.0
 #: fewer points than this: no estimate (NaN)
 MIN_POINTS = 12
 #: SNR [dB] from which a point counts as carrying information
@@ -200,10 +203,20 @@ def estimate_channel(freq_hz: np.ndarray, H: np.ndarray) -> tuple[np.ndarray, np
     lo, hi = _windows(freq_hz)
     win, valid = _window_matrix(lo, hi)
     tiny = 1e-300 + 1e-30 * float(np.max(A))
-    ratio = np.where(valid, (p / np.maximum(A, tiny))[win], np.nan)
-    local = np.nanmedian(ratio, axis=1) / _LN2  # ρ² if the window were relative-only
+    ratio = np.sort(np.where(valid, (p / np.maximum(A, tiny))[win], np.inf), axis=1)
+    nv = valid.sum(axis=1)
+    rows = np.arange(nv.size)
+    med = 0.5 * (ratio[rows, (nv - 1) // 2] + ratio[rows, nv // 2])
+    local = med / _LN2  # ρ² if the window were relative-only
     rho2 = float(np.quantile(local, RHO_QUANTILE))
     phi2 = _solve_floor(p, rho2 * A, v, win, valid)
+    # a floor cannot lie far above what was measured: pure noise has |H|² ~ φ²·Exp(1), whose
+    # lower quartile is 0.29 φ²; where the predictor cannot follow the signal (resonances
+    # between the lines of a sparse grid) the scatter is signal, not noise
+    srt = np.sort(np.where(valid, mag2[win], np.inf), axis=1)
+    qi = np.floor(CAP_QUANTILE * (valid.sum(axis=1) - 1)).astype(int)
+    q = srt[np.arange(qi.size), qi]
+    phi2 = np.minimum(phi2, CAP_FACTOR * q / -math.log1p(-CAP_QUANTILE))
     sigma = np.sqrt(rho2 * mag2 + phi2)
     return sigma, np.sqrt(phi2), math.sqrt(rho2)
 
