@@ -289,7 +289,14 @@ def summary(result: Any, content: dict[str, Any] | None, extra: dict[str, Any]) 
     if content is not None:
         db = content["db_rms"]
         if db["initial"] is not None:
-            lines.append(f"db_rms: {db['initial']:.3f} dB → {db['final']:.3f} dB (all points)")
+            lines.append(
+                f"db_rms ({db['weighting']}-weighted): {db['initial']:.3f} dB →"
+                f" {db['final']:.3f} dB"
+            )
+            uw = db["unweighted"]
+            lines.append(
+                f"db_rms unweighted: {uw['initial']:.3f} dB → {uw['final']:.3f} dB (all points)"
+            )
             c = db.get("coherent") or {}
             if c.get("final") is not None and c["fraction"] < 1.0:
                 lines.append(
