@@ -181,3 +181,20 @@ def test_fit_without_coherence_reaches_the_fit_with_it(bonder) -> None:
     np.testing.assert_allclose(fitted["without"], fitted["with"], rtol=PARAM_RTOL)
     np.testing.assert_allclose(fitted["with"], get_parameters(truth, names), rtol=PARAM_RTOL)
     assert db["without"] == pytest.approx(db["with"], rel=DB_RTOL)
+
+
+def test_fit_json_db_rms_is_the_weighted_figure(bonder) -> None:
+    """``db_rms`` = sqrt(Σ w e² / Σ w) with the weights of the cost; the plain RMS kept."""
+    f = log_grid(1.0, 4000.0, 300)
+    data = [simulate(bonder, None, f, noise=REL, floor_db=-40.0, seed=4, floor_ref="median")]
+    other = UrdfDocument.load(URDF)
+    set_parameter(other, "z_bearing_ry.stiffness", 3000.0)
+    rep = db_rms_report(bonder, other, data, CostOptions())
+    Hs = simulate(other, None, f, noise=0.0).H
+    L = np.log(data[0].H / Hs)
+    e2 = (20.0 / np.log(10.0)) ** 2 * (L.real**2 + L.imag**2)
+    w = information_weights(data[0], "auto")
+    assert rep["weighting"] == "auto" and "sum(w * e^2)" in rep["definition"]
+    assert rep["final"] == pytest.approx(np.sqrt(np.sum(w * e2) / np.sum(w)), rel=1e-9)
+    assert rep["unweighted"]["final"] == pytest.approx(np.sqrt(np.mean(e2)), rel=1e-9)
+    assert rep["initial"] < rep["final"] < rep["unweighted"]["final"]
