@@ -79,12 +79,14 @@ def test_estimate_within_factor_two_on_dense_log_grid(bonder, regime, seed) -> N
 
 
 #: sparse grid: where the lines do not resolve the resonances (below ~1 kHz at 66 Hz spacing)
-#: the predictor cannot tell signal from noise; these shares bound what is known to happen
-SPARSE_MISS_SHARE = 0.1
-SPARSE_CALLED_NOISE_SHARE = 0.15
+#: the predictor cannot tell signal from noise; the issue's goals are not met there, these
+#: shares bound what is known to happen (tools/noise_accuracy.py, seeds 0-2: at most 10 %
+#: of the low-SNR points outside ×2, at most 1.6 % of the high-SNR points called noise)
+SPARSE_MISS_SHARE = 0.15
+SPARSE_CALLED_NOISE_SHARE = 0.03
 
 
-@pytest.mark.parametrize("regime", ["displacement_floor", "relative_only"])
+@pytest.mark.parametrize("regime", sorted(REGIMES))
 def test_sparse_linear_grid_60_lines(bonder, regime) -> None:
     f = np.linspace(4000.0 / 60, 4000.0, 60)
     low, miss, called_noise, est, _ = _check(bonder, f, regime, 0)

@@ -18,6 +18,12 @@ Method, per channel (a complex series ``H_k`` at frequencies ``f_k``):
    ``median |r_j|² / (ρ² A_j + φ² v_j) = ln 2`` (the median of an exponential variable is
    ``ln 2`` times its mean), ``φ² = 0`` where the relative part alone explains the scatter.
    A deep anti-resonance in purely relative noise therefore keeps a tiny noise level.
+   The floor is capped at :data:`CAP_FACTOR` × the window's lower-quartile ``|H|²`` over the
+   lower quartile of pure noise (a floor cannot lie far above what was measured); where the
+   grid is sparse (a window had to reach beyond ±:data:`OCTAVES` octave), also at
+   :data:`ENVELOPE_FACTOR` × a power law through the lower half of the window floors over the
+   whole channel (slope that of a floor flat in displacement, velocity or acceleration):
+   there the lines may not resolve the resonances, and unresolved signal looks like scatter.
 3. **Signal and SNR.** ``Ŝ = max(P̄ − κ N̂, 0)`` with ``P̄`` the 3-point mean of ``|H|²``,
    ``N̂ = σ̂²`` and ``κ =`` :data:`SIGNAL_MARGIN`; ``SNR = Ŝ / N̂``. The margin ``κ = 3``
    (instead of the unbiased 1) makes a point of pure noise count as signal only when its
@@ -46,6 +52,11 @@ RHO_QUANTILE = 0.1
 #: the floor is capped at CAP_FACTOR × the window's CAP_QUANTILE of |H|² over that of |noise|²
 CAP_QUANTILE = 0.25
 CAP_FACTOR = 2.0
+#: on a sparse grid the floor stays within this factor (power) of a power-law lower envelope
+ENVELOPE_FACTOR = 4.0
+#: slopes of φ² in log-log a sensor floor can have (flat in displacement, velocity or
+#: acceleration, seen as receptance, mobility or accelerance)
+FLOOR_SLOPES = (-4.0, -2.0, 0.0, 2.0, 4.0)
 #: Ŝ = max(P̄ − SIGNAL_MARGIN·N̂, 0)
 SIGNAL_MARGIN = 3.0
 #: fewer points than this: no estimate (NaN)
@@ -187,6 +198,36 @@ def _solve_floor(
     return np.where(excess(np.zeros(p.size)) > 0, phi2, 0.0)
 
 
+def _widened(freq_hz: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """True where a window had to reach beyond ±OCTAVES to hold MIN_HALF points a side (a
+    sparse grid: the lines may not resolve the resonances there)."""
+    lf = np.log2(freq_hz)
+    lo_o = np.searchsorted(lf, lf - OCTAVES)
+    hi_o = np.searchsorted(lf, lf + OCTAVES, side="right")
+    return (lo < lo_o) | (hi > hi_o)
+
+
+def _power_law_envelope(freq_hz: np.ndarray, phi2: np.ndarray, bound: np.ndarray) -> np.ndarray:
+    """A power law ``φ² = a f^b`` along the lower half of the window floors.
+
+    ``b`` is one of :data:`FLOOR_SLOPES` — a sensor floor flat in displacement, velocity or
+    acceleration seen in any of the three quantities — the one whose lower half of
+    ``ln φ² − b ln f`` scatters least; ``ln a`` is that lower half's median. Windows without a
+    floor (φ² = 0) enter with ``bound`` (what the relative part leaves room for).
+    """
+    x = np.log(freq_hz)
+    y = np.log(np.maximum(np.where(phi2 > 0, phi2, bound), 1e-300))
+    n_low = max(3, y.size // 2)
+    best: tuple[float, float, float] | None = None
+    for b in FLOOR_SLOPES:
+        lower = np.sort(y - b * x)[:n_low]
+        spread = float(np.std(lower))
+        if best is None or spread < best[0]:
+            best = (spread, b, float(np.median(lower)))
+    assert best is not None
+    return np.asarray(np.exp(best[2] + best[1] * x))
+
+
 def estimate_channel(freq_hz: np.ndarray, H: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """Noise of one channel.
 
@@ -222,6 +263,10 @@ def estimate_channel(freq_hz: np.ndarray, H: np.ndarray) -> tuple[np.ndarray, np
     qi = np.floor(CAP_QUANTILE * (valid.sum(axis=1) - 1)).astype(int)
     q = srt[np.arange(qi.size), qi]
     phi2 = np.minimum(phi2, CAP_FACTOR * q / -math.log1p(-CAP_QUANTILE))
+    wide = _widened(freq_hz, lo, hi)
+    if wide.any():
+        envelope = _power_law_envelope(freq_hz, phi2, rho2 * q)
+        phi2 = np.where(wide, np.minimum(phi2, ENVELOPE_FACTOR * envelope), phi2)
     sigma = np.sqrt(rho2 * mag2 + phi2)
     return sigma, np.sqrt(phi2), math.sqrt(rho2)
 
