@@ -167,6 +167,12 @@ def test_diagnosis_json_has_the_spec_keys(compliance_case, tmp_path):
     assert d["verdict"]["effect"] == "joint_compliance"
     g = d["verdict"]["gap_closed"]
     assert g == pytest.approx(1 - d["candidates"][0]["db_rms_after"] / d["gap"]["db_rms"])
+    # information weights (spec extension): which, how, and the unweighted figure kept
+    assert d["gap"]["weighting"] == d["weighting"]["weighting"] == "auto"
+    assert d["gap"]["db_rms_unweighted"] > 0 and "db_rms" in d["scoring"]
+    assert {"rho", "floor_median", "informative_share"} <= set(
+        d["weighting"]["datasets"][0]["channels"][0]
+    )
     assert (tmp_path / "augmented.urdf") in written
     UrdfDocument.load(tmp_path / "augmented.urdf").build_pinocchio_model()
 

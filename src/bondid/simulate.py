@@ -34,6 +34,9 @@ def simulate(
     seed: int | None = 0,
     quantity: str = "receptance",
     outputs: Sequence[str] | None = None,
+    floor_ref: str = "response",
+    floor_quantity: str | None = None,
+    coherence: bool = True,
 ) -> FrfData:
     """Measured-like FRFs of ``doc`` at ``operating_point``.
 
@@ -47,6 +50,13 @@ def simulate(
         seed: random seed (same seed, same data).
         quantity: receptance, mobility or accelerance.
         outputs: sensed joints (default: the transmitted joints).
+        floor_ref: what ``floor_db`` refers to (see
+            :func:`bondid.data.noise.add_measurement_noise`): ``"response"`` (default),
+            ``"median"`` (a flat floor below each channel's median ``|H|``), ``"channel"``,
+            ``"output"``.
+        floor_quantity: the quantity in which the floor is flat (None = ``quantity``;
+            ``"accelerance"``: an accelerometer's flat floor).
+        coherence: False leaves the coherence out (``coherence=None``, as many files come).
 
     Returns:
         :class:`FrfData` with ``H`` ``(n_out, n_in, n_freq)`` and coherence.
@@ -66,11 +76,15 @@ def simulate(
             rel=noise,
             floor_db=floor_db,
             rng=np.random.default_rng(seed),
-            floor_ref="response",
+            floor_ref=floor_ref,
+            quantity=quantity,
+            floor_quantity=floor_quantity,
         )
     else:
         coh = np.ones(H.shape)
-    return FrfData(f, am.outputs, am.inputs, H, quantity, dict(am.operating_point), coh)
+    return FrfData(
+        f, am.outputs, am.inputs, H, quantity, dict(am.operating_point), coh if coherence else None
+    )
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -85,6 +99,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument(
         "--floor-db", type=float, default=-70.0, help="sensor noise floor below the response (dB)"
     )
+    p.add_argument(
+        "--floor-ref", default="response", choices=["response", "median", "channel", "output"],
+        help="what --floor-db is below: the sensor's response envelope (default), each "
+        "channel's median |H| (flat floor), its peak, or its output row's peak",
+    )  # fmt: skip
+    p.add_argument(
+        "--floor-quantity", default=None, choices=["receptance", "mobility", "accelerance"],
+        help="quantity in which the floor is flat (default: --quantity; accelerance = an "
+        "accelerometer's flat floor, ∝ 1/ω² in receptance)",
+    )  # fmt: skip
+    p.add_argument("--no-coherence", action="store_true", help="write no coherence columns")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument(
         "--quantity", default="receptance", choices=["receptance", "mobility", "accelerance"]
@@ -113,6 +138,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             floor_db=args.floor_db,
             seed=args.seed,
             quantity=args.quantity,
+            floor_ref=args.floor_ref,
+            floor_quantity=args.floor_quantity,
+            coherence=not args.no_coherence,
         )
         data.source = str(args.out)
         is_uff = args.out.suffix.lower() in (".uff", ".unv", ".uff58")
@@ -123,7 +151,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             f" noise {args.noise:g}, seed {args.seed}, operating point {op or 'neutral'}"
         )
         if args.plot is not None:
-            from .plots import Curve, plot_bode
+            from .data.weights import noise_estimate
+            from .plots import Curve, noise_curve, plot_bode
 
             exact = simulate(doc, op, data.freq_hz, noise=0.0, quantity=args.quantity)
             plot_bode(
@@ -131,6 +160,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 [
                     Curve("simulated measurement", data.H, kind="measured"),
                     Curve("model (exact)", exact.H, kind="model"),
+                    noise_curve(noise_estimate(data).sigma),
                 ],
                 outputs=data.outputs,
                 inputs=data.inputs,

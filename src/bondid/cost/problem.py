@@ -21,6 +21,7 @@ import numpy as np
 
 from ..data.io import check_against_model
 from ..data.measurement import FrfData
+from ..data.weights import check_weighting, information_weights
 from ..exceptions import ChannelError, ConfigError
 from ..frf.jacobian import frf_and_jacobian, jacobian_blocks
 from ..linear.affine import AffineModel, build_affine_model
@@ -56,7 +57,12 @@ class CostOptions:
         channels: ``OUT.IN`` names to use; None = every channel in the data.
         channel_weights: extra weight per channel (default 1: the log residuals already
             balance channels whose levels differ by 50 dB).
-        use_coherence: weight each point by the measured coherence γ² where present.
+        use_coherence: False ignores the file's coherence column (``auto`` then weighs by
+            the estimated noise alone, ``coherence`` becomes ``none``).
+        weighting: the point weights (:mod:`bondid.data.weights`): ``auto`` (default: the
+            coherence combined with the noise estimated from the data where the file has a
+            coherence, the estimate alone otherwise), ``coherence``, ``estimated`` or
+            ``none``. Weights are ``w = Ŝ/(Ŝ + N̂)`` in 0..1, the coherence analogue.
     """
 
     kind: str = "complex_log"
@@ -66,10 +72,18 @@ class CostOptions:
     channels: Sequence[str] | None = None
     channel_weights: dict[str, float] = field(default_factory=dict)
     use_coherence: bool = True
+    weighting: str = "auto"
 
     @property
     def name(self) -> str:
         return f"{self.kind}_{self.norm}"
+
+    @property
+    def effective_weighting(self) -> str:
+        """The weighting applied, after ``use_coherence`` (see the class docstring)."""
+        if self.use_coherence:
+            return self.weighting
+        return {"auto": "estimated", "coherence": "none"}.get(self.weighting, self.weighting)
 
 
 @dataclass
@@ -101,6 +115,7 @@ class FrfProblem:
         self.doc = doc
         self.options = options or CostOptions()
         check_kind(self.options.kind, self.options.norm)
+        check_weighting(self.options.weighting, "cost weighting")
         if not datasets:
             raise ConfigError("no measured data given")
         inputs = tuple(t.joint for t in doc.transmissions)
@@ -145,10 +160,7 @@ class FrfProblem:
         used = np.unique(f)
         fidx = np.searchsorted(used, f)
         Hm = ds.H[a, b, f]
-        w = np.ones(a.size)
-        if opt.use_coherence and ds.coherence is not None:
-            coh = ds.coherence[a, b, f]
-            w = np.where(np.isfinite(coh), np.clip(coh, 0.0, 1.0), 1.0)
+        w = information_weights(ds, opt.effective_weighting)[a, b, f]
         names = np.array([f"{ds.outputs[i]}.{ds.inputs[j]}" for i, j in zip(a, b, strict=True)])
         for ch, cw in opt.channel_weights.items():
             w = np.where(names == ch, w * float(cw), w)

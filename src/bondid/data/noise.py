@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from ..exceptions import ConfigError, DataError
+from ..frf.quantity import QUANTITIES, quantity_factor
 
 
 def _complex_normal(rng: np.random.Generator, shape: tuple[int, ...]) -> np.ndarray:
@@ -32,6 +33,21 @@ def _response_level(mag: np.ndarray, freq: np.ndarray, octaves: float = 0.5) -> 
     return np.exp(out)[:, None, :]
 
 
+FLOOR_REFS: tuple[str, ...] = ("channel", "output", "response", "median")
+
+
+def _floor_level(mag: np.ndarray, freq: np.ndarray, floor_ref: str) -> np.ndarray:
+    """The reference level of the floor, broadcastable to ``mag`` ``(n_out, n_in, n_freq)``."""
+    if floor_ref == "response":
+        return _response_level(mag, freq)
+    if floor_ref == "median":
+        return np.median(mag, axis=2, keepdims=True)
+    peak = mag.max(axis=2, keepdims=True)
+    if floor_ref == "output":
+        peak = np.broadcast_to(peak.max(axis=1, keepdims=True), peak.shape)
+    return peak
+
+
 def add_measurement_noise(
     H: np.ndarray,
     freq_hz: np.ndarray,
@@ -40,6 +56,8 @@ def add_measurement_noise(
     floor_db: float | None = -60.0,
     rng: np.random.Generator | int | None,
     floor_ref: str = "channel",
+    quantity: str = "receptance",
+    floor_quantity: str | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Add measurement error to exact FRFs and estimate the coherence it implies.
 
@@ -61,7 +79,13 @@ def add_measurement_noise(
         floor_ref: what the floor refers to: ``"channel"`` (default, its peak), ``"output"``
             (the peak of the sensor's row) or ``"response"`` (the sensor's strongest channel
             at each frequency, smoothed over ±½ octave: noise that follows the response
-            envelope, so weak cross-terms and anti-resonance dips are noisy).
+            envelope, so weak cross-terms and anti-resonance dips are noisy) or ``"median"``
+            (the channel's median ``|H|``: a flat floor ``floor_db`` below it, e.g. -40 for
+            a harsh floor).
+        quantity: the quantity of ``H`` (receptance, mobility or accelerance).
+        floor_quantity: the quantity in which the floor is flat (and its reference is
+            taken): None = ``quantity``; ``"accelerance"`` on receptance data gives a floor
+            ∝ 1/ω² (an accelerometer's flat noise).
 
     Returns:
         ``(H_noisy, coherence)``: complex ``(n_out, n_in, n_freq)`` and real in 0..1 of
@@ -79,10 +103,14 @@ def add_measurement_noise(
         raise ConfigError(f"noise: relative error {rel!r} is invalid; give a finite value >= 0")
     if floor_db is not None and (math.isnan(floor_db) or floor_db == math.inf):
         raise ConfigError(f"noise: floor {floor_db!r} dB is invalid; give a finite value or None")
-    if floor_ref not in ("channel", "output", "response"):
+    if floor_ref not in FLOOR_REFS:
         raise ConfigError(
-            f"noise: floor_ref {floor_ref!r} is invalid; valid: channel, output, response"
+            f"noise: floor_ref {floor_ref!r} is invalid; valid: {', '.join(FLOOR_REFS)}"
         )
+    fq = quantity if floor_quantity is None else floor_quantity
+    for what, q in (("quantity", quantity), ("floor_quantity", fq)):
+        if q not in QUANTITIES:
+            raise ConfigError(f"noise: {what} {q!r} is invalid; valid: {', '.join(QUANTITIES)}")
     gen = np.random.default_rng(rng)
     absent = np.isnan(H)
     no_floor = floor_db is None or floor_db == -math.inf
@@ -96,13 +124,8 @@ def add_measurement_noise(
         sigma = np.zeros((*H.shape[:2], 1))
     else:
         assert floor_db is not None
-        if floor_ref == "response":
-            peak = _response_level(mag, freq)
-        else:
-            peak = mag.max(axis=2, keepdims=True)
-            if floor_ref == "output":
-                peak = np.broadcast_to(peak.max(axis=1, keepdims=True), peak.shape)
-        sigma = peak * 10.0 ** (floor_db / 20.0)
+        gain = np.abs(quantity_factor(freq, fq) / quantity_factor(freq, quantity))
+        sigma = _floor_level(mag * gain, freq, floor_ref) * 10.0 ** (floor_db / 20.0) / gain
     e1 = _complex_normal(gen, H.shape)
     e2 = _complex_normal(gen, H.shape)
     H_noisy = H * (1.0 + rel * e1) + sigma * e2

@@ -41,6 +41,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--points", type=int, default=500, help="frequencies per data set for refits")
     p.add_argument("--workers", type=int, default=2, help="worker processes (1 = in-process)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    p.add_argument(
+        "--weighting", default="auto", choices=["auto", "coherence", "estimated", "none"],
+        help="point weights: auto (coherence combined with the noise estimated from the data,"
+        " the estimate alone without coherence; default), coherence, estimated or none",
+    )  # fmt: skip
     return p
 
 
@@ -71,6 +76,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             channels=cli.split_names([args.channels]) if args.channels else None,
             n_points=args.points,
             workers=max(1, args.workers),
+            weighting=args.weighting,
         )
         prog = cli.Progress("diagnose", quiet=args.quiet)
 

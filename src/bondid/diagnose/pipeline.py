@@ -1,9 +1,13 @@
 """The diagnosis pipeline: :func:`diagnose`.
 
-1. Data: converted to receptance, limited to ``bands``; channels whose median coherence is
-   below :data:`MIN_CHANNEL_COHERENCE` (below the sensor noise floor) are left out unless the
-   user names channels; decimated to ``n_points`` log-spaced frequencies per data set for the
-   refits, and split into training and held-out frequencies (:mod:`.split`).
+1. Data: each point gets its information weight ``w = Ŝ/(Ŝ + N̂)``
+   (:mod:`bondid.data.weights`, ``Settings.weighting``: the coherence combined with the noise
+   estimated from the data, or the estimate alone when the file has no coherence), which then
+   stands in the data's ``coherence`` for every later step (fit weights, held-out scores, gap
+   figures); converted to receptance, limited to ``bands``; channels whose median weight is
+   below :data:`MIN_CHANNEL_COHERENCE` (median SNR below 0 dB: under the noise floor) are left
+   out unless the user names channels; decimated to ``n_points`` log-spaced frequencies per
+   data set for the refits, and split into training and held-out frequencies (:mod:`.split`).
 2. Parameter refit: :func:`bondid.fit.fit` (IPOPT, physically consistent, bounded) of the
    nominal parameters on the training data, then the same bounded least squares every
    candidate uses (:mod:`.engine`) from there — the parameter-only baseline.
@@ -29,6 +33,7 @@ import numpy as np
 from ..blas import THREAD_VARS
 from ..cost.problem import CostOptions
 from ..data.measurement import FrfData
+from ..data.weights import check_weighting
 from ..exceptions import ConfigError, DataError
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameter, select_parameters
@@ -59,6 +64,7 @@ class Settings:
     max_nfev: int = 30
     n_starts: int = 3
     modes: bool = True
+    weighting: str = "auto"
 
 
 @dataclass
@@ -83,11 +89,13 @@ class Diagnosis:
     split_info: dict[str, Any]
     wall_s: float
     notes: list[str] = field(default_factory=list)
+    weighting: dict[str, Any] = field(default_factory=dict)
 
 
 def used_channels(datasets: Sequence[FrfData], requested: Sequence[str] | None) -> list[str]:
     """Channels to use: ``requested`` (checked), else every present channel whose median
-    coherence is at least :data:`MIN_CHANNEL_COHERENCE` (all present ones without coherence)."""
+    coherence — the information weight, once :func:`diagnose` has put the weights there — is at
+    least :data:`MIN_CHANNEL_COHERENCE` (all present ones without coherence)."""
     present: list[str] = []
     for d in datasets:
         present += [c for c in d.channels if c not in present]
@@ -108,7 +116,10 @@ def used_channels(datasets: Sequence[FrfData], requested: Sequence[str] | None) 
         if not cohs or np.nanmedian(np.concatenate(cohs)) >= MIN_CHANNEL_COHERENCE:
             keep.append(c)
     if not keep:
-        raise DataError("every channel is below the noise floor (median coherence < 0.5)")
+        raise DataError(
+            "every channel is below the noise floor (median information weight < 0.5, i.e. "
+            "median SNR < 0 dB); name channels with --channels to use them anyway"
+        )
     return keep
 
 
@@ -238,9 +249,15 @@ def diagnose(
     s = settings or Settings()
     if not datasets:
         raise DataError("no measured data given")
-    full = [limit_bands(d, s.bands) for d in datasets]
+    from ..data.weights import weighting_summary, with_weights_as_coherence
+
+    check_weighting(s.weighting, "--weighting")
+    w_info = weighting_summary(list(datasets), s.weighting)
+    weighted = [with_weights_as_coherence(d, s.weighting) for d in datasets]
+    full = [limit_bands(d, s.bands) for d in weighted]
     channels = used_channels(full, s.channels)
-    options = CostOptions(channels=channels)
+    # the data's coherence now holds the information weights: weigh by it as it is
+    options = CostOptions(channels=channels, weighting="coherence")
     names = default_names(doc, s.free)
     if not names:
         raise ConfigError("no parameter to refit; check --free")
@@ -308,7 +325,7 @@ def diagnose(
         results=results, scores=scores, baseline_score=base_score, winner=winner,
         nominal_H=nominal_H, bands=bands, modes=modes, modes_by_dataset=by_ds,
         antiresonances=anti, fit_info=fit_info, split_info=split_info,
-        wall_s=time.perf_counter() - t0,
+        wall_s=time.perf_counter() - t0, weighting=w_info,
     )  # fmt: skip
 
 

@@ -3,8 +3,9 @@
 ``diagnosis.json`` keys (spec §4 plus extras):
 
 * ``gap`` — the remaining gap after the parameter refit (``db_rms``, ``by_channel``,
-  ``by_band``, ``modes``), plus ``mag_db_rms``, ``antiresonances``; ``gap_closed`` is always
-  relative to this ``gap.db_rms``;
+  ``by_band``, ``modes``), plus ``db_rms_unweighted``, ``mag_db_rms``, ``weighting``,
+  ``antiresonances``; ``gap_closed`` is always relative to this ``gap.db_rms``. Every gap
+  figure is information-weighted (:data:`DB_RMS_DEFINITION`);
 * ``candidates`` — best first: ``effect``, ``location``, ``parameters`` {name: value},
   ``db_rms_after``, ``gap_closed``, ``heldout_db_rms_after``, ``score`` (see
   :mod:`.scoring`), plus ``parameters_std``, ``heldout_weighted_rms``, ``train_weighted_rms``,
@@ -14,7 +15,10 @@
   ``reason``, ``detail``, ``parameters`` with ``std``, ``where`` (gap by channel and band after it);
 * ``stages`` — the gap (total, per channel, per band) of the nominal model, after the
   parameter refit and after the winning effect; ``gap_closed_total`` (vs the nominal gap);
-* ``refit`` (the parameter refit: names, values, std, IPOPT stage), ``split``, ``settings``.
+* ``refit`` (the parameter refit: names, values, std, IPOPT stage), ``split``, ``settings``;
+* ``weighting`` — which weighting, its rule, and per data set and channel the estimated
+  noise (``rho``, ``floor_median``, ``floor_db_below_median``) and the informative share
+  (SNR ≥ 10 dB), see :func:`bondid.data.weights.weighting_summary`.
 """
 
 from __future__ import annotations
@@ -46,24 +50,37 @@ def _num(v: Any) -> Any:
     return v
 
 
+#: how the gap figures are defined (written into diagnosis.json)
+DB_RMS_DEFINITION = (
+    "db_rms = sqrt(sum(w * e^2) / sum(w)) over the used channels and all their frequencies, "
+    "e = (20/ln 10)|ln(H_meas/H_model)| (phase wrapped), w = the point's information weight "
+    "S/(S+N) (see 'weighting'); the same for by_channel, by_band, held-out figures and "
+    "gap_closed; db_rms_unweighted: the plain RMS of e over the points with w >= 0.5"
+)
+
+
 def gaps(diag: Diagnosis) -> dict[str, GapReport]:
-    """Gap reports of the nominal model, the refit and the winner (when there is one)."""
+    """Weighted gap reports of the nominal model, the refit and the winner (when there is
+    one); the unweighted figures over the points of weight ≥ 0.5 under ``"<stage>_unweighted"``.
+    The data's coherence holds the information weights (see :func:`.pipeline.diagnose`)."""
     from .split import mask_incoherent
 
-    sets = [mask_incoherent(d) for d in diag.datasets]
+    masked = [mask_incoherent(d) for d in diag.datasets]
     ch = diag.channels
-    out = {
-        "nominal": gap_report(sets, diag.nominal_H, diag.bands, channels=ch),
-        "refit": gap_report(sets, diag.baseline.full_H, diag.bands, channels=ch),
-    }
+    models = {"nominal": diag.nominal_H, "refit": diag.baseline.full_H}
     if diag.winner is not None:
-        out["effect"] = gap_report(sets, diag.winner.full_H, diag.bands, channels=ch)
+        models["effect"] = diag.winner.full_H
+    out: dict[str, GapReport] = {}
+    for stage, H in models.items():
+        out[stage] = gap_report(diag.datasets, H, diag.bands, channels=ch, weighting="coherence")
+        out[f"{stage}_unweighted"] = gap_report(masked, H, diag.bands, channels=ch)
     return out
 
 
-def _gap_dict(g: GapReport) -> dict[str, Any]:
+def _gap_dict(g: GapReport, plain: GapReport | None = None) -> dict[str, Any]:
     return {
         "db_rms": g.db_rms,
+        "db_rms_unweighted": None if plain is None else plain.db_rms,
         "mag_db_rms": g.mag_db_rms,
         "by_channel": dict(g.by_channel),
         "by_band": [
@@ -93,6 +110,7 @@ def to_json_dict(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, An
                 "location": r.location,
                 "parameters": vals,
                 "db_rms_after": r.db_rms,
+                "db_rms_unweighted_after": r.db_rms_unweighted,
                 "gap_closed": gap_closed(before, r.db_rms),
                 "heldout_db_rms_after": r.heldout_db_rms,
                 "score": sc,
@@ -105,7 +123,8 @@ def to_json_dict(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, An
                 "error": r.error or None,
             }
         )
-    gap = _gap_dict(reports["refit"])
+    gap = _gap_dict(reports["refit"], reports.get("refit_unweighted"))
+    gap["weighting"] = diag.weighting.get("weighting")
     gap["modes"] = [
         {k: row.get(k) for k in ("f_measured_hz", "f_model_hz", "status", "mac", "df_rel",
                                  "zeta_measured", "zeta_model")}
@@ -124,7 +143,7 @@ def to_json_dict(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, An
             "parameters": {n: {"value": v, "std": std.get(n)} for n, v in vals.items()},
             "reason": f"held-out score {diag.scores[0]:.3f} dB vs {diag.baseline_score:.3f} dB"
             f" for the parameter refit (needs ≥ {REL_MARGIN:.0%} and ≥ {ABS_MARGIN_DB} dB lower)",
-            "where": _gap_dict(reports["effect"]),
+            "where": _gap_dict(reports["effect"], reports.get("effect_unweighted")),
         }
     else:
         best = diag.scores[0] if diag.scores else math.nan
@@ -137,9 +156,11 @@ def to_json_dict(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, An
             f" ≥ {ABS_MARGIN_DB} dB lower)",
         }
     stages = {
-        "nominal": _gap_dict(reports["nominal"]),
-        "refit": _gap_dict(reports["refit"]),
-        "effect": _gap_dict(reports["effect"]) if "effect" in reports else None,
+        "nominal": _gap_dict(reports["nominal"], reports.get("nominal_unweighted")),
+        "refit": _gap_dict(reports["refit"], reports.get("refit_unweighted")),
+        "effect": _gap_dict(reports["effect"], reports.get("effect_unweighted"))
+        if "effect" in reports
+        else None,
         "gap_closed_by_refit": gap_closed(nominal, before),
         "gap_closed_total": gap_closed(nominal, w.db_rms if w else before),
     }
@@ -166,12 +187,15 @@ def to_json_dict(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, An
         "modes_by_dataset": diag.modes_by_dataset,
         "split": diag.split_info,
         "scoring": {
-            "score": "held-out coherence-weighted RMS complex-log error [dB] x FPE factor",
+            "score": "held-out information-weighted RMS complex-log error [dB] x FPE factor",
             "rel_margin": REL_MARGIN,
             "abs_margin_db": ABS_MARGIN_DB,
-            "gap_closed": "1 - db_rms_after / gap.db_rms (gap after the parameter refit)",
-            "db_rms_points": "used channels, points with coherence >= 0.5 (where given)",
+            "gap_closed": "1 - db_rms_after / gap.db_rms (gap after the parameter refit; "
+            "both weighted)",
+            "db_rms": DB_RMS_DEFINITION,
+            "db_rms_points": "used channels, all points, weighted by the information weight",
         },
+        "weighting": diag.weighting,
         "wall_s": diag.wall_s,
     }
     return _num(out)
@@ -192,7 +216,8 @@ def write_outputs(diag: Diagnosis, out_dir: Path, *, plots: bool = True) -> list
 
 
 def _plots(diag: Diagnosis, reports: dict[str, GapReport], out_dir: Path) -> list[Path]:
-    from ..plots import Curve, plot_bode, plot_residual_map
+    from ..data.weights import noise_estimate
+    from ..plots import Curve, noise_curve, plot_bode, plot_residual_map
 
     out = []
     g = reports["refit"]
@@ -213,6 +238,7 @@ def _plots(diag: Diagnosis, reports: dict[str, GapReport], out_dir: Path) -> lis
         if best is not None:
             tag = "with effect" if best is diag.winner else "best candidate (not retained)"
             curves.append(Curve(f"{tag}: {best.label}", best.full_H[k]))
+        curves.append(noise_curve(noise_estimate(d).sigma))
         out.append(
             plot_bode(
                 d.freq_hz, curves, outputs=d.outputs, inputs=d.inputs,

@@ -81,9 +81,12 @@ class JobResult:
         label: ``effect@location`` or ``"refit"`` for the baseline.
         names, values, std: refit variables (nominal first, then new), SI.
         n_new: number of new parameters.
-        train_rms, heldout_rms: weighted complex-log RMS [dB] (coherence weights).
+        train_rms, heldout_rms: weighted complex-log RMS [dB] (the data's coherence, which
+            the diagnosis fills with the information weights).
         n_train: number of training residuals.
-        heldout_db_rms, db_rms: the spec's unweighted figure on held-out / all data [dB].
+        heldout_db_rms, db_rms: the weighted ``db_rms`` ``sqrt(Σ w e² / Σ w)`` on held-out /
+            all data [dB], over the used channels.
+        db_rms_unweighted: the plain RMS over the points with weight ≥ 0.5 [dB].
         full_H: model FRF per full data set (for the gap report and plots).
         urdf: the refitted (augmented) model as URDF text.
         error: why the job failed ("" when it did not).
@@ -107,6 +110,7 @@ class JobResult:
     status: str = ""
     error: str = ""
     extra: dict[str, Any] = field(default_factory=dict)
+    db_rms_unweighted: float = float("nan")
 
 
 def _modifier(effect, candidate):  # type: ignore[no-untyped-def]
@@ -116,12 +120,19 @@ def _modifier(effect, candidate):  # type: ignore[no-untyped-def]
     return fn
 
 
-def _unweighted_db_rms(refit: Refit, u: np.ndarray) -> float:
+def _db_rms(refit: Refit, u: np.ndarray, weighted: bool = True) -> float:
+    """Weighted ``db_rms`` (weights = the data's coherence) over the used channels, or the
+    unweighted one over the points of weight ≥ 0.5."""
     from .gap import gap_report
     from .split import mask_incoherent
 
-    sets = [mask_incoherent(b.data) for b in refit.problem.blocks]
     chans = refit.problem.options.channels
+    if weighted:
+        sets = [b.data for b in refit.problem.blocks]
+        return float(
+            gap_report(sets, refit.frf_for_data(u), channels=chans, weighting="coherence").db_rms
+        )
+    sets = [mask_incoherent(b.data) for b in refit.problem.blocks]
     return float(gap_report(sets, refit.frf_for_data(u), channels=chans).db_rms)
 
 
@@ -315,11 +326,12 @@ def _run(job: Job, t0: float) -> JobResult:
         train_rms=float(np.sqrt(r @ r)),
         heldout_rms=float(np.sqrt(held.cost(u))),
         n_train=int(r.size),
-        heldout_db_rms=_unweighted_db_rms(held, u),
-        db_rms=_unweighted_db_rms(full, u),
+        heldout_db_rms=_db_rms(held, u),
+        db_rms=_db_rms(full, u),
         full_H=full.frf_for_data(u),
         urdf=doc.to_string(),
         wall_s=time.perf_counter() - t0,
         status=status,
         extra=extra,
+        db_rms_unweighted=_db_rms(full, u, weighted=False),
     )

@@ -32,6 +32,7 @@ from ..cli import (
 from ..cost.problem import CostOptions
 from ..cost.residuals import NORMS, RESIDUAL_KINDS
 from ..data.measurement import FrfData
+from ..data.weights import WEIGHTINGS
 from ..exceptions import ConfigError, DependencyError
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameters, parameter_infos, select_parameters
@@ -92,7 +93,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--norm", choices=NORMS, help="norm (default l2)")
     p.add_argument(
         "--coherence", action=argparse.BooleanOptionalAction, default=None,
-        help="weight by the measured coherence where present (default on)",
+        help="use the file's coherence column in the weights where present (default on);"
+        " --no-coherence ignores it (the weights then come from the estimated noise)",
+    )  # fmt: skip
+    p.add_argument(
+        "--weighting", choices=WEIGHTINGS,
+        help="point weights: auto (coherence combined with the noise estimated from the data,"
+        " the estimate alone without coherence; default), coherence, estimated or none",
     )  # fmt: skip
     p.add_argument("--multistart", type=int, metavar="N", help="number of starts (default 1)")
     p.add_argument("--seed", type=int, help="Latin-hypercube seed (default 0)")
@@ -163,6 +170,8 @@ def resolve_settings(args: argparse.Namespace) -> StudySettings:
         s.norm = args.norm
     if args.coherence is not None:
         s.coherence = args.coherence
+    if args.weighting is not None:
+        s.weighting = args.weighting
     s.multistart = _positive(args.multistart, "--multistart", 1) or s.multistart
     if args.seed is not None:
         s.seed = int(_positive(args.seed, "--seed", 0) or 0)
@@ -208,6 +217,7 @@ def cost_options(s: StudySettings) -> CostOptions:
         channels=None if s.channels is None else list(s.channels),
         channel_weights=dict(s.channel_weights),
         use_coherence=s.coherence,
+        weighting=s.weighting,
     )
 
 
@@ -279,7 +289,14 @@ def summary(result: Any, content: dict[str, Any] | None, extra: dict[str, Any]) 
     if content is not None:
         db = content["db_rms"]
         if db["initial"] is not None:
-            lines.append(f"db_rms: {db['initial']:.3f} dB → {db['final']:.3f} dB (all points)")
+            lines.append(
+                f"db_rms ({db['weighting']}-weighted): {db['initial']:.3f} dB →"
+                f" {db['final']:.3f} dB"
+            )
+            uw = db["unweighted"]
+            lines.append(
+                f"db_rms unweighted: {uw['initial']:.3f} dB → {uw['final']:.3f} dB (all points)"
+            )
             c = db.get("coherent") or {}
             if c.get("final") is not None and c["fraction"] < 1.0:
                 lines.append(

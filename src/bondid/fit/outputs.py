@@ -137,6 +137,27 @@ def _sq_db(Hs: np.ndarray, Hm: np.ndarray) -> np.ndarray:
 COHERENT = 0.5
 
 
+#: how the headline ``db_rms`` is defined (written into fit.json)
+DB_RMS_DEFINITION = (
+    "db_rms = sqrt(sum(w * e^2) / sum(w)) over the used points, e = (20/ln 10)|ln(H_meas/H_model)|"
+    " (phase wrapped), w = the point's information weight (see 'weighting'); "
+    "db_rms_unweighted: the same with w = 1"
+)
+
+
+def _wrms(e: list[np.ndarray], w: list[np.ndarray]) -> float | None:
+    """``sqrt(Σ w e² / Σ w)`` over the concatenated points (None if no weight)."""
+    if not e:
+        return None
+    ee, ww = np.concatenate(e), np.concatenate(w)
+    tot = float(ww.sum())
+    return float(np.sqrt(np.sum(ww * ee) / tot)) if ee.size and tot > 0 else None
+
+
+def _rms(e: list[np.ndarray]) -> float | None:
+    return _wrms(e, [np.ones(x.size) for x in e])
+
+
 def db_rms_report(
     initial: UrdfDocument,
     fitted: UrdfDocument,
@@ -144,34 +165,44 @@ def db_rms_report(
     options: CostOptions,
     model_frfs: list[tuple[np.ndarray, np.ndarray]] | None = None,
 ) -> dict[str, Any]:
-    """The spec's ``db_rms`` before and after, over the points the fit used.
+    """The ``db_rms`` before and after over the points the fit used, weighted (headline) and
+    unweighted (the spec's plain figure).
 
     Returns:
-        ``{"initial", "final", "by_channel": {ch: {"initial", "final"}}, "by_dataset":
-        [{"file", "initial", "final", "by_channel"}], "coherent": {"initial", "final",
-        "fraction", "min_coherence"}}`` (dB). ``coherent`` is the same figure over the points
-        whose measured coherence is at least :data:`COHERENT` (all points without coherence),
-        ``fraction`` their share: points near the sensor noise floor (anti-resonances, weak
-        cross terms) carry tens of dB of noise that no model can fit.
+        ``{"initial", "final", "weighting", "definition", "unweighted": {"initial", "final"},
+        "by_channel": {ch: {"initial", "final", "initial_unweighted", "final_unweighted"}},
+        "by_dataset": [{"file", "initial", "final", "initial_unweighted",
+        "final_unweighted", "by_channel"}], "coherent": {"initial", "final", "fraction",
+        "min_coherence"}}`` (dB). ``initial``/``final`` are ``sqrt(Σ w e² / Σ w)`` with ``w``
+        the information weight of :attr:`CostOptions.effective_weighting` (so noise-only
+        points barely count); ``coherent`` is the unweighted figure over the points whose
+        measured coherence is at least :data:`COHERENT` (all points without coherence).
     """
+    from ..data.weights import information_weights
+
+    weighting = options.effective_weighting
     frfs = model_frfs or [(model_frf(initial, ds), model_frf(fitted, ds)) for ds in datasets]
-    tot: dict[str, list[float]] = {"initial": [], "final": []}
-    coh: dict[str, list[float]] = {"initial": [], "final": []}
+    E: dict[str, list[np.ndarray]] = {"initial": [], "final": []}
+    W: list[np.ndarray] = []
+    coh: dict[str, list[np.ndarray]] = {"initial": [], "final": []}
     n_all = 0
-    per_ch: dict[str, dict[str, list[float]]] = {}
+    per_ch: dict[str, dict[str, list[np.ndarray]]] = {}
     by_ds = []
     for ds, (H0, H1) in zip(datasets, frfs, strict=True):
         mask = _used_mask(ds, options)
+        wall = np.nan_to_num(information_weights(ds, weighting), nan=0.0)
         entry: dict[str, Any] = {"file": ds.source, "by_channel": {}}
         good = mask.copy()
         if ds.coherence is not None:
             good &= np.nan_to_num(ds.coherence, nan=1.0) >= COHERENT
         n_all += int(mask.sum())
+        W.append(wall[mask])
         for label, H in (("initial", H0), ("final", H1)):
             e = _sq_db(H[mask], ds.H[mask])
-            entry[label] = float(np.sqrt(np.mean(e))) if e.size else None
-            tot[label] += list(e)
-            coh[label] += list(_sq_db(H[good], ds.H[good]))
+            entry[label] = _wrms([e], [wall[mask]])
+            entry[f"{label}_unweighted"] = _rms([e])
+            E[label].append(e)
+            coh[label].append(_sq_db(H[good], ds.H[good]))
             for a, o in enumerate(ds.outputs):
                 for b, i in enumerate(ds.inputs):
                     m = mask[a, b]
@@ -179,22 +210,33 @@ def db_rms_report(
                         continue
                     ch = f"{o}.{i}"
                     ec = _sq_db(H[a, b, m], ds.H[a, b, m])
-                    entry["by_channel"].setdefault(ch, {})[label] = float(np.sqrt(np.mean(ec)))
-                    per_ch.setdefault(ch, {"initial": [], "final": []})[label] += list(ec)
+                    slot = entry["by_channel"].setdefault(ch, {})
+                    slot[label] = _wrms([ec], [wall[a, b, m]])
+                    slot[f"{label}_unweighted"] = _rms([ec])
+                    acc = per_ch.setdefault(ch, {"initial": [], "final": [], "w": []})
+                    acc[label].append(ec)
+                    if label == "initial":
+                        acc["w"].append(wall[a, b, m])
         by_ds.append(entry)
 
-    def rms(v: list[float]) -> float | None:
-        return float(np.sqrt(np.mean(v))) if v else None
+    def channel(d: dict[str, list[np.ndarray]]) -> dict[str, float | None]:
+        out = {k: _wrms(d[k], d["w"]) for k in ("initial", "final")}
+        out.update({f"{k}_unweighted": _rms(d[k]) for k in ("initial", "final")})
+        return out
 
+    n_good = sum(x.size for x in coh["final"])
     return {
-        "initial": rms(tot["initial"]),
-        "final": rms(tot["final"]),
-        "by_channel": {ch: {k: rms(v) for k, v in d.items()} for ch, d in per_ch.items()},
+        "initial": _wrms(E["initial"], W),
+        "final": _wrms(E["final"], W),
+        "weighting": weighting,
+        "definition": DB_RMS_DEFINITION,
+        "unweighted": {"initial": _rms(E["initial"]), "final": _rms(E["final"])},
+        "by_channel": {ch: channel(d) for ch, d in per_ch.items()},
         "by_dataset": by_ds,
         "coherent": {
-            "initial": rms(coh["initial"]),
-            "final": rms(coh["final"]),
-            "fraction": len(coh["final"]) / n_all if n_all else None,
+            "initial": _rms(coh["initial"]),
+            "final": _rms(coh["final"]),
+            "fraction": n_good / n_all if n_all else None,
             "min_coherence": COHERENT,
         },
     }
@@ -231,7 +273,8 @@ def write_outputs(
     Raises:
         ConfigError: an output would overwrite an input.
     """
-    from ..plots import Curve, plot_bode, plot_convergence
+    from ..data.weights import noise_estimate, weighting_summary
+    from ..plots import Curve, noise_curve, plot_bode, plot_convergence
 
     out = check_out_dir(out_dir, inputs, datasets)
     out.mkdir(parents=True, exist_ok=True)
@@ -245,6 +288,7 @@ def write_outputs(
                 Curve("measured", ds.H, kind="measured"),
                 Curve("initial model", H0, style={"linestyle": "--"}),
                 Curve("fitted model", H1),
+                noise_curve(noise_estimate(ds).sigma),
             ],
             outputs=ds.outputs,
             inputs=ds.inputs,
@@ -270,6 +314,8 @@ def write_outputs(
     content.update(extra or {})
     content["data_files"] = [ds.source for ds in datasets]
     content["db_rms"] = db_rms_report(initial_doc, result.document, datasets, options, frfs)
+    content["db_rms_unweighted"] = content["db_rms"]["unweighted"]
+    content["weighting"] = weighting_summary(list(datasets), options.effective_weighting)
     content["outputs"] = [*written, FIT_JSON]
     write_text_atomic(out / FIT_JSON, json.dumps(jsonable(content), indent=2) + "\n")
     return content

@@ -21,7 +21,8 @@ Every section and key is optional::
     norm = "l2"                              # --norm
     bands = [[1.0, 2000.0]]                  # --band (Hz)
     channels = ["x.x", "y.y"]                # --channels
-    coherence = true                         # --no-coherence turns it off
+    coherence = true                         # --no-coherence ignores the coherence column
+    weighting = "auto"                       # --weighting: auto|coherence|estimated|none
     [cost.channel_weights]
     "x.x" = 2.0
 
@@ -52,6 +53,7 @@ from pathlib import Path
 from typing import Any
 
 from ..cost.residuals import NORMS, RESIDUAL_KINDS
+from ..data.weights import WEIGHTINGS
 from ..exceptions import ConfigError
 
 #: Parameter kinds a bound key may name (besides names and globs).
@@ -62,7 +64,7 @@ STAGES = ("stiffness", "damping", "inertia")
 _TOP_KEYS = ("model", "data", "parameters", "bounds", "cost", "search")
 _SECTION_KEYS = {
     "parameters": ("free", "fixed"),
-    "cost": ("kind", "norm", "bands", "channels", "coherence", "channel_weights"),
+    "cost": ("kind", "norm", "bands", "channels", "coherence", "weighting", "channel_weights"),
     "search": (
         "multistart",
         "seed",
@@ -92,7 +94,8 @@ class StudySettings:
         bands: frequency bands (Hz) to fit, None = all.
         channels: ``OUT.IN`` channels to fit, None = all present.
         channel_weights: extra weight per channel.
-        coherence: weight points by the measured coherence where present.
+        coherence: use the file's coherence column in the weights where present.
+        weighting: point weights (:data:`bondid.data.weights.WEIGHTINGS`), default auto.
         multistart: number of starts (1 = the URDF values only).
         seed: seed of the Latin hypercube.
         workers: parallel processes for the multistart.
@@ -118,6 +121,7 @@ class StudySettings:
     channels: list[str] | None = None
     channel_weights: dict[str, float] = field(default_factory=dict)
     coherence: bool = True
+    weighting: str = "auto"
     multistart: int = 1
     seed: int = 0
     workers: int = 2
@@ -144,6 +148,7 @@ class StudySettings:
             "channels": None if self.channels is None else list(self.channels),
             "channel_weights": dict(self.channel_weights),
             "coherence": self.coherence,
+            "weighting": self.weighting,
             "multistart": self.multistart,
             "seed": self.seed,
             "workers": self.workers,
@@ -345,6 +350,8 @@ def study_from_dict(
             raise _fail(where, "cost.channels", "empty; give OUT.IN names such as x.x")
     if "coherence" in cost:
         s.coherence = check_bool(cost["coherence"], where, "cost.coherence")
+    if "weighting" in cost:
+        s.weighting = check_choice(cost["weighting"], WEIGHTINGS, where, "cost.weighting")
     if "channel_weights" in cost:
         for ch, w in _table(cost["channel_weights"], where, "cost.channel_weights").items():
             key = f"cost.channel_weights.{ch}"

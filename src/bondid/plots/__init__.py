@@ -4,7 +4,7 @@ Every ``plot_*`` function writes its PNG atomically and returns the output path;
 ``build_*`` returns the :class:`matplotlib.figure.Figure` without saving it.
 """
 
-from .bode import Curve, build_bode, plot_bode
+from .bode import Curve, build_bode, noise_curve, plot_bode
 from .convergence import build_convergence, plot_convergence
 from .heatmap import build_heatmap, plot_heatmap
 from .residual_map import build_residual_map, plot_residual_map
@@ -17,6 +17,7 @@ __all__ = [
     "build_heatmap",
     "build_residual_map",
     "build_sweep",
+    "noise_curve",
     "plot_bode",
     "plot_convergence",
     "plot_heatmap",

@@ -34,6 +34,7 @@ _KIND_STYLE: dict[str, dict[str, Any]] = {
     "measured": {"color": "0.55", "linewidth": 2.4, "alpha": 0.7, "zorder": 2},
     "reference": {"color": "0.55", "linewidth": 1.0, "linestyle": "--", "zorder": 2},
     "model": {"linewidth": 1.5, "zorder": 3},
+    "noise": {"color": "0.3", "linewidth": 1.1, "linestyle": ":", "zorder": 2},
 }
 
 # response unit -> excitation unit (the generalised force dual), and the reverse
@@ -50,8 +51,9 @@ class Curve:
         H: complex FRF, shape ``(n_out, n_in, n_freq)``, NaN for channels it lacks.
         style: matplotlib ``Line2D`` keyword overrides (``color``, ``linewidth``, ...).
         freq_hz: its own frequency grid, shape ``(n_freq,)``, Hz; None = the plot's grid.
-        kind: ``"measured"`` (thin grey line), ``"model"`` (coloured line) or
-            ``"reference"`` (grey dashed); only chooses the default style.
+        kind: ``"measured"`` (thin grey line), ``"model"`` (coloured line),
+            ``"reference"`` (grey dashed) or ``"noise"`` (a noise level, e.g. the estimated
+            noise floor: dotted dark grey, magnitude only); chooses the default style.
     """
 
     label: str
@@ -181,7 +183,7 @@ def build_bode(
     n_model = 0
     for c in curves:
         st = dict(_KIND_STYLE.get(c.kind, _KIND_STYLE["model"]))
-        if c.kind not in ("measured", "reference") and "color" not in c.style:
+        if c.kind not in ("measured", "reference", "noise") and "color" not in c.style:
             st["color"] = MODEL_COLORS[n_model % len(MODEL_COLORS)]
             n_model += 1
         st.update(c.style)
@@ -211,8 +213,10 @@ def build_bode(
             h = H[a, b]
             if not np.any(np.isfinite(h)):
                 continue
-            any_data = True
+            any_data = any_data or c.kind != "noise"
             ax_m.plot(f, magnitude_db(h), label=c.label, **st)
+            if c.kind == "noise":
+                continue
             fp, ph = _wrap_phase_deg(f, h)
             ax_p.plot(fp, ph, label=c.label, **st)
         ax_m.set_xscale("log")
@@ -248,6 +252,11 @@ def build_bode(
     if title:
         fig.suptitle(title, fontsize=13)
     return fig
+
+
+def noise_curve(sigma: np.ndarray, label: str = "estimated noise") -> Curve:
+    """A :class:`Curve` of a noise level ``sigma`` ``(n_out, n_in, n_freq)`` (units of ``H``)."""
+    return Curve(label, np.asarray(sigma, dtype=float).astype(complex), kind="noise")
 
 
 def plot_bode(

@@ -1,0 +1,334 @@
+"""Measurement noise estimated from a measured FRF alone (no coherence needed).
+
+Method, per channel (a complex series ``H_k`` at frequencies ``f_k``):
+
+1. **Leave-one-out prediction.** Each point is predicted from its four nearest neighbours
+   (two each side inside the grid, one-sided at the ends) by the cubic Lagrange polynomial in
+   ``ln f`` on the actual abscissae, so log, linear and non-uniform grids are all handled; on a
+   uniform grid this is the 4th-difference predictor. The residual ``r_k = H_k − Σ c_j H_j``
+   of independent noise of variance ``σ_k²`` has ``E|r_k|² = σ_k² + Σ c_j² σ_j²`` (the known
+   variance factor), while a smooth FRF is cancelled up to its 4th derivative.
+2. **Two-component model** ``σ_k² = ρ²|H_k|² + φ(f_k)²``: a relative part ``ρ`` (one per
+   channel) and an absolute floor ``φ`` smooth in ``log f``. Both are fitted with medians,
+   so the few points where the predictor fails (a sharp resonance between grid lines) do not
+   count: ``ρ²`` is a low quantile (:data:`RHO_QUANTILE`) over sliding windows of the window
+   medians of ``|r|² / A`` (``A`` = the relative part's variance factor), i.e. the level of
+   the windows where the relative part dominates; then in each window (±:data:`OCTAVES`
+   octave, at least :data:`MIN_HALF` points each side) ``φ²`` solves
+   ``median |r_j|² / (ρ² A_j + φ² v_j) = ln 2`` (the median of an exponential variable is
+   ``ln 2`` times its mean), ``φ² = 0`` where the relative part alone explains the scatter.
+   A deep anti-resonance in purely relative noise therefore keeps a tiny noise level.
+   The floor is capped at :data:`CAP_FACTOR` × the window's lower-quartile ``|H|²`` over the
+   lower quartile of pure noise (a floor cannot lie far above what was measured); where the
+   grid is sparse (a window had to reach beyond ±:data:`OCTAVES` octave), also at
+   :data:`ENVELOPE_FACTOR` × a power law through the lower half of the window floors over the
+   whole channel (slope that of a floor flat in displacement, velocity or acceleration):
+   there the lines may not resolve the resonances, and unresolved signal looks like scatter.
+3. **Signal and SNR.** ``Ŝ = max(P̄ − κ N̂, 0)`` with ``P̄`` the 3-point mean of ``|H|²``,
+   ``N̂ = σ̂²`` and ``κ =`` :data:`SIGNAL_MARGIN`; ``SNR = Ŝ / N̂``. The margin ``κ = 3``
+   (instead of the unbiased 1) makes a point of pure noise count as signal only when its
+   3-point power exceeds 3 N̂ (probability 0.6 %): noise-only points, whose log error is tens
+   of dB, must weigh next to nothing, as they do with a measured coherence.
+
+Noise here is the complex standard deviation of the measured FRF (``E|H_meas − H|² = σ²``),
+in the units of ``H``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..exceptions import DataError
+
+#: half-width of the floor windows [octaves]
+OCTAVES = 0.25
+#: at least this many points each side in a window
+MIN_HALF = 8
+#: quantile over windows of the relative level that sets ρ²
+RHO_QUANTILE = 0.1
+#: the floor is capped at CAP_FACTOR × the window's CAP_QUANTILE of |H|² over that of |noise|²
+CAP_QUANTILE = 0.25
+CAP_FACTOR = 2.0
+#: on a sparse grid the floor stays within this factor (power) of a power-law lower envelope
+ENVELOPE_FACTOR = 4.0
+#: slopes of φ² in log-log a sensor floor can have (flat in displacement, velocity or
+#: acceleration, seen as receptance, mobility or accelerance)
+FLOOR_SLOPES = (-4.0, -2.0, 0.0, 2.0, 4.0)
+#: Ŝ = max(P̄ − SIGNAL_MARGIN·N̂, 0)
+SIGNAL_MARGIN = 3.0
+#: fewer points than this: no estimate (NaN)
+MIN_POINTS = 12
+#: SNR [dB] from which a point counts as carrying information
+INFORMATIVE_DB = 10.0
+_LN2 = math.log(2.0)
+
+
+@dataclass
+class ChannelNoise:
+    """Summary of one channel's estimated noise.
+
+    Attributes:
+        channel: ``OUT.IN``.
+        rho: relative noise level ρ (std of the relative error, dimensionless).
+        floor_median: median over frequency of the absolute floor φ (units of ``H``).
+        floor_db: that floor in dB relative to the channel's median ``|H|``.
+        informative: share of the frequencies with estimated SNR ≥ :data:`INFORMATIVE_DB`.
+    """
+
+    channel: str
+    rho: float
+    floor_median: float
+    floor_db: float
+    informative: float
+
+    def as_dict(self) -> dict[str, float | str]:
+        return {
+            "channel": self.channel,
+            "rho": self.rho,
+            "floor_median": self.floor_median,
+            "floor_db_below_median": self.floor_db,
+            "informative_share": self.informative,
+        }
+
+
+@dataclass
+class NoiseEstimate:
+    """Estimated noise of a measured FRF set.
+
+    Attributes:
+        freq_hz: ``(n_freq,)`` Hz.
+        sigma: complex noise standard deviation, ``(n_out, n_in, n_freq)``, units of ``H``
+            (NaN where a channel is absent or too short to estimate).
+        floor: the absolute part φ, same shape and units.
+        snr_db: estimated signal-to-noise ratio ``10 log10(Ŝ/N̂)`` [dB], same shape.
+        rho: relative part per channel, ``(n_out, n_in)`` (NaN where absent).
+        channels: per present channel summaries.
+    """
+
+    freq_hz: np.ndarray
+    sigma: np.ndarray
+    floor: np.ndarray
+    snr_db: np.ndarray
+    rho: np.ndarray
+    channels: list[ChannelNoise]
+
+    def noise_to_signal(self) -> np.ndarray:
+        """``N̂/Ŝ`` per point, ``(n_out, n_in, n_freq)`` (inf where Ŝ = 0, NaN if absent)."""
+        with np.errstate(over="ignore"):
+            return 10.0 ** (-self.snr_db / 10.0)
+
+
+def _neighbours(n: int) -> np.ndarray:
+    """Indices ``(n, 4)`` of the four points predicting each point."""
+    k = np.arange(n)
+    centre = np.clip(k, 2, n - 3)
+    idx = centre[:, None] + np.array([-2, -1, 1, 2])[None, :]
+    # at the ends the point itself would be among them: take the 4 nearest others
+    for e in (0, 1, n - 2, n - 1):
+        others = [j for j in range(max(0, e - 4), min(n, e + 5)) if j != e]
+        others.sort(key=lambda j: (abs(j - e), j))
+        idx[e] = sorted(others[:4])
+    return idx
+
+
+def loo_weights(freq_hz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Leave-one-out cubic Lagrange weights in ``ln f``.
+
+    Args:
+        freq_hz: ``(n,)`` Hz, strictly increasing, ``n ≥ 5``.
+
+    Returns:
+        ``(idx, c)``: neighbour indices and weights, both ``(n, 4)``; the prediction of
+        point ``k`` is ``Σ_j c[k, j] H[idx[k, j]]``.
+    """
+    x = np.log(np.asarray(freq_hz, dtype=float))
+    idx = _neighbours(x.size)
+    xn = x[idx]  # (n, 4)
+    c = np.ones(idx.shape)
+    for j in range(4):
+        for m in range(4):
+            if m != j:
+                c[:, j] *= (x - xn[:, m]) / (xn[:, j] - xn[:, m])
+    return idx, c
+
+
+def _windows(freq_hz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Window bounds ``lo, hi`` (``hi`` exclusive) per point: ±OCTAVES, ≥ MIN_HALF a side."""
+    lf = np.log2(freq_hz)
+    n = lf.size
+    k = np.arange(n)
+    lo = np.minimum(np.searchsorted(lf, lf - OCTAVES), np.maximum(k - MIN_HALF, 0))
+    hi = np.maximum(
+        np.searchsorted(lf, lf + OCTAVES, side="right"), np.minimum(k + MIN_HALF + 1, n)
+    )
+    return lo, hi
+
+
+def _window_matrix(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Index matrix ``(n, w_max)`` of each window and its validity mask."""
+    width = int((hi - lo).max())
+    idx = lo[:, None] + np.arange(width)[None, :]
+    valid = idx < hi[:, None]
+    return np.where(valid, idx, 0), valid
+
+
+def _solve_floor(
+    p: np.ndarray, base: np.ndarray, v: np.ndarray, win: np.ndarray, valid: np.ndarray
+) -> np.ndarray:
+    """Per window, ``φ² ≥ 0`` with ``median p/(base + φ² v) = ln 2`` (bisection in log φ²)."""
+    P, B, V = p[win], base[win], v[win]
+    half = valid.sum(axis=1) / 2.0
+
+    def excess(phi2: np.ndarray) -> np.ndarray:
+        above = (_LN2 * (B + phi2[:, None] * V) < P) & valid
+        return above.sum(axis=1) - half  # > 0: the model is too small
+
+    top = float(np.max(p)) / _LN2 + 1e-300
+    lo = np.full(p.size, math.log(top) - 80.0)
+    hi = np.full(p.size, math.log(top) + 2.0)
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        big = excess(np.exp(mid)) > 0
+        lo = np.where(big, mid, lo)
+        hi = np.where(big, hi, mid)
+    phi2 = np.exp(0.5 * (lo + hi))
+    return np.where(excess(np.zeros(p.size)) > 0, phi2, 0.0)
+
+
+def _widened(freq_hz: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """True where a window had to reach beyond ±OCTAVES to hold MIN_HALF points a side (a
+    sparse grid: the lines may not resolve the resonances there)."""
+    lf = np.log2(freq_hz)
+    lo_o = np.searchsorted(lf, lf - OCTAVES)
+    hi_o = np.searchsorted(lf, lf + OCTAVES, side="right")
+    return (lo < lo_o) | (hi > hi_o)
+
+
+def _power_law_envelope(freq_hz: np.ndarray, phi2: np.ndarray, bound: np.ndarray) -> np.ndarray:
+    """A power law ``φ² = a f^b`` along the lower half of the window floors.
+
+    ``b`` is one of :data:`FLOOR_SLOPES` — a sensor floor flat in displacement, velocity or
+    acceleration seen in any of the three quantities — the one whose lower half of
+    ``ln φ² − b ln f`` scatters least; ``ln a`` is that lower half's median. Windows without a
+    floor (φ² = 0) enter with ``bound`` (what the relative part leaves room for).
+    """
+    x = np.log(freq_hz)
+    y = np.log(np.maximum(np.where(phi2 > 0, phi2, bound), 1e-300))
+    n_low = max(3, y.size // 2)
+    best: tuple[float, float, float] | None = None
+    for b in FLOOR_SLOPES:
+        lower = np.sort(y - b * x)[:n_low]
+        spread = float(np.std(lower))
+        if best is None or spread < best[0]:
+            best = (spread, b, float(np.median(lower)))
+    assert best is not None
+    return np.asarray(np.exp(best[2] + best[1] * x))
+
+
+def estimate_channel(freq_hz: np.ndarray, H: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Noise of one channel.
+
+    Args:
+        freq_hz: ``(n,)`` Hz, strictly increasing, ``n ≥`` :data:`MIN_POINTS`.
+        H: complex ``(n,)``, finite.
+
+    Returns:
+        ``(sigma, floor, rho)``: noise std ``(n,)`` and its floor part φ ``(n,)`` (units of
+        ``H``), and the relative part ρ.
+    """
+    idx, c = loo_weights(freq_hz)
+    r = H - np.sum(c * H[idx], axis=1)
+    p = np.abs(r) ** 2
+    mag2 = np.abs(H) ** 2
+    c2 = c**2
+    A = mag2 + np.sum(c2 * mag2[idx], axis=1)  # relative part's variance factor
+    v = 1.0 + c2.sum(axis=1)  # floor's variance factor
+    lo, hi = _windows(freq_hz)
+    win, valid = _window_matrix(lo, hi)
+    tiny = 1e-300 + 1e-30 * float(np.max(A))
+    ratio = np.sort(np.where(valid, (p / np.maximum(A, tiny))[win], np.inf), axis=1)
+    nv = valid.sum(axis=1)
+    rows = np.arange(nv.size)
+    med = 0.5 * (ratio[rows, (nv - 1) // 2] + ratio[rows, nv // 2])
+    local = med / _LN2  # ρ² if the window were relative-only
+    rho2 = float(np.quantile(local, RHO_QUANTILE))
+    phi2 = _solve_floor(p, rho2 * A, v, win, valid)
+    # a floor cannot lie far above what was measured: pure noise has |H|² ~ φ²·Exp(1), whose
+    # lower quartile is 0.29 φ²; where the predictor cannot follow the signal (resonances
+    # between the lines of a sparse grid) the scatter is signal, not noise
+    srt = np.sort(np.where(valid, mag2[win], np.inf), axis=1)
+    qi = np.floor(CAP_QUANTILE * (valid.sum(axis=1) - 1)).astype(int)
+    q = srt[np.arange(qi.size), qi]
+    phi2 = np.minimum(phi2, CAP_FACTOR * q / -math.log1p(-CAP_QUANTILE))
+    wide = _widened(freq_hz, lo, hi)
+    if wide.any():
+        envelope = _power_law_envelope(freq_hz, phi2, rho2 * q)
+        phi2 = np.where(wide, np.minimum(phi2, ENVELOPE_FACTOR * envelope), phi2)
+    sigma = np.sqrt(rho2 * mag2 + phi2)
+    return sigma, np.sqrt(phi2), math.sqrt(rho2)
+
+
+def _signal_power(H: np.ndarray, N: np.ndarray) -> np.ndarray:
+    """``Ŝ = max(P̄ − κ N̂, 0)``, ``P̄`` the 3-point mean of ``|H|²`` along the last axis."""
+    P = np.abs(H) ** 2
+    Pp = np.pad(P, [(0, 0)] * (P.ndim - 1) + [(1, 1)], mode="edge")
+    Pbar = (Pp[..., :-2] + Pp[..., 1:-1] + Pp[..., 2:]) / 3.0
+    return np.maximum(Pbar - SIGNAL_MARGIN * N, 0.0)
+
+
+def estimate_noise(
+    freq_hz: np.ndarray,
+    H: np.ndarray,
+    channel_names: list[list[str]] | None = None,
+    where: str = "<data>",
+) -> NoiseEstimate:
+    """Estimate the measurement noise of every channel from the FRF alone.
+
+    Args:
+        freq_hz: ``(n_freq,)`` Hz, strictly increasing (any spacing).
+        H: complex FRF ``(n_out, n_in, n_freq)``; a channel NaN anywhere is skipped.
+        channel_names: ``[out][in]`` names for the summaries (default ``"a.b"`` indices).
+        where: the file, for error messages.
+
+    Returns:
+        :class:`NoiseEstimate`. Channels shorter than :data:`MIN_POINTS` frequencies get NaN.
+    """
+    f = np.asarray(freq_hz, dtype=float)
+    H = np.asarray(H, dtype=complex)
+    if H.ndim != 3 or f.ndim != 1 or H.shape[2] != f.size:
+        raise DataError(
+            f"{where}: estimate_noise: H has shape {H.shape} and freq_hz {f.shape}; "
+            f"expected (n_out, n_in, n_freq) and (n_freq,)"
+        )
+    if (f.size > 1 and not np.all(np.diff(f) > 0)) or not np.all(f > 0):
+        raise DataError(f"{where}: estimate_noise: frequencies must be positive and increasing")
+    n_o, n_i, n = H.shape
+    sigma = np.full(H.shape, np.nan)
+    floor = np.full(H.shape, np.nan)
+    rho = np.full((n_o, n_i), np.nan)
+    for a in range(n_o):
+        for b in range(n_i):
+            h = H[a, b]
+            if n >= MIN_POINTS and np.all(np.isfinite(h)):
+                sigma[a, b], floor[a, b], rho[a, b] = estimate_channel(f, h)
+    N = sigma**2
+    S = _signal_power(np.where(np.isfinite(H), H, 0.0), np.nan_to_num(N))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        snr_db = 10.0 * np.log10(S / N)
+    snr_db[~np.isfinite(sigma)] = np.nan
+    snr_db = np.where(np.isfinite(sigma) & (N == 0), np.inf, snr_db)
+    summaries = []
+    for a in range(n_o):
+        for b in range(n_i):
+            if not np.isfinite(rho[a, b]):
+                continue
+            name = channel_names[a][b] if channel_names else f"{a}.{b}"
+            fm = float(np.median(floor[a, b]))
+            med = float(np.median(np.abs(H[a, b])))
+            fdb = 20.0 * math.log10(fm / med) if fm > 0 and med > 0 else -math.inf
+            share = float(np.mean(snr_db[a, b] >= INFORMATIVE_DB))
+            summaries.append(ChannelNoise(name, float(rho[a, b]), fm, fdb, share))
+    return NoiseEstimate(f, sigma, floor, snr_db, rho, summaries)

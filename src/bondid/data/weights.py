@@ -1,0 +1,143 @@
+"""Information weights of measured FRF points: how much of each point is signal.
+
+The weight of a point is ``w = Ŝ / (Ŝ + N̂)`` — what the coherence ``γ²`` is for a
+measurement with noise — from one of (``weighting``):
+
+* ``"coherence"``: the file's coherence, ``w = γ²`` (1 where a channel has none);
+* ``"estimated"``: the noise estimated from the FRF alone (:mod:`.noise_estimate`),
+  ``w = 1 / (1 + N̂/Ŝ)``;
+* ``"auto"`` (default): where the file gives a coherence, the two noise-to-signal ratios are
+  combined by their geometric mean, ``N/S = sqrt(N/S_coh · N/S_est)`` with
+  ``N/S_coh = (1 − γ²)/γ²``, and ``w = 1 / (1 + N/S)``; elsewhere the estimate alone;
+* ``"none"``: ``w = 1``.
+
+The estimate is computed once per :class:`FrfData` (on its full grid) and cached on it.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ..exceptions import ConfigError
+from .measurement import FrfData
+from .noise_estimate import INFORMATIVE_DB, NoiseEstimate, estimate_noise
+
+WEIGHTINGS: tuple[str, ...] = ("auto", "coherence", "estimated", "none")
+RULES = {
+    "auto": "w = 1/(1 + N/S), N/S = sqrt(N/S_coherence * N/S_estimated) where the file gives a "
+    "coherence (N/S_coherence = (1 - coh)/coh), N/S_estimated elsewhere",
+    "coherence": "w = coherence (1 where a channel has none)",
+    "estimated": "w = 1/(1 + N/S_estimated), noise estimated from the FRF alone",
+    "none": "w = 1",
+}
+_CACHE = "_bondid_noise_estimate"
+_INFORMATIVE_W = 1.0 / (1.0 + 10.0 ** (-INFORMATIVE_DB / 10.0))
+
+
+def check_weighting(weighting: str, where: str = "weighting") -> str:
+    """``weighting`` if valid, else :class:`ConfigError`."""
+    if weighting not in WEIGHTINGS:
+        raise ConfigError(f"{where}: {weighting!r} is invalid; valid: {', '.join(WEIGHTINGS)}")
+    return weighting
+
+
+def noise_estimate(ds: FrfData) -> NoiseEstimate:
+    """The noise estimate of ``ds`` (computed once, cached on the object while ``H`` is the
+    same array)."""
+    cached = ds.__dict__.get(_CACHE)
+    if cached is not None and cached[0] is ds.H:
+        return cached[1]  # type: ignore[no-any-return]
+    names = [[f"{o}.{i}" for i in ds.inputs] for o in ds.outputs]
+    est = estimate_noise(ds.freq_hz, ds.H, names, where=ds.source or "<data>")
+    ds.__dict__[_CACHE] = (ds.H, est)
+    return est
+
+
+def _coherence_ns(coh: np.ndarray) -> np.ndarray:
+    c = np.clip(coh, 0.0, 1.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(c > 0, (1.0 - c) / np.where(c > 0, c, 1.0), np.inf)
+
+
+def information_weights(ds: FrfData, weighting: str = "auto") -> np.ndarray:
+    """Per-point information weights in 0..1.
+
+    Args:
+        ds: measured FRFs.
+        weighting: one of :data:`WEIGHTINGS` (see the module docstring).
+
+    Returns:
+        ``(n_out, n_in, n_freq)`` weights (1 where nothing is known; NaN where ``H`` is NaN).
+    """
+    check_weighting(weighting)
+    shape = ds.H.shape
+    coh = ds.coherence if ds.coherence is not None else np.full(shape, np.nan)
+    if weighting == "none":
+        w = np.ones(shape)
+    elif weighting == "coherence":
+        w = np.where(np.isfinite(coh), np.clip(coh, 0.0, 1.0), 1.0)
+    else:
+        ns = noise_estimate(ds).noise_to_signal()
+        if weighting == "auto":
+            nc = _coherence_ns(coh)
+            with np.errstate(invalid="ignore", over="ignore"):
+                both = np.sqrt(nc * ns)
+            ns = np.where(np.isfinite(coh), both, ns)
+            ns = np.where(np.isnan(ns) & np.isfinite(coh), nc, ns)
+        with np.errstate(over="ignore"):
+            w = np.where(np.isnan(ns), 1.0, 1.0 / (1.0 + ns))
+    w = np.asarray(w, dtype=float)
+    w[~np.isfinite(ds.H)] = np.nan
+    return w
+
+
+def with_weights_as_coherence(ds: FrfData, weighting: str = "auto") -> FrfData:
+    """A copy of ``ds`` whose ``coherence`` holds the information weights (the coherence
+    analogue), so code that weighs by coherence weighs by information. The noise estimate
+    stays cached on the copy."""
+    w = information_weights(ds, weighting)
+    out = FrfData(
+        ds.freq_hz.copy(), ds.outputs, ds.inputs, ds.H, ds.quantity,
+        dict(ds.operating_point), w, ds.source,
+    )  # fmt: skip
+    if weighting in ("auto", "estimated"):
+        out.__dict__[_CACHE] = (out.H, noise_estimate(ds))
+    return out
+
+
+def weighting_summary(datasets: list[FrfData], weighting: str) -> dict[str, Any]:
+    """What the results files say about the weights: ``{"weighting", "rule",
+    "informative_snr_db", "datasets": [{"file", "has_coherence", "channels": [{"channel",
+    "rho", "floor_median", "floor_db_below_median", "informative_share",
+    "informative_share_weights"}]}]}``. ``floor_*`` and ``rho`` come from the estimate (units
+    of ``H`` as in the file); ``informative_share`` is the share of frequencies with estimated
+    SNR ≥ 10 dB, ``informative_share_weights`` the share whose weight is ≥ 10/11 (the same
+    threshold on the weights actually used)."""
+    out: list[dict[str, Any]] = []
+    for ds in datasets:
+        est = noise_estimate(ds)
+        w = information_weights(ds, weighting)
+        rows = []
+        for c in est.channels:
+            o, _, i = c.channel.rpartition(".")
+            wc = w[ds.outputs.index(o), ds.inputs.index(i)]
+            row = c.as_dict()
+            row["informative_share_weights"] = float(np.mean(wc >= _INFORMATIVE_W))
+            rows.append({k: _finite(v) for k, v in row.items()})
+        out.append({"file": ds.source, "has_coherence": ds.coherence is not None, "channels": rows})
+    return {
+        "weighting": weighting,
+        "rule": RULES[weighting],
+        "informative_snr_db": INFORMATIVE_DB,
+        "datasets": out,
+    }
+
+
+def _finite(v: Any) -> Any:
+    """JSON-safe: non-finite floats become None."""
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    return v
