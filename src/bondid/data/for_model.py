@@ -25,8 +25,11 @@ def load_datasets(
 ) -> list[FrfData]:
     """Read every file (CSV or UFF58) and check its channels and operating point against
     ``doc``; raises the data errors of :mod:`bondid.data` naming the file."""
+    from ..linear.affine import model_inputs, model_outputs
+
     cmap = model_channel_map(doc)
-    inputs = [t.joint for t in doc.transmissions]
+    inputs = model_inputs(doc)
+    outputs = model_outputs(doc)
     movable = doc.movable_joint_names
     out = []
     for p in paths:
@@ -35,6 +38,6 @@ def load_datasets(
             drop_nan=drop_nan,
             channel_map=cmap if str(p).lower().endswith((".uff", ".unv", ".uff58")) else None,
         )
-        check_against_model(ds, inputs=inputs, outputs=movable, joints=movable)
+        check_against_model(ds, inputs=inputs, outputs=outputs, joints=movable)
         out.append(ds)
     return out

@@ -37,6 +37,7 @@ DEFAULT_REL: dict[str, float] = {
     "inertia": 0.5,
     "stiffness": 0.5,
     "damping": 0.5,
+    "gain": 9.0,  # a factor 1 + r either way: 10
 }
 
 _DEFAULT_LENGTH = 0.1  # m, length scale of a link without geometry
@@ -137,6 +138,8 @@ def default_bounds(
             mean = float(np.trace(I_c)) / 3.0
             half = r * max(abs(v), 0.1 * abs(mean))
             lo[j], hi[j] = v - half, v + half
+        elif info.kind == "gain":  # relative r: a factor 1 + r either way (sign kept)
+            lo[j], hi[j] = sorted((v / (1.0 + r), v * (1.0 + r)))
         else:  # stiffness, damping
             if v == 0.0:
                 lo[j], hi[j] = 0.0, np.inf

@@ -51,6 +51,7 @@ _KIND_GLOB = {
     "inertia": "*.inertia.*",
     "stiffness": "*.stiffness",
     "damping": "*.damping",
+    "gain": "gain.*",
 }
 
 
@@ -64,6 +65,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="measured FRF files, CSV or UFF58 (or data = in --study)",
     )
     p.add_argument("--study", type=Path, help="study TOML file; command-line options override it")
+    p.add_argument(
+        "--points", type=Path, metavar="TOML",
+        help="measurement points and transducer gains ([points], [gains] tables; see README)",
+    )  # fmt: skip
     p.add_argument(
         "--free", nargs="+", action="extend",
         help="parameters to fit: names, globs (x_stage.*, *.stiffness), groups (inertial,"
@@ -311,6 +316,16 @@ def summary(result: Any, content: dict[str, Any] | None, extra: dict[str, Any]) 
     return "\n".join(lines)
 
 
+def declare_points(doc: UrdfDocument, s: StudySettings, points_file: Path | None) -> None:
+    """Put the study's points and gains, then those of ``--points`` (winning), into ``doc``."""
+    from ..model.points import apply_declarations, load_points_file
+
+    apply_declarations(doc, s.points, s.gains)
+    for f in (s.points_file, points_file):
+        if f is not None:
+            apply_declarations(doc, *load_points_file(f))
+
+
 def _body(args: argparse.Namespace) -> int:
     from ..data.for_model import load_datasets
     from .multistart import run_multistart
@@ -321,6 +336,7 @@ def _body(args: argparse.Namespace) -> int:
     assert s.model is not None
     inputs: list[Path] = [s.model, *s.data] + ([s.source] if s.source else [])
     doc = UrdfDocument.load(s.model)
+    declare_points(doc, s, args.points)
     datasets = [
         ds if ds.quantity == "receptance" else ds.to_quantity("receptance")
         for ds in load_datasets(doc, s.data)

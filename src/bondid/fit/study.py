@@ -25,6 +25,16 @@ Every section and key is optional::
     [cost.channel_weights]
     "x.x" = 2.0
 
+    points_file = "points.toml"              # --points: [points] and [gains] tables
+
+    [points.load]                            # a measurement point (bondid.model.points)
+    link = "load"
+    kind = "rotation"
+    direction = [0, 0, 1]
+
+    [gains]                                  # transducer gains (fixed unless --free names them)
+    "gain.in.motor" = 0.35
+
     [search]
     multistart = 8                           # --multistart
     seed = 0                                 # --seed
@@ -53,13 +63,16 @@ from typing import Any
 
 from ..cost.residuals import NORMS, RESIDUAL_KINDS
 from ..exceptions import ConfigError
+from ..model.points import Point, gains_from_table, points_from_table
 
 #: Parameter kinds a bound key may name (besides names and globs).
-KINDS = ("mass", "com", "inertia", "stiffness", "damping")
+KINDS = ("mass", "com", "inertia", "stiffness", "damping", "gain")
 #: Stages of the staged fit, in the order they run.
 STAGES = ("stiffness", "damping", "inertia")
 
-_TOP_KEYS = ("model", "data", "parameters", "bounds", "cost", "search")
+_TOP_KEYS = (
+    "model", "data", "parameters", "bounds", "cost", "search", "points", "gains", "points_file",
+)  # fmt: skip
 _SECTION_KEYS = {
     "parameters": ("free", "fixed"),
     "cost": ("kind", "norm", "bands", "channels", "coherence", "channel_weights"),
@@ -104,6 +117,8 @@ class StudySettings:
         presolve: IPOPT iterations on the normalised complex error before a log-cost fit
             (:data:`bondid.fit.solver.PRESOLVE_ITER`; 0 = none).
         source: the study file, or None.
+        points, gains: measurement points and transducer gains declared in the study
+            (:mod:`bondid.model.points`); points_file: a TOML file with more of them.
     """
 
     model: Path | None = None
@@ -127,6 +142,9 @@ class StudySettings:
     max_iter: int = 200
     presolve: int = 60
     source: Path | None = None
+    points: list[Point] = field(default_factory=list)
+    gains: dict[str, float] = field(default_factory=dict)
+    points_file: Path | None = None
 
     def to_json_dict(self) -> dict[str, Any]:
         """The settings as plain JSON values (paths as strings)."""
@@ -152,6 +170,9 @@ class StudySettings:
             "continuation": self.continuation,
             "max_iter": self.max_iter,
             "presolve": self.presolve,
+            "points": [vars(p) for p in self.points],
+            "gains": dict(self.gains),
+            "points_file": None if self.points_file is None else str(self.points_file),
         }
 
 
@@ -317,6 +338,13 @@ def study_from_dict(
         if not isinstance(items, list) or not items:
             raise _fail(where, "data", f"{doc['data']!r} is not a file path or a list of them")
         s.data = [_path(v, base, where, f"data[{i}]") for i, v in enumerate(items)]
+
+    if "points" in doc:
+        s.points = points_from_table(doc["points"], where)
+    if "gains" in doc:
+        s.gains = gains_from_table(doc["gains"], where)
+    if "points_file" in doc:
+        s.points_file = _path(doc["points_file"], base, where, "points_file")
 
     par = _table(doc.get("parameters", {}), where, "parameters")
     _check_keys(par, _SECTION_KEYS["parameters"], where, "parameters")

@@ -24,8 +24,10 @@ from ..consistency.pseudo_inertia import pi_from_urdf
 from ..exceptions import ModelError
 from ..model.document import UrdfDocument
 from ..model.parameters import link_inertial
+from ..model.points import check_gain_name
 from .linear_model import LinearModel
 from .operating_point import configuration
+from .points import point_rows
 
 #: pi_from_inertial is the consistency layer's map (mass, CoM, I about CoM) → π.
 pi_from_inertial = pi_from_urdf
@@ -44,9 +46,13 @@ class AffineModel:
         M_basis, G_basis: ``(nb, 10, nv, nv)`` basis matrices.
         M_rest, G_rest, D_rest: ``(nv, nv)``.
         stiffness, damping: per velocity coordinate, ``(nv,)`` (joint springs, dampers).
-        B: ``(nv, n_in)``; C: ``(n_out, nv)``.
-        inputs, outputs: joint names of the inputs and outputs.
+        B: ``(nv, n_in)``; C: ``(n_out, nv)``: with the transducer gains applied,
+            ``B = B_kin · diag(gain_in)``, ``C = diag(gain_out) · C_kin``.
+        inputs, outputs: names of the inputs and outputs (joints or measurement points).
         q0: configuration ``(nq,)``; operating_point: the named joint values.
+        B_kin, C_kin: the kinematic input / output matrices (joint selectors, and the frame
+            Jacobian rows of measurement points).
+        gain_in, gain_out: transducer gains ``(n_in,)``, ``(n_out,)`` (1 = none).
     """
 
     dofs: tuple[str, ...]
@@ -65,6 +71,20 @@ class AffineModel:
     outputs: tuple[str, ...]
     q0: np.ndarray
     operating_point: dict[str, float]
+    B_kin: np.ndarray | None = None
+    C_kin: np.ndarray | None = None
+    gain_in: np.ndarray | None = None
+    gain_out: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.B_kin is None:
+            self.B_kin = self.B.copy()
+        if self.C_kin is None:
+            self.C_kin = self.C.copy()
+        if self.gain_in is None:
+            self.gain_in = np.ones(self.B_kin.shape[1])
+        if self.gain_out is None:
+            self.gain_out = np.ones(self.C_kin.shape[0])
 
     @property
     def nv(self) -> int:
@@ -115,6 +135,18 @@ class AffineModel:
             damping=self.damping if damping is None else np.asarray(damping, float),
         )
 
+    def with_gains(
+        self, gain_in: np.ndarray | None = None, gain_out: np.ndarray | None = None
+    ) -> AffineModel:
+        """A copy with other transducer gains (``(n_in,)``, ``(n_out,)``)."""
+        assert self.B_kin is not None and self.C_kin is not None
+        gi = self.gain_in if gain_in is None else np.asarray(gain_in, dtype=float)
+        go = self.gain_out if gain_out is None else np.asarray(gain_out, dtype=float)
+        assert gi is not None and go is not None
+        return replace(
+            self, B=self.B_kin * gi[None, :], C=go[:, None] * self.C_kin, gain_in=gi, gain_out=go
+        )
+
 
 def _link_placements(model, links: list[str], where: str) -> dict[str, tuple[int, object]]:
     """For each link: (parent joint id, placement of the link frame in the joint frame)."""
@@ -147,6 +179,76 @@ def _transport_matrix(placement) -> np.ndarray:
     return T
 
 
+def model_inputs(doc: UrdfDocument) -> tuple[str, ...]:
+    """FRF input names of ``doc``: transmitted joints (file order), then measurement points."""
+    return tuple(t.joint for t in doc.transmissions) + tuple(p.name for p in doc.points)
+
+
+def model_outputs(doc: UrdfDocument) -> tuple[str, ...]:
+    """Every name an FRF output may have: movable joints (encoders), then measurement points."""
+    return tuple(doc.movable_joint_names) + tuple(p.name for p in doc.points)
+
+
+def _io_matrices(
+    doc: UrdfDocument, model, q0: np.ndarray, dofs: list[str], outputs: tuple[str, ...] | None
+) -> tuple[np.ndarray, np.ndarray, tuple[str, ...], tuple[str, ...]]:
+    """(B ``(nv, n_in)``, C ``(n_out, nv)``, inputs, outputs) without gains."""
+    where = doc.source or "<URDF>"
+    points = {p.name: p for p in doc.points}
+    clash = set(points) & set(dofs)
+    if clash:
+        raise ModelError(f"{where}: measurement point(s) {sorted(clash)} named like a joint")
+    inputs = model_inputs(doc)
+    if not inputs:
+        raise ModelError(
+            f"{where}: no <transmission> elements and no measurement points, so the model has"
+            " no FRF inputs"
+        )
+    outs = tuple(outputs) if outputs is not None else inputs
+    rows = point_rows(model, q0, list(points.values()), where)
+
+    def row(name: str, role: str) -> np.ndarray:
+        r = np.zeros(len(dofs))
+        if name in points:
+            return rows[list(points).index(name)]
+        if name not in dofs:
+            raise ModelError(
+                f"{where}: {role} {name!r} is neither a movable joint nor a measurement point;"
+                f" valid: {', '.join(list(dofs) + list(points))}"
+            )
+        r[dofs.index(name)] = 1.0
+        return r
+
+    B = np.array([row(n, "input") for n in inputs]).reshape(len(inputs), len(dofs)).T
+    C = np.array([row(n, "output") for n in outs]).reshape(len(outs), len(dofs))
+    return B, C, inputs, outs
+
+
+def _gains(
+    doc: UrdfDocument, inputs: tuple[str, ...], outputs: tuple[str, ...]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Transducer gains of the inputs and outputs (1 where none is declared)."""
+    where = doc.source or "<URDF>"
+    gi, go = np.ones(len(inputs)), np.ones(len(outputs))
+    valid_out = set(model_outputs(doc))
+    for name, value in doc.gains.items():
+        side, chan = check_gain_name(name, where)
+        if side == "in" and chan not in inputs:
+            raise ModelError(
+                f"{where}: gain {name!r}: {chan!r} is not an input; inputs: {', '.join(inputs)}"
+            )
+        if side == "out" and chan not in valid_out:
+            raise ModelError(
+                f"{where}: gain {name!r}: {chan!r} is not an output; valid:"
+                f" {', '.join(sorted(valid_out))}"
+            )
+        if side == "in":
+            gi[inputs.index(chan)] = value
+        elif chan in outputs:
+            go[outputs.index(chan)] = value
+    return gi, go
+
+
 def build_affine_model(
     doc: UrdfDocument,
     operating_point: Mapping[str, float] | None = None,
@@ -158,10 +260,12 @@ def build_affine_model(
     Args:
         doc: the model.
         operating_point: joint positions (m or rad) by name; others at neutral.
-        outputs: sensed joints (default: the transmitted joints, in transmission order).
+        outputs: sensed joints or measurement points (default: the inputs — transmitted
+            joints in transmission order, then the measurement points of ``doc``).
 
     Raises:
-        ModelError: no transmissions, unknown output joint, a multi-DOF joint.
+        ModelError: no inputs, unknown output, a multi-DOF joint, a point on an unknown
+            frame, a gain on an unknown channel.
         OperatingPointError: the operating point names a joint the model lacks.
     """
     import pinocchio as pin
@@ -189,16 +293,7 @@ def build_affine_model(
             )
         return dofs.index(joint)
 
-    inputs = tuple(t.joint for t in doc.transmissions)
-    if not inputs:
-        raise ModelError(f"{where}: no <transmission> elements, so the model has no FRF inputs")
-    outs = tuple(outputs) if outputs is not None else inputs
-    B = np.zeros((nv, len(inputs)))
-    for i, j in enumerate(inputs):
-        B[v_index(j, "transmission"), i] = 1.0
-    C = np.zeros((len(outs), nv))
-    for i, j in enumerate(outs):
-        C[i, v_index(j, "output")] = 1.0
+    B, C, inputs, outs = _io_matrices(doc, model, q0, dofs, outputs)
 
     stiffness = np.zeros(nv)
     damping = np.zeros(nv)
@@ -271,7 +366,7 @@ def build_affine_model(
         outputs=outs,
         q0=q0,
         operating_point=op,
-    )
+    ).with_gains(*_gains(doc, inputs, outs))
 
 
 def linearise(

@@ -19,6 +19,14 @@ import numpy as np
 
 from ..atomic import refuse_overwrite, write_text_atomic
 from ..exceptions import ModelError
+from .points import (
+    GAIN_TAG,
+    POINT_TAG,
+    Point,
+    check_gain_name,
+    gain_from_element,
+    point_from_element,
+)
 
 MOVABLE_TYPES = ("revolute", "continuous", "prismatic")
 _YOURDFPY_TAGS = ("link", "joint", "material")
@@ -268,6 +276,35 @@ class UrdfDocument:
         act = ET.SubElement(el, "actuator", {"name": f"{joint}_motor"})
         ET.SubElement(act, "mechanicalReduction").text = "1"
         self.extras.append(el)
+
+    # -- extension elements: measurement points and transducer gains --------------------
+    @property
+    def points(self) -> list[Point]:
+        """Measurement points (``<measurement_point>``), file order (see :mod:`.points`)."""
+        where = self.source or "<URDF>"
+        return [point_from_element(el, where) for el in self.extras if el.tag == POINT_TAG]
+
+    def set_point(self, point: Point) -> None:
+        """Add a point, or replace the one of the same name."""
+        self.extras = [
+            el for el in self.extras if not (el.tag == POINT_TAG and el.get("name") == point.name)
+        ]
+        self.extras.append(point.to_element())
+
+    @property
+    def gains(self) -> dict[str, float]:
+        """Transducer gains by name (``gain.in.X``, ``gain.out.Y``); absent = 1."""
+        where = self.source or "<URDF>"
+        return dict(gain_from_element(el, where) for el in self.extras if el.tag == GAIN_TAG)
+
+    def set_gain(self, name: str, value: float) -> None:
+        """Set (or create) the gain ``name`` (``gain.in.X`` / ``gain.out.Y``)."""
+        check_gain_name(name, self.source or "<URDF>")
+        for el in self.extras:
+            if el.tag == GAIN_TAG and el.get("name") == name:
+                el.set("value", repr(float(value)))
+                return
+        self.extras.append(ET.Element(GAIN_TAG, {"name": name, "value": repr(float(value))}))
 
     # -- writing ------------------------------------------------------------------------
     def to_string(self) -> str:

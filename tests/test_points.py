@@ -1,0 +1,212 @@
+"""Measurement points (frame-Jacobian B and C) and transducer gains: known answers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from models import robot_path, two_mass_chain
+
+from bondid.cost.problem import CostOptions, FrfProblem
+from bondid.exceptions import ConfigError, ModelError
+from bondid.linear.affine import build_affine_model
+from bondid.linear.parameter_map import ParameterMap
+from bondid.model import UrdfDocument
+from bondid.model.parameters import get_parameter, select_parameters
+from bondid.model.points import Point, points_from_table
+from bondid.simulate import simulate
+
+#: Central differences of Pinocchio placements (step 1e-6) agree with the Jacobian to this.
+FD_TOL = 1e-7
+#: Two exact computations of the same FRF (round-off only; pointwise relative, the deepest
+#: anti-resonance of the chain loses a few digits).
+EXACT_TOL = 1e-9
+#: Residual Jacobian against central differences (relative to its largest entry).
+JAC_FD_TOL = 1e-6
+
+
+def _free_chain(n: int, hammer: bool = True) -> UrdfDocument:
+    """A free-free chain of ``n`` masses along x (the first slides freely: a rigid-body mode),
+    springs and dampers between neighbours, a point on each body (a link on a fixed joint,
+    offset so its frame differs from the body's) and no transmission."""
+    parts = ['<robot name="chain"><link name="ground"/>']
+    for i in range(n):
+        m = 1.0 + 0.3 * i
+        parts.append(
+            f'<link name="m{i}"><inertial><mass value="{m!r}"/><inertia ixx="1e-3" ixy="0"'
+            ' ixz="0" iyy="1e-3" iyz="0" izz="1e-3"/></inertial></link>'
+            f'<link name="p{i}"/><joint name="fix{i}" type="fixed"><parent link="m{i}"/>'
+            f'<child link="p{i}"/><origin xyz="0.01 0.02 0.03" rpy="0.1 0.2 0.3"/></joint>'
+        )
+        parent = "ground" if i == 0 else f"m{i - 1}"
+        parts.append(
+            f'<joint name="j{i}" type="prismatic"><parent link="{parent}"/><child link="m{i}"/>'
+            '<axis xyz="1 0 0"/><limit lower="-1" upper="1" effort="1" velocity="1"/>'
+            f'<dynamics damping="{0.0 if i == 0 else 2.0 + i!r}"/></joint>'
+        )
+        if i > 0:
+            parts.append(
+                f'<gazebo reference="j{i}"><springStiffness>{1e4 * (1 + i)!r}</springStiffness>'
+                "<springReference>0</springReference></gazebo>"
+            )
+    parts.append("</robot>")
+    doc = UrdfDocument.from_string("".join(parts), source="<chain>")
+    for i in range(n):
+        if hammer:
+            doc.set_point(Point(f"h{i}", f"p{i}", "translation", (1.0, 0.0, 0.0)))
+    doc.set_point(Point("acc", f"p{n - 1}", "translation", (1.0, 0.0, 0.0)))
+    return doc
+
+
+def _chain_matrices(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """M, K, D of the chain written by hand in absolute coordinates x_i."""
+    m = np.array([1.0 + 0.3 * i for i in range(n)])
+    M, K, D = np.diag(m), np.zeros((n, n)), np.zeros((n, n))
+    for i in range(1, n):
+        k, d = 1e4 * (1 + i), 2.0 + i
+        e = np.zeros(n)
+        e[i], e[i - 1] = 1.0, -1.0
+        K += k * np.outer(e, e)
+        D += d * np.outer(e, e)
+    return M, K, D
+
+
+def test_roving_hammer_free_free_chain_accelerance_known_answer():
+    n = 4
+    doc = _free_chain(n)
+    am = build_affine_model(doc, outputs=("acc",))
+    assert am.inputs == (*(f"h{i}" for i in range(n)), "acc")
+    f = np.linspace(5.0, 200.0, 60)
+    H = am.linear_model().frf(f, "accelerance")[:, :n]  # 1 accelerometer × n hammer points
+    M, K, D = _chain_matrices(n)
+    w = 2 * np.pi * f
+    ref = np.empty((1, n, f.size), complex)
+    for k, wk in enumerate(w):
+        G = np.linalg.inv(K - wk**2 * M + 1j * wk * D)
+        ref[0, :, k] = -(wk**2) * G[n - 1, :]  # x_i = sum of joint coordinates up to i
+    assert np.max(np.abs(H - ref) / np.abs(ref)) < EXACT_TOL
+    # the rigid-body mode: accelerance tends to 1/(total mass) at low frequency
+    low = am.linear_model().frf(np.array([1e-3]), "accelerance")[0, 0, 0]
+    assert abs(low.real * M.trace() - 1.0) < 1e-6
+
+
+def test_point_rows_match_finite_differences_of_frame_placements():
+    import pinocchio as pin
+
+    doc = UrdfDocument.load(robot_path("ur5"))
+    doc.set_point(Point("t", "wrist_3_link", "translation", (0.3, -0.5, 0.8), axes="local"))
+    doc.set_point(Point("r", "forearm_link", "rotation", (1.0, 2.0, 0.5)))
+    doc.set_point(
+        Point("rel", "wrist_2_link", "translation", (0, 1, 0), relative_to="upper_arm_link")
+    )
+    q = {"shoulder_lift_joint": -0.7, "elbow_joint": 1.1, "wrist_1_joint": 0.4}
+    am = build_affine_model(doc, q, outputs=("t", "r", "rel"))
+    model = doc.build_pinocchio_model()
+    data = model.createData()
+
+    def place(qv: np.ndarray, frame: str) -> pin.SE3:
+        pin.framesForwardKinematics(model, data, qv)
+        return data.oMf[model.getFrameId(frame, pin.FrameType.BODY)].copy()
+
+    h = 1e-6
+    P0 = place(am.q0, "wrist_3_link")
+    d_t = P0.rotation @ (np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8]))
+    d_r = np.array([1.0, 2.0, 0.5]) / np.linalg.norm([1.0, 2.0, 0.5])
+    for j in range(model.nv):
+        e = np.zeros(model.nv)
+        e[j] = h
+        qp, qm = pin.integrate(model, am.q0, e), pin.integrate(model, am.q0, -e)
+        dp = (place(qp, "wrist_3_link").translation - place(qm, "wrist_3_link").translation) / (
+            2 * h
+        )
+        Rp, Rm = place(qp, "forearm_link").rotation, place(qm, "forearm_link").rotation
+        dth = pin.log3(Rp @ Rm.T) / (2 * h)
+        rel = [
+            place(qq, "wrist_2_link").translation - place(qq, "upper_arm_link").translation
+            for qq in (qp, qm)
+        ]
+        drel = (rel[0] - rel[1]) / (2 * h)
+        assert abs(am.C[0, j] - d_t @ dp) < FD_TOL
+        assert abs(am.C[1, j] - d_r @ dth) < FD_TOL
+        assert abs(am.C[2, j] - drel[1]) < FD_TOL
+    # a point as an input is the transpose of the same point as an output (reciprocity)
+    k = am.inputs.index("t")
+    assert np.allclose(am.B[:, k], am.C[0], rtol=0, atol=1e-15)
+
+
+def test_relative_sensor_is_the_joint_twist_and_matches_python_control():
+    import control
+
+    doc = two_mass_chain(1.0, 0.5, 1000.0, 1.0, 2000.0, 2.0)
+    doc.set_point(Point("abs_b", "body_b", "translation", (1.0, 0.0, 0.0)))
+    doc.set_point(Point("twist", "body_b", "translation", (1.0, 0.0, 0.0), relative_to="body_a"))
+    am = build_affine_model(doc, outputs=("abs_b", "twist", "b"))
+    f = np.geomspace(1.0, 300.0, 50)
+    H = am.linear_model().frf(f)
+    assert np.max(np.abs(H[1] - H[2])) <= EXACT_TOL * np.max(np.abs(H[2]))
+    A, B, C, D = am.linear_model().state_space()
+    ref = control.ss(A, B, C, D).frequency_response(2 * np.pi * f).frdata
+    assert np.max(np.abs(H - ref) / np.abs(ref)) < 1e-9
+
+
+def _gain_problem(free: str):
+    doc = two_mass_chain(1.0, 0.5, 1000.0, 1.0, 2000.0, 2.0)
+    doc.set_point(Point("pb", "body_b", "translation", (1.0, 0.0, 0.0)))
+    truth = doc.copy()
+    truth.set_gain("gain.in.a", 0.37)
+    truth.set_gain("gain.out.pb", -2.5)
+    data = simulate(truth, freq_hz=np.geomspace(2.0, 100.0, 40), outputs=("a", "pb"))
+    data = type(data)(data.freq_hz, data.outputs, data.inputs[:1], data.H[:, :1], data.quantity)
+    doc.set_gain("gain.in.a", 1.0)
+    doc.set_gain("gain.out.pb", -1.0)
+    names = select_parameters(doc, [free])
+    return doc, truth, data, names
+
+
+@pytest.mark.parametrize("kind", ["complex_log", "normalised_complex", "log_magnitude"])
+def test_gain_jacobian_matches_finite_differences(kind):
+    doc, _, data, names = _gain_problem("gains, b.stiffness, body_a.mass")
+    assert set(names) == {"gain.in.a", "gain.out.pb", "b.stiffness", "body_a.mass"}
+    prob = FrfProblem(doc, [data], CostOptions(kind=kind))
+    pm = ParameterMap(doc, prob.affines[0], names)
+    x = pm.p0 * np.array([1.2 if n.startswith("gain") else 1.05 for n in names])
+    r, J = prob.residual_and_jacobian(pm, x)
+    assert np.allclose(r, prob.residual(pm, x), rtol=0, atol=1e-14)
+    Jfd = np.empty_like(J)
+    for j in range(x.size):
+        h = 1e-6 * max(abs(x[j]), 1e-3)
+        xp, xm = x.copy(), x.copy()
+        xp[j] += h
+        xm[j] -= h
+        Jfd[:, j] = (prob.residual(pm, xp) - prob.residual(pm, xm)) / (2 * h)
+    assert np.max(np.abs(J - Jfd)) < JAC_FD_TOL * np.max(np.abs(J))
+
+
+def test_fitted_gain_known_answer():
+    from bondid.fit import fit
+
+    doc, truth, data, names = _gain_problem("gains")
+    res = fit(doc, [data], names, max_iter=100, presolve_iter=0)
+    assert res.success
+    for n in names:
+        k = res.names.index(n)
+        assert abs(res.fitted[k] / get_parameter(truth, n) - 1.0) < 1e-6
+
+
+def test_points_table_errors_name_the_key():
+    with pytest.raises(ConfigError, match=r"points\.acc\.kind"):
+        points_from_table({"acc": {"link": "tip", "kind": "force"}}, "s.toml")
+    with pytest.raises(ConfigError, match=r"points\.acc\.direction"):
+        points_from_table({"acc": {"link": "tip", "direction": [0, 0, 0]}}, "s.toml")
+    doc = two_mass_chain(1.0, 0.5, 1000.0, 1.0, 2000.0, 2.0)
+    doc.set_point(Point("q", "nowhere", "translation"))
+    with pytest.raises(ModelError, match="nowhere"):
+        build_affine_model(doc)
+
+
+def test_points_and_gains_survive_write_and_read():
+    doc = two_mass_chain(1.0, 0.5, 1000.0, 1.0, 2000.0, 2.0)
+    doc.set_point(Point("pb", "body_b", "rotation", (0.0, 0.6, 0.8), "local", "body_a"))
+    doc.set_gain("gain.out.pb", 9.81)
+    back = UrdfDocument.from_string(doc.to_string())
+    assert back.points == doc.points
+    assert back.gains == {"gain.out.pb": 9.81}
