@@ -94,7 +94,9 @@ def jsonable(value: Any) -> Any:
 
 
 def _units(doc: UrdfDocument, joints: Sequence[str]) -> dict[str, str]:
-    return {j: "m" if doc.joint(j).type == "prismatic" else "rad" for j in joints}
+    from ..model.points import channel_unit
+
+    return {j: channel_unit(doc, j) for j in joints}
 
 
 def model_frf(doc: UrdfDocument, ds: FrfData) -> np.ndarray:

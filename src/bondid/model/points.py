@@ -215,3 +215,11 @@ def apply_declarations(doc: Any, points: list[Point], gains: Mapping[str, float]
         doc.set_point(pt)
     for name, value in gains.items():
         doc.set_gain(name, value)
+
+
+def channel_unit(doc: Any, name: str) -> str:
+    """``m`` or ``rad``: the displacement unit of a channel name (a joint or a point)."""
+    for p in doc.points:
+        if p.name == name:
+            return "m" if p.kind == "translation" else "rad"
+    return "m" if doc.joint(name).type == "prismatic" else "rad"
