@@ -210,3 +210,19 @@ def test_points_and_gains_survive_write_and_read():
     back = UrdfDocument.from_string(doc.to_string())
     assert back.points == doc.points
     assert back.gains == {"gain.out.pb": 9.81}
+
+
+@pytest.mark.parametrize("quantity", ["receptance", "mobility", "accelerance"])
+def test_export_to_control_matches_bondid_frf(quantity):
+    from bondid.export import to_control
+
+    doc = two_mass_chain(1.0, 0.5, 1000.0, 1.0, 2000.0, 2.0)
+    doc.set_point(Point("pb", "body_b", "translation", (1.0, 0.0, 0.0)))
+    doc.set_gain("gain.in.a", 0.5)
+    f = np.geomspace(1.0, 300.0, 40)
+    sys, frd = to_control(doc, None, f, outputs=("a", "pb"), quantity=quantity)
+    ref = build_affine_model(doc, outputs=("a", "pb")).linear_model().frf(f, quantity)
+    H_ss = sys.frequency_response(2 * np.pi * f).frdata
+    assert np.max(np.abs(H_ss - ref) / np.abs(ref)) < 1e-9
+    assert np.array_equal(frd.frdata, ref)
+    assert list(sys.input_labels) == ["a", "b", "pb"]
