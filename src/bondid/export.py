@@ -90,7 +90,8 @@ def to_control(
     """
     control = _control()
     f = np.asarray(freq_hz, dtype=float)
-    am = build_affine_model(doc, operating_point, outputs=None if outputs is None else tuple(outputs))
+    outs = None if outputs is None else tuple(outputs)
+    am = build_affine_model(doc, operating_point, outputs=outs)
     A, B, C, D = state_space(doc, operating_point, outputs=am.outputs, quantity=quantity)
     sys = control.ss(A, B, C, D, inputs=list(am.inputs), outputs=list(am.outputs))
     H = am.linear_model().frf(f, quantity)
