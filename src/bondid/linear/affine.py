@@ -249,6 +249,20 @@ def _gains(
     return gi, go
 
 
+def _refuse_mimic(doc: UrdfDocument, where: str) -> None:
+    """A ``<mimic>`` joint is a coupled DOF, which Pinocchio's default URDF reading (and so
+    this linearisation) would treat as an independent one: refuse it rather than model it
+    wrongly."""
+    for name, master in doc.mimic_joints().items():
+        if name in doc.movable_joint_names:
+            raise ModelError(
+                f"{where}: joint {name!r} mimics joint {master!r} (<mimic>); bondid models"
+                " independent joints only and would treat it as a free DOF. Make it a fixed"
+                " joint, or remove its <mimic> (UrdfDocument.drop_mimic) if it really moves"
+                " on its own"
+            )
+
+
 def build_affine_model(
     doc: UrdfDocument,
     operating_point: Mapping[str, float] | None = None,
@@ -271,6 +285,7 @@ def build_affine_model(
     import pinocchio as pin
 
     where = doc.source or "<URDF>"
+    _refuse_mimic(doc, where)
     model = doc.build_pinocchio_model()
     op = dict(operating_point or {})
     q0 = configuration(model, op, where)
