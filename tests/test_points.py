@@ -226,3 +226,68 @@ def test_export_to_control_matches_bondid_frf(quantity):
     assert np.max(np.abs(H_ss - ref) / np.abs(ref)) < 1e-9
     assert np.array_equal(frd.frdata, ref)
     assert list(sys.input_labels) == ["a", "b", "pb"]
+
+
+def _free_body() -> UrdfDocument:
+    """One rigid body with an off-diagonal inertia and an offset CoM, free-flying."""
+    from bondid.model.authoring import add_floating_base
+
+    xml = (
+        '<robot name="body"><link name="base"><inertial><origin xyz="0.1 -0.05 0.02"/>'
+        '<mass value="2.5"/><inertia ixx="0.03" ixy="0.004" ixz="-0.002" iyy="0.05" iyz="0.001"'
+        ' izz="0.04"/></inertial></link>'
+        '<link name="p1"/><joint name="f1" type="fixed"><parent link="base"/><child link="p1"/>'
+        '<origin xyz="0.3 0.1 -0.1"/></joint>'
+        '<link name="p2"/><joint name="f2" type="fixed"><parent link="base"/><child link="p2"/>'
+        '<origin xyz="-0.2 0.25 0.05"/></joint></robot>'
+    )
+    doc = UrdfDocument.from_string(xml, source="<body>")
+    add_floating_base(doc)
+    doc.set_point(Point("hit", "p1", "translation", (0.0, 0.6, 0.8)))
+    doc.set_point(Point("acc", "p2", "translation", (1.0, 0.0, 0.0)))
+    return doc
+
+
+def test_free_flyer_rigid_body_accelerance_known_answer():
+    from bondid.modes.analysis import modal_analysis
+
+    doc = _free_body()
+    am = build_affine_model(doc, outputs=("acc",))
+    assert am.bodies == ("base",)  # the floating base is a fitted body, not grounded
+    f = np.array([0.5, 10.0, 300.0])
+    A = am.linear_model().frf(f, "accelerance")[0, am.inputs.index("hit")]
+    c = np.array([0.1, -0.05, 0.02])
+    r_i, r_o = np.array([0.3, 0.1, -0.1]) - c, np.array([-0.2, 0.25, 0.05]) - c
+    I_c = np.array([[0.03, 0.004, -0.002], [0.004, 0.05, 0.001], [-0.002, 0.001, 0.04]])
+
+    def cross(v: np.ndarray) -> np.ndarray:
+        return np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+
+    d_i, d_o = np.array([0.0, 0.6, 0.8]), np.array([1.0, 0.0, 0.0])
+    ref = d_o @ (np.eye(3) / 2.5 - cross(r_o) @ np.linalg.solve(I_c, cross(r_i))) @ d_i
+    assert np.max(np.abs(A - ref)) < EXACT_TOL * abs(ref)
+    modes = modal_analysis(am.linear_model())
+    # the mode table lists the state matrix's eigenvalues: an undamped rigid DOF is a double
+    # zero, so 6 rigid-body DOF give 12 entries at 0 Hz (and nothing else: no spring)
+    assert [m.kind for m in modes.modes] == ["rigid"] * 12
+    assert all(m.f_hz == 0 for m in modes.modes)
+
+
+def test_roving_hammer_fit_of_a_free_free_chain_recovers_the_springs():
+    from bondid.fit import fit
+    from bondid.model.parameters import set_parameter
+
+    n = 4
+    truth = _free_chain(n)
+    names = [f"j{i}.stiffness" for i in range(1, n)] + ["j2.damping"]
+    for k, name in enumerate(names):
+        set_parameter(truth, name, get_parameter(truth, name) * (1.25 - 0.15 * k))
+    f = np.geomspace(3.0, 300.0, 150)
+    data = simulate(truth, freq_hz=f, outputs=("acc",), quantity="accelerance")
+    hammer = [i for i, name in enumerate(data.inputs) if name.startswith("h")]
+    data = type(data)(f, data.outputs, tuple(data.inputs[i] for i in hammer),
+                      data.H[:, hammer], "accelerance").to_quantity("receptance")  # fmt: skip
+    res = fit(_free_chain(n), [data], names, max_iter=100, presolve_iter=0)
+    assert res.success
+    for k, name in enumerate(names):
+        assert abs(res.fitted[k] / get_parameter(truth, name) - 1.0) < 1e-6

@@ -11,6 +11,11 @@ where ``π_b`` are the 10 dynamic parameters of link ``b`` in Pinocchio's order
 link-frame axes (not the joint frame: links merged into a joint by fixed joints keep their own
 parameters). ``M_rest``/``G_rest`` hold what no parameterised link contributes. This is what
 the fit and the sensitivities differentiate exactly.
+
+A URDF ``floating`` joint (Pinocchio's free-flyer) makes a free-free structure: its six
+velocity coordinates (``JOINT[vx]`` … ``JOINT[wz]``, body frame) have no spring, so the model
+has rigid-body modes at 0 Hz; gravity is left out of such a model (the soft supports of a
+free-free test carry the weight).
 """
 
 from __future__ import annotations
@@ -31,6 +36,9 @@ from .points import point_rows
 
 #: pi_from_inertial is the consistency layer's map (mass, CoM, I about CoM) → π.
 pi_from_inertial = pi_from_urdf
+
+#: Velocity coordinates of a free-flyer (Pinocchio: linear then angular, in the body frame).
+FREE_FLYER_AXES = ("vx", "vy", "vz", "wx", "wy", "wz")
 
 _REF_PI = np.array([1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 1.0])
 
@@ -292,13 +300,22 @@ def build_affine_model(
     nv = model.nv
     names = list(model.names)
     dofs: list[str] = [""] * nv
+    floating = False
     for jid in range(1, model.njoints):
         jm = model.joints[jid]
+        if jm.shortname() == "JointModelFreeFlyer":  # a URDF `floating` joint: free-free
+            floating = True
+            for k, axis in enumerate(FREE_FLYER_AXES):
+                dofs[jm.idx_v + k] = f"{names[jid]}[{axis}]"
+            continue
         if jm.nv != 1:
             raise ModelError(
-                f"{where}: joint {names[jid]!r} has {jm.nv} DOF; bondid needs 1-DOF joints"
+                f"{where}: joint {names[jid]!r} has {jm.nv} DOF; bondid needs 1-DOF joints or"
+                " one `floating` joint (a free-flyer)"
             )
         dofs[jm.idx_v] = names[jid]
+    if floating:  # a free-free structure on soft supports: they carry its weight
+        model.gravity.linear = np.zeros(3)
 
     def v_index(joint: str, role: str) -> int:
         if joint not in dofs:

@@ -125,3 +125,25 @@ def insert_parasitic_joint(
         )
     doc.set_stiffness(name, stiffness, reference=0.0)
     return name
+
+
+def add_floating_base(
+    doc: UrdfDocument, joint: str = "floating_base", world: str = "world"
+) -> None:
+    """Make ``doc`` free-free: a new root link ``world`` and a URDF ``floating`` joint to the
+    old root (a free-flyer: six free coordinates, rigid-body modes at 0 Hz, no gravity; see
+    :mod:`bondid.linear.affine`). For robots such as solo12 that a URDF writes with their
+    base as the root although it is not bolted down. Edits ``doc`` in place."""
+    import yourdfpy
+
+    where = doc.source or "<URDF>"
+    if any(j.type == "floating" for j in doc.robot.joints):
+        raise ModelError(f"{where}: the model already has a floating joint")
+    for name, kind in ((world, "link"), (joint, "joint")):
+        if name in (doc.link_names if kind == "link" else doc.joint_names):
+            raise ModelError(f"{where}: a {kind} named {name!r} exists; choose another name")
+    root = doc.root_link()
+    doc.robot.links.insert(0, yourdfpy.Link(name=world))
+    doc.robot.joints.insert(
+        0, yourdfpy.Joint(name=joint, type="floating", parent=world, child=root, origin=np.eye(4))
+    )

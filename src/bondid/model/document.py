@@ -187,7 +187,7 @@ class UrdfDocument:
         """Links rigidly attached to the root (through fixed joints only), root included."""
         fixed: dict[str, list[str]] = {}
         for j in self.robot.joints:
-            if j.type not in MOVABLE_TYPES:
+            if j.type == "fixed":
                 fixed.setdefault(j.parent, []).append(j.child)
         out, stack = set(), [self.root_link()]
         while stack:
