@@ -40,6 +40,16 @@ def add_model_args(p: argparse.ArgumentParser, *, data: bool = True, out: bool =
     if out:
         p.add_argument("--out", type=Path, default=None, help="folder for the results")
     p.add_argument("--quiet", action="store_true", help="no progress display")
+    add_package_path_arg(p)
+
+
+def add_package_path_arg(p: argparse.ArgumentParser) -> None:
+    """``--package-path DIR`` (repeatable): where ``package://`` meshes are looked up first."""
+    p.add_argument(
+        "--package-path", action="append", default=[], metavar="DIR",
+        help="folder holding (or being) a ROS package named by package:// mesh URIs; searched"
+        " before ROS_PACKAGE_PATH, the URDF's folders and example-robot-data; repeatable",
+    )  # fmt: skip
 
 
 def parse_band(text: str) -> tuple[float, float]:

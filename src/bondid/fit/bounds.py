@@ -20,12 +20,11 @@ relative bounds.
 from __future__ import annotations
 
 import fnmatch
-import os
 from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from ..consistency.hull import Hull, link_hull, make_resolver
+from ..consistency.hull import Hull, link_hull
 from ..exceptions import ConfigError, ParameterError
 from ..model.document import UrdfDocument
 from ..model.parameters import ParameterInfo, get_parameter, link_inertial, parameter_infos
@@ -77,11 +76,13 @@ def infos_by_name(doc: UrdfDocument, names: Sequence[str]) -> list[ParameterInfo
 def link_hulls(doc: UrdfDocument, links: Sequence[str]) -> dict[str, Hull | None]:
     """Convex hull (link frame, m) of each link's collision geometry (None without geometry).
 
-    Meshes are resolved relative to the URDF's folder; ``package://`` URIs are not resolvable
-    here and raise :class:`bondid.exceptions.ModelError` from :func:`link_hull`.
+    Meshes (``package://``, ``file://``, relative) are resolved by
+    :func:`bondid.model.packages.mesh_resolver` (package path, ``ROS_PACKAGE_PATH``, the
+    URDF's folders, example-robot-data).
     """
-    base = os.path.dirname(os.path.abspath(doc.source)) if doc.source else os.getcwd()
-    resolve = make_resolver(base, {})
+    from ..model.packages import mesh_resolver
+
+    resolve = mesh_resolver(doc)
     return {name: link_hull(doc.link(name), resolve, name=name) for name in links}
 
 

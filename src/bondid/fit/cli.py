@@ -24,6 +24,7 @@ from ..cli import (
     EXIT_FAILED,
     EXIT_OK,
     Progress,
+    add_package_path_arg,
     make_parser,
     parse_band,
     run,
@@ -65,6 +66,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="measured FRF files, CSV or UFF58 (or data = in --study)",
     )
     p.add_argument("--study", type=Path, help="study TOML file; command-line options override it")
+    add_package_path_arg(p)
+    p.add_argument(
+        "--floating-base", action=argparse.BooleanOptionalAction, default=None,
+        help="the model's root is free (a free-free structure): add a floating joint above it"
+        " (rigid-body modes at 0 Hz, no gravity); or write a URDF floating joint",
+    )  # fmt: skip
     p.add_argument(
         "--points", type=Path, metavar="TOML",
         help="measurement points and transducer gains ([points], [gains] tables; see README)",
@@ -336,6 +343,11 @@ def _body(args: argparse.Namespace) -> int:
     assert s.model is not None
     inputs: list[Path] = [s.model, *s.data] + ([s.source] if s.source else [])
     doc = UrdfDocument.load(s.model)
+    doc.package_path = [str(p) for p in [*args.package_path, *s.package_path]]
+    if args.floating_base if args.floating_base is not None else s.floating_base:
+        from ..model.authoring import add_floating_base
+
+        add_floating_base(doc)
     declare_points(doc, s, args.points)
     datasets = [
         ds if ds.quantity == "receptance" else ds.to_quantity("receptance")

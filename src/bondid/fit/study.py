@@ -26,6 +26,8 @@ Every section and key is optional::
     "x.x" = 2.0
 
     points_file = "points.toml"              # --points: [points] and [gains] tables
+    package_path = ["../ros_ws/src"]         # --package-path (package:// meshes)
+    floating_base = false                    # --floating-base (a free-free structure)
 
     [points.load]                            # a measurement point (bondid.model.points)
     link = "load"
@@ -72,6 +74,7 @@ STAGES = ("stiffness", "damping", "inertia")
 
 _TOP_KEYS = (
     "model", "data", "parameters", "bounds", "cost", "search", "points", "gains", "points_file",
+    "package_path", "floating_base",
 )  # fmt: skip
 _SECTION_KEYS = {
     "parameters": ("free", "fixed"),
@@ -119,6 +122,8 @@ class StudySettings:
         source: the study file, or None.
         points, gains: measurement points and transducer gains declared in the study
             (:mod:`bondid.model.points`); points_file: a TOML file with more of them.
+        package_path: folders searched first for ``package://`` meshes.
+        floating_base: add a floating joint above the root (a free-free structure).
     """
 
     model: Path | None = None
@@ -145,6 +150,8 @@ class StudySettings:
     points: list[Point] = field(default_factory=list)
     gains: dict[str, float] = field(default_factory=dict)
     points_file: Path | None = None
+    package_path: list[Path] = field(default_factory=list)
+    floating_base: bool = False
 
     def to_json_dict(self) -> dict[str, Any]:
         """The settings as plain JSON values (paths as strings)."""
@@ -173,6 +180,8 @@ class StudySettings:
             "points": [vars(p) for p in self.points],
             "gains": dict(self.gains),
             "points_file": None if self.points_file is None else str(self.points_file),
+            "package_path": [str(p) for p in self.package_path],
+            "floating_base": self.floating_base,
         }
 
 
@@ -345,6 +354,14 @@ def study_from_dict(
         s.gains = gains_from_table(doc["gains"], where)
     if "points_file" in doc:
         s.points_file = _path(doc["points_file"], base, where, "points_file")
+    if "package_path" in doc:
+        items = doc["package_path"]
+        items = [items] if isinstance(items, str) else items
+        if not isinstance(items, list):
+            raise _fail(where, "package_path", f"{items!r} is not a folder or a list of them")
+        s.package_path = [_path(v, base, where, f"package_path[{i}]") for i, v in enumerate(items)]
+    if "floating_base" in doc:
+        s.floating_base = check_bool(doc["floating_base"], where, "floating_base")
 
     par = _table(doc.get("parameters", {}), where, "parameters")
     _check_keys(par, _SECTION_KEYS["parameters"], where, "parameters")

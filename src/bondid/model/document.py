@@ -70,6 +70,8 @@ class UrdfDocument:
         self.source = source
         #: parts inside links/joints that yourdfpy does not write back (restored on writing)
         self.lost: list[LostPart] = list(lost or [])
+        #: folders searched first for ``package://`` meshes (:mod:`.packages`)
+        self.package_path: list[str] = []
         self._check()
 
     # -- reading ------------------------------------------------------------------------
@@ -358,9 +360,11 @@ class UrdfDocument:
 
     def copy(self) -> UrdfDocument:
         """A deep copy (edits to it leave this document untouched)."""
-        return UrdfDocument(
+        out = UrdfDocument(
             copy.deepcopy(self._urdf), copy.deepcopy(self.extras), self.source, self.lost
         )
+        out.package_path = list(self.package_path)
+        return out
 
     def build_pinocchio_model(self):  # -> pinocchio.Model
         """The Pinocchio model of this document (built from memory, no file written)."""

@@ -87,8 +87,10 @@ def load_machine(
     import pinocchio as pin
 
     where = doc.source or "<URDF>"
+    from ..model.packages import text_with_resolved_meshes
+
     model = doc.build_pinocchio_model()
-    text = doc.to_string()
+    text = text_with_resolved_meshes(doc)
     try:
         geom = pin.buildGeomFromUrdfString(model, text, pin.GeometryType.VISUAL)
         if geom.ngeoms == 0:
