@@ -291,3 +291,46 @@ def test_roving_hammer_fit_of_a_free_free_chain_recovers_the_springs():
     assert res.success
     for k, name in enumerate(names):
         assert abs(res.fitted[k] / get_parameter(truth, name) - 1.0) < 1e-6
+
+
+def test_fit_cli_roving_hammer_uff_with_vendor_nodes_points_file_and_gain(tmp_path):
+    """End to end as a test engineer brings it: a URDF without points, a points file with
+    the hammer points, the accelerometer and its sensitivity, a UFF58 file with the vendor's
+    own node numbers mapped on the command line."""
+    import json
+
+    from bondid.data.uff_format import write_uff58
+    from bondid.fit.cli import main
+    from bondid.model.parameters import set_parameter
+
+    n = 3
+    truth = _free_chain(n)
+    set_parameter(truth, "j1.stiffness", 1.3 * get_parameter(truth, "j1.stiffness"))
+    truth.set_gain("gain.out.acc", 0.0102)  # V per m/s² (10.2 mV/g)
+    f = np.geomspace(3.0, 300.0, 120)
+    data = simulate(truth, freq_hz=f, outputs=("acc",), quantity="accelerance")
+    data = type(data)(f, data.outputs, data.inputs[:n], data.H[:, :n], "accelerance")
+    nodes = {"acc": (901, 1), **{f"h{i}": (101 + i, 1) for i in range(n)}}
+    write_uff58(data, tmp_path / "hammer.uff", channel_map=nodes)
+    bare = _free_chain(n, hammer=False)
+    bare.extras = [el for el in bare.extras if el.tag != "measurement_point"]
+    bare.write(tmp_path / "chain.urdf")
+    (tmp_path / "points.toml").write_text(
+        "".join(
+            f'[points.h{i}]\nlink = "p{i}"\nkind = "translation"\ndirection = [1, 0, 0]\n'
+            for i in range(n)
+        )
+        + f'[points.acc]\nlink = "p{n - 1}"\ndirection = [1, 0, 0]\n'
+        + '[gains]\n"gain.out.acc" = 0.01\n'
+    )
+    args = ["--model", str(tmp_path / "chain.urdf"), "--data", str(tmp_path / "hammer.uff")]
+    args += ["--points", str(tmp_path / "points.toml"), "--free", "j1.stiffness", "gains"]
+    args += [f"--uff-map={k}={v[0]}:{v[1]}" for k, v in nodes.items()]
+    assert main([*args, "--out", str(tmp_path / "out"), "--quiet", "--presolve", "0"]) == 0
+    fitted = {
+        p["name"]: p["fitted"]
+        for p in json.loads((tmp_path / "out/fit.json").read_text())["parameters"]
+    }
+    assert abs(fitted["j1.stiffness"] / get_parameter(truth, "j1.stiffness") - 1) < 1e-6
+    assert abs(fitted["gain.out.acc"] / 0.0102 - 1) < 1e-6
+    assert main([*args[:4], "--points", str(tmp_path / "points.toml"), "--quiet"]) == 2

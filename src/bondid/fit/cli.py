@@ -68,6 +68,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--study", type=Path, help="study TOML file; command-line options override it")
     add_package_path_arg(p)
     p.add_argument(
+        "--uff-map", action="append", default=[], metavar="NAME=NODE:DIR",
+        help="UFF58 files: the channel (joint or point) of a node and direction code, e.g."
+        " acc=101:+3 (±1..±3 translation x/y/z, ±4..±6 rotation); repeatable; replaces the"
+        " default map (node i = i-th transmitted joint)",
+    )  # fmt: skip
+    p.add_argument(
         "--floating-base", action=argparse.BooleanOptionalAction, default=None,
         help="the model's root is free (a free-free structure): add a floating joint above it"
         " (rigid-body modes at 0 Hz, no gravity); or write a URDF floating joint",
@@ -323,6 +329,15 @@ def summary(result: Any, content: dict[str, Any] | None, extra: dict[str, Any]) 
     return "\n".join(lines)
 
 
+def uff_map(s: StudySettings, items: Sequence[str]) -> dict[str, tuple[int, int]] | None:
+    """The study's ``[uff_map]`` updated by ``--uff-map`` items (None when neither gives one)."""
+    from ..data.for_model import parse_uff_map_item
+
+    out = dict(s.uff_map)
+    out.update(parse_uff_map_item(t) for t in items)
+    return out or None
+
+
 def declare_points(doc: UrdfDocument, s: StudySettings, points_file: Path | None) -> None:
     """Put the study's points and gains, then those of ``--points`` (winning), into ``doc``."""
     from ..model.points import apply_declarations, load_points_file
@@ -351,7 +366,7 @@ def _body(args: argparse.Namespace) -> int:
     declare_points(doc, s, args.points)
     datasets = [
         ds if ds.quantity == "receptance" else ds.to_quantity("receptance")
-        for ds in load_datasets(doc, s.data)
+        for ds in load_datasets(doc, s.data, channel_map=uff_map(s, args.uff_map))
     ]
     if args.out is not None:
         check_out_dir(args.out, inputs, datasets)

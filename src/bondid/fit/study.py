@@ -29,6 +29,9 @@ Every section and key is optional::
     package_path = ["../ros_ws/src"]         # --package-path (package:// meshes)
     floating_base = false                    # --floating-base (a free-free structure)
 
+    [uff_map]                                # --uff-map NAME=NODE:DIR (UFF58 files)
+    acc = [101, 3]                           # channel name = [node, direction code ±1..±6]
+
     [points.load]                            # a measurement point (bondid.model.points)
     link = "load"
     kind = "rotation"
@@ -74,7 +77,7 @@ STAGES = ("stiffness", "damping", "inertia")
 
 _TOP_KEYS = (
     "model", "data", "parameters", "bounds", "cost", "search", "points", "gains", "points_file",
-    "package_path", "floating_base",
+    "package_path", "floating_base", "uff_map",
 )  # fmt: skip
 _SECTION_KEYS = {
     "parameters": ("free", "fixed"),
@@ -124,6 +127,7 @@ class StudySettings:
             (:mod:`bondid.model.points`); points_file: a TOML file with more of them.
         package_path: folders searched first for ``package://`` meshes.
         floating_base: add a floating joint above the root (a free-free structure).
+        uff_map: channel name -> (node, direction) of UFF58 records.
     """
 
     model: Path | None = None
@@ -152,6 +156,7 @@ class StudySettings:
     points_file: Path | None = None
     package_path: list[Path] = field(default_factory=list)
     floating_base: bool = False
+    uff_map: dict[str, tuple[int, int]] = field(default_factory=dict)
 
     def to_json_dict(self) -> dict[str, Any]:
         """The settings as plain JSON values (paths as strings)."""
@@ -182,6 +187,7 @@ class StudySettings:
             "points_file": None if self.points_file is None else str(self.points_file),
             "package_path": [str(p) for p in self.package_path],
             "floating_base": self.floating_base,
+            "uff_map": {k: list(v) for k, v in self.uff_map.items()},
         }
 
 
@@ -362,6 +368,11 @@ def study_from_dict(
         s.package_path = [_path(v, base, where, f"package_path[{i}]") for i, v in enumerate(items)]
     if "floating_base" in doc:
         s.floating_base = check_bool(doc["floating_base"], where, "floating_base")
+    for name, v in _table(doc.get("uff_map", {}), where, "uff_map").items():
+        ok = isinstance(v, list) and len(v) == 2 and all(type(x) is int for x in v)
+        if not ok or not -6 <= v[1] <= 6 or v[0] < 0:
+            raise _fail(where, f"uff_map.{name}", f"{v!r} is not [NODE, DIRECTION (±1..±6)]")
+        s.uff_map[str(name)] = (int(v[0]), int(v[1]))
 
     par = _table(doc.get("parameters", {}), where, "parameters")
     _check_keys(par, _SECTION_KEYS["parameters"], where, "parameters")
