@@ -41,6 +41,26 @@ def add_model_args(p: argparse.ArgumentParser, *, data: bool = True, out: bool =
         p.add_argument("--out", type=Path, default=None, help="folder for the results")
     p.add_argument("--quiet", action="store_true", help="no progress display")
     add_package_path_arg(p)
+    add_points_arg(p)
+
+
+def add_points_arg(p: argparse.ArgumentParser) -> None:
+    """``--points FILE``: measurement points and transducer gains (TOML)."""
+    p.add_argument(
+        "--points", type=Path, default=None, metavar="TOML",
+        help="measurement points and transducer gains ([points], [gains] tables; see README)",
+    )  # fmt: skip
+
+
+def apply_model_options(doc: object, args: argparse.Namespace) -> None:
+    """Apply ``--package-path`` and ``--points`` (when the parser has them) to a loaded model
+    (a :class:`bondid.model.UrdfDocument`)."""
+    from .model.points import apply_declarations, load_points_file
+
+    if getattr(args, "package_path", None):
+        doc.package_path = [str(p) for p in args.package_path]  # type: ignore[attr-defined]
+    if getattr(args, "points", None) is not None:
+        apply_declarations(doc, *load_points_file(args.points))
 
 
 def add_package_path_arg(p: argparse.ArgumentParser) -> None:

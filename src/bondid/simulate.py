@@ -91,6 +91,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     p.add_argument("--plot", type=Path, default=None, help="also draw a Bode plot (PNG)")
     p.add_argument("--quiet", action="store_true")
+    p.add_argument(
+        "--outputs", nargs="+", default=None, metavar="NAME",
+        help="sensed joints or points (default: the inputs: transmitted joints, then points)",
+    )  # fmt: skip
+    cli.add_points_arg(p)
+    cli.add_package_path_arg(p)
     args = p.parse_args(argv)
 
     def body() -> int:
@@ -104,6 +110,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise ConfigError(f"--noise {args.noise}: must be ≥ 0")
         refuse_overwrite(args.out, [args.model])
         doc = UrdfDocument.load(args.model)
+        cli.apply_model_options(doc, args)
         op = parse_operating_point(" ".join(args.q), "--q")
         data = simulate(
             doc,
@@ -113,6 +120,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             floor_db=args.floor_db,
             seed=args.seed,
             quantity=args.quantity,
+            outputs=args.outputs,
         )
         data.source = str(args.out)
         is_uff = args.out.suffix.lower() in (".uff", ".unv", ".uff58")
@@ -125,7 +133,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.plot is not None:
             from .plots import Curve, plot_bode
 
-            exact = simulate(doc, op, data.freq_hz, noise=0.0, quantity=args.quantity)
+            exact = simulate(
+                doc, op, data.freq_hz, noise=0.0, quantity=args.quantity, outputs=args.outputs
+            )
             plot_bode(
                 data.freq_hz,
                 [

@@ -14,10 +14,15 @@ from .uff_format import default_channel_map
 
 def model_channel_map(doc: UrdfDocument) -> dict[str, tuple[int, int]]:
     """The spec's default UFF58 map for ``doc``: node i = i-th transmitted joint (1-based),
-    direction code from the joint axis."""
+    direction code from the joint axis; then the measurement points (extension), numbered
+    on, direction code from the point's kind and direction."""
     joints = [t.joint for t in doc.transmissions]
     axes = [doc.joint(j).axis if doc.joint(j).axis is not None else (1.0, 0.0, 0.0) for j in joints]
     kinds = [str(doc.joint(j).type) for j in joints]
+    points = doc.points
+    joints += [p.name for p in points]
+    axes += [p.direction for p in points]
+    kinds += ["prismatic" if p.kind == "translation" else "revolute" for p in points]
     return default_channel_map(joints, axes, kinds)
 
 

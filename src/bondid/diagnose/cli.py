@@ -57,6 +57,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         from .report import gaps, summary, to_json_dict, write_outputs
 
         doc = UrdfDocument.load(args.model)
+        cli.apply_model_options(doc, args)
         if args.out is not None:
             from ..atomic import refuse_overwrite
 

@@ -70,6 +70,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         t_start = time.perf_counter()
         doc = UrdfDocument.load(args.model)
+        cli.apply_model_options(doc, args)
         inputs = [args.model, *args.data]
         if args.out is not None:
             for name in [*output.PNG_NAMES.values(), "sensitivity.json"]:
