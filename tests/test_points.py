@@ -334,3 +334,30 @@ def test_fit_cli_roving_hammer_uff_with_vendor_nodes_points_file_and_gain(tmp_pa
     assert abs(fitted["j1.stiffness"] / get_parameter(truth, "j1.stiffness") - 1) < 1e-6
     assert abs(fitted["gain.out.acc"] / 0.0102 - 1) < 1e-6
     assert main([*args[:4], "--points", str(tmp_path / "points.toml"), "--quiet"]) == 2
+
+
+@pytest.mark.parametrize("gain", [1.0, 3.0])
+def test_frf_jacobian_with_points_as_inputs_and_outputs_matches_finite_differences(gain):
+    """Points make C = Bᵀ (the Jacobian mirrors channels); an input gain breaks it."""
+    from bondid.frf.jacobian import frf_and_jacobian
+
+    doc = _free_chain(3)
+    doc.set_gain("gain.in.h1", gain)
+    am = build_affine_model(doc)
+    assert np.array_equal(am.C, am.B.T) == (gain == 1.0)
+    names = ["j1.stiffness", "j2.damping", "m1.mass", "m2.mass"]
+    pm = ParameterMap(doc, am, names)
+    f = np.geomspace(5.0, 200.0, 30)
+
+    def H_at(p: np.ndarray) -> np.ndarray:
+        return am.with_values(*pm.values(p)).linear_model().frf(f)
+
+    p0 = pm.p0
+    H, J = frf_and_jacobian(am.with_values(*pm.values(p0)), f, *pm.jacobian(p0))
+    assert np.max(np.abs(H - H_at(p0))) <= 1e-12 * np.max(np.abs(H))
+    for k in range(len(names)):
+        h = 1e-6 * abs(p0[k])
+        e = np.zeros_like(p0)
+        e[k] = h
+        fd = (H_at(p0 + e) - H_at(p0 - e)) / (2 * h)
+        assert np.max(np.abs(J[..., k] - fd)) < JAC_FD_TOL * np.max(np.abs(J[..., k]))
