@@ -357,6 +357,7 @@ def _body(args: argparse.Namespace) -> int:
     s = resolve_settings(args)
     assert s.model is not None
     inputs: list[Path] = [s.model, *s.data] + ([s.source] if s.source else [])
+    inputs += [f for f in (s.points_file, args.points) if f is not None]
     doc = UrdfDocument.load(s.model)
     doc.package_path = [str(p) for p in [*args.package_path, *s.package_path]]
     if args.floating_base if args.floating_base is not None else s.floating_base:
