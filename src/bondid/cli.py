@@ -30,8 +30,11 @@ def make_parser(prog: str, description: str) -> argparse.ArgumentParser:
     return _Parser(prog=f"python -m bondid.{prog}", description=description)
 
 
-def add_model_args(p: argparse.ArgumentParser, *, data: bool = True, out: bool = True) -> None:
-    """The common options: --model, --data, --out, --quiet."""
+def add_model_args(
+    p: argparse.ArgumentParser, *, data: bool = True, out: bool = True, points_alias: bool = True
+) -> None:
+    """The common options: --model, --data, --out, --quiet, --package-path, --points-file
+    (also spelt --points unless ``points_alias`` is False: diagnose's --points is another)."""
     p.add_argument("--model", required=True, type=Path, help="the machine's URDF file")
     if data:
         p.add_argument(
@@ -41,13 +44,14 @@ def add_model_args(p: argparse.ArgumentParser, *, data: bool = True, out: bool =
         p.add_argument("--out", type=Path, default=None, help="folder for the results")
     p.add_argument("--quiet", action="store_true", help="no progress display")
     add_package_path_arg(p)
-    add_points_arg(p)
+    add_points_arg(p, alias=points_alias)
 
 
-def add_points_arg(p: argparse.ArgumentParser) -> None:
-    """``--points FILE``: measurement points and transducer gains (TOML)."""
+def add_points_arg(p: argparse.ArgumentParser, *, alias: bool = True) -> None:
+    """``--points-file FILE`` (alias ``--points``): measurement points and transducer gains."""
+    names = ["--points-file", "--points"] if alias else ["--points-file"]
     p.add_argument(
-        "--points", type=Path, default=None, metavar="TOML",
+        *names, dest="points_file", type=Path, default=None, metavar="TOML",
         help="measurement points and transducer gains ([points], [gains] tables; see README)",
     )  # fmt: skip
 
@@ -59,8 +63,8 @@ def apply_model_options(doc: object, args: argparse.Namespace) -> None:
 
     if getattr(args, "package_path", None):
         doc.package_path = [str(p) for p in args.package_path]  # type: ignore[attr-defined]
-    if getattr(args, "points", None) is not None:
-        apply_declarations(doc, *load_points_file(args.points))
+    if getattr(args, "points_file", None) is not None:
+        apply_declarations(doc, *load_points_file(args.points_file))
 
 
 def add_package_path_arg(p: argparse.ArgumentParser) -> None:

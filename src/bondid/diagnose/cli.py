@@ -19,7 +19,7 @@ def build_parser() -> argparse.ArgumentParser:
         "Diagnose the gap between a model and measured FRFs: where it lies, which unmodelled "
         "effect causes it, how far it shrinks.",
     )
-    cli.add_model_args(p)
+    cli.add_model_args(p, points_alias=False)  # --points is the refit frequency count here
     p.add_argument(
         "--effects",
         default=None,

@@ -25,6 +25,7 @@ from ..cli import (
     EXIT_OK,
     Progress,
     add_package_path_arg,
+    add_points_arg,
     make_parser,
     parse_band,
     run,
@@ -78,10 +79,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="the model's root is free (a free-free structure): add a floating joint above it"
         " (rigid-body modes at 0 Hz, no gravity); or write a URDF floating joint",
     )  # fmt: skip
-    p.add_argument(
-        "--points", type=Path, metavar="TOML",
-        help="measurement points and transducer gains ([points], [gains] tables; see README)",
-    )  # fmt: skip
+    add_points_arg(p)
     p.add_argument(
         "--free", nargs="+", action="extend",
         help="parameters to fit: names, globs (x_stage.*, *.stiffness), groups (inertial,"
@@ -357,14 +355,14 @@ def _body(args: argparse.Namespace) -> int:
     s = resolve_settings(args)
     assert s.model is not None
     inputs: list[Path] = [s.model, *s.data] + ([s.source] if s.source else [])
-    inputs += [f for f in (s.points_file, args.points) if f is not None]
+    inputs += [f for f in (s.points_file, args.points_file) if f is not None]
     doc = UrdfDocument.load(s.model)
     doc.package_path = [str(p) for p in [*args.package_path, *s.package_path]]
     if args.floating_base if args.floating_base is not None else s.floating_base:
         from ..model.authoring import add_floating_base
 
         add_floating_base(doc)
-    declare_points(doc, s, args.points)
+    declare_points(doc, s, args.points_file)
     datasets = [
         ds if ds.quantity == "receptance" else ds.to_quantity("receptance")
         for ds in load_datasets(doc, s.data, channel_map=uff_map(s, args.uff_map))
