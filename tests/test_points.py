@@ -190,6 +190,7 @@ def test_fitted_gain_known_answer():
     for n in names:
         k = res.names.index(n)
         assert abs(res.fitted[k] / get_parameter(truth, n) - 1.0) < 1e-6
+        assert get_parameter(res.document, n) == res.fitted[k]  # fitted.urdf carries it
 
 
 def test_points_table_errors_name_the_key():
