@@ -110,8 +110,8 @@ def point_from_mapping(name: str, table: Mapping[str, Any], where: str) -> Point
     for k in table:
         if k not in _POINT_KEYS:
             raise _fail(where, f"{key}.{k}", f"unknown key; valid: {', '.join(_POINT_KEYS)}")
-    if not name or "." in name or any(c.isspace() for c in name):
-        raise _fail(where, key, "a point name must be non-empty, without '.' or spaces")
+    if not name or any(c in ".,=:[]" or c.isspace() for c in name):
+        raise _fail(where, key, "a point name must be non-empty, without . , = : [ ] or spaces")
     link = table.get("link")
     if not isinstance(link, str) or not link:
         raise _fail(where, f"{key}.link", f"{link!r} is not a link name")
