@@ -211,6 +211,9 @@ def test_points_and_gains_survive_write_and_read():
     back = UrdfDocument.from_string(doc.to_string())
     assert back.points == doc.points
     assert back.gains == {"gain.out.pb": 9.81}
+    from bondid.model.points import plot_units
+
+    assert plot_units(back, ["a", "pb"]) == {"a": "m", "pb": ("u(pb)", "N·m")}
 
 
 @pytest.mark.parametrize("quantity", ["receptance", "mobility", "accelerance"])

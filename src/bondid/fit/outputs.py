@@ -93,10 +93,10 @@ def jsonable(value: Any) -> Any:
     return value
 
 
-def _units(doc: UrdfDocument, joints: Sequence[str]) -> dict[str, str]:
-    from ..model.points import channel_unit
+def _units(doc: UrdfDocument, joints: Sequence[str]) -> dict[str, Any]:
+    from ..model.points import plot_units
 
-    return {j: channel_unit(doc, j) for j in joints}
+    return plot_units(doc, joints)
 
 
 def model_frf(doc: UrdfDocument, ds: FrfData) -> np.ndarray:

@@ -223,3 +223,19 @@ def channel_unit(doc: Any, name: str) -> str:
         if p.name == name:
             return "m" if p.kind == "translation" else "rad"
     return "m" if doc.joint(name).type == "prismatic" else "rad"
+
+
+def plot_units(doc: Any, names: Any) -> dict[str, Any]:
+    """Plot units per channel name: ``m`` / ``rad``, or a (response, excitation) pair where a
+    transducer gain makes the file's unit another one (written ``u(NAME)``)."""
+    gains = doc.gains
+    out: dict[str, Any] = {}
+    for name in names:
+        base = channel_unit(doc, name)
+        force = "N" if base == "m" else "N·m"
+        g_out, g_in = f"gain.out.{name}" in gains, f"gain.in.{name}" in gains
+        if g_out or g_in:
+            out[name] = (f"u({name})" if g_out else base, f"u({name})" if g_in else force)
+        else:
+            out[name] = base
+    return out
