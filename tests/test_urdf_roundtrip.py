@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from models import robot_path
 
-from bondid.exceptions import ModelError
+from bondid.exceptions import ModelError, OperatingPointError
 from bondid.linear.affine import build_affine_model
 from bondid.model import UrdfDocument
 
@@ -93,23 +93,56 @@ def test_every_example_robot_data_model_round_trips():
     assert checked >= len(paths) - 5
 
 
-def test_mimic_joint_kept_on_write_and_refused_by_the_linearisation():
+def test_mimic_joint_kept_on_write():
     xml = (
-        '<robot name="r"><link name="a"/><link name="b"><inertial><mass value="1"/>'
-        '<inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>'
-        '<link name="c"><inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1"'
-        ' iyz="0" izz="1"/></inertial></link>'
+        '<robot name="r"><link name="a"/><link name="b"/><link name="c"/>'
         '<joint name="j1" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/>'
         '<limit lower="-1" upper="1" effort="1" velocity="1"/><calibration rising="0.1"/>'
         '<safety_controller soft_lower_limit="-0.9" soft_upper_limit="0.9" k_velocity="1"/>'
         "</joint>"
         '<joint name="j2" type="revolute"><parent link="b"/><child link="c"/><axis xyz="0 0 1"/>'
         '<limit lower="-1" upper="1" effort="1" velocity="1"/><mimic joint="j1" multiplier="2"/>'
-        '</joint><transmission name="t"><joint name="j1"/></transmission></robot>'
+        "</joint></robot>"
     )
-    doc = UrdfDocument.from_string(xml, source="m.urdf")
-    text = doc.copy().to_string()
+    text = UrdfDocument.from_string(xml, source="m.urdf").copy().to_string()
     for tag in ("<mimic", "<calibration", "<safety_controller"):
         assert tag in text
-    with pytest.raises(ModelError, match=r"m\.urdf: joint 'j2' mimics joint 'j1'"):
-        build_affine_model(doc)
+
+
+#: the reduced model against Pinocchio's own mimic model (round-off, and central differences
+#: of its gravity torques with step 1e-6)
+MIMIC_TOL, GRAVITY_FD_TOL = 1e-12, 1e-6
+
+
+def test_mimic_joint_is_a_coupled_dof_like_pinocchios_mimic_model():
+    import pinocchio as pin
+
+    doc = UrdfDocument.load(robot_path("panda"))  # panda_finger_joint2 mimics joint1
+    doc.add_transmission("panda_joint2")
+    doc.add_transmission("panda_finger_joint1")
+    op = {"panda_joint2": -0.4, "panda_joint4": -1.9, "panda_finger_joint1": 0.02}
+    am = build_affine_model(doc, op, outputs=("panda_finger_joint1", "panda_finger_joint2"))
+    assert "panda_finger_joint2" not in am.dofs
+    ref = pin.buildModelFromUrdf(robot_path("panda"), mimic=True)
+    data = ref.createData()
+    q = pin.neutral(ref)
+    for name, v in op.items():
+        q[ref.joints[ref.getJointId(name)].idx_q] = v
+    assert ref.nv == am.nv
+    M_ref = pin.crba(ref, data, q)
+    M_ref = np.triu(M_ref) + np.triu(M_ref, 1).T
+    assert np.max(np.abs(am.mass_matrix() - M_ref)) < MIMIC_TOL * np.max(np.abs(M_ref))
+
+    def g(qq: np.ndarray) -> np.ndarray:
+        return pin.rnea(ref, data, qq, np.zeros(ref.nv), np.zeros(ref.nv)).copy()
+
+    G = np.empty((ref.nv, ref.nv))
+    for k in range(ref.nv):
+        e = np.zeros(ref.nv)
+        e[k] = 1e-6
+        G[:, k] = (g(pin.integrate(ref, q, e)) - g(pin.integrate(ref, q, -e))) / 2e-6
+    assert np.max(np.abs(am.stiffness_matrix() - G)) < GRAVITY_FD_TOL * np.max(np.abs(G))
+    # the mimic joint's encoder reads the master's motion times the multiplier (1 here)
+    assert np.array_equal(am.C[0], am.C[1])
+    with pytest.raises(OperatingPointError, match="mimic"):
+        build_affine_model(doc, {"panda_finger_joint2": 0.01})

@@ -16,6 +16,9 @@ A URDF ``floating`` joint (Pinocchio's free-flyer) makes a free-free structure: 
 velocity coordinates (``JOINT[vx]`` … ``JOINT[wz]``, body frame) have no spring, so the model
 has rigid-body modes at 0 Hz; gravity is left out of such a model (the soft supports of a
 free-free test carry the weight).
+
+``<mimic>`` joints are coupled DOFs (:mod:`bondid.linear.mimic`): the model is reduced to
+the independent coordinates, so ``dofs`` lists those only.
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ from ..model.document import UrdfDocument
 from ..model.parameters import link_inertial
 from ..model.points import check_gain_name
 from .linear_model import LinearModel
+from .mimic import Coupling, full_operating_point, mimic_couplings, reduce_matrices, reduction
 from .operating_point import configuration
 from .points import point_rows
 
@@ -257,20 +261,6 @@ def _gains(
     return gi, go
 
 
-def _refuse_mimic(doc: UrdfDocument, where: str) -> None:
-    """A ``<mimic>`` joint is a coupled DOF, which Pinocchio's default URDF reading (and so
-    this linearisation) would treat as an independent one: refuse it rather than model it
-    wrongly."""
-    for name, master in doc.mimic_joints().items():
-        if name in doc.movable_joint_names:
-            raise ModelError(
-                f"{where}: joint {name!r} mimics joint {master!r} (<mimic>); bondid models"
-                " independent joints only and would treat it as a free DOF. Make it a fixed"
-                " joint, or remove its <mimic> (UrdfDocument.drop_mimic) if it really moves"
-                " on its own"
-            )
-
-
 def build_affine_model(
     doc: UrdfDocument,
     operating_point: Mapping[str, float] | None = None,
@@ -293,10 +283,10 @@ def build_affine_model(
     import pinocchio as pin
 
     where = doc.source or "<URDF>"
-    _refuse_mimic(doc, where)
+    couplings = mimic_couplings(doc, where)
     model = doc.build_pinocchio_model()
     op = dict(operating_point or {})
-    q0 = configuration(model, op, where)
+    q0 = configuration(model, full_operating_point(op, couplings, where), where)
     nv = model.nv
     names = list(model.names)
     dofs: list[str] = [""] * nv
@@ -381,7 +371,7 @@ def build_affine_model(
     G_full = pin.computeGeneralizedGravityDerivatives(model, data, q0).copy()
     M_rest = M_full - np.einsum("bk,bkij->ij", pi, M_basis)
     G_rest = G_full - np.einsum("bk,bkij->ij", pi, G_basis)
-    return AffineModel(
+    full = AffineModel(
         dofs=tuple(dofs),
         bodies=tuple(bodies),
         pi=pi,
@@ -398,7 +388,28 @@ def build_affine_model(
         outputs=outs,
         q0=q0,
         operating_point=op,
-    ).with_gains(*_gains(doc, inputs, outs))
+    )
+    am = _reduce_mimic(full, couplings) if couplings else full
+    return am.with_gains(*_gains(doc, inputs, outs))
+
+
+def _reduce_mimic(am: AffineModel, couplings: Mapping[str, Coupling]) -> AffineModel:
+    """The model in the independent coordinates (see :mod:`bondid.linear.mimic`)."""
+    T, red = reduction(am.dofs, couplings)
+    free = np.array([d not in couplings for d in am.dofs])
+    fixed_k = np.diag(np.where(free, 0.0, am.stiffness))  # mimic joints' own springs
+    fixed_d = np.diag(np.where(free, 0.0, am.damping))
+    r = reduce_matrices(
+        T,
+        {"Mb": am.M_basis, "Gb": am.G_basis, "M": am.M_rest, "G": am.G_rest + fixed_k,
+         "D": am.D_rest + fixed_d},
+    )  # fmt: skip
+    return AffineModel(
+        dofs=red, bodies=am.bodies, pi=am.pi, M_basis=r["Mb"], G_basis=r["Gb"],
+        M_rest=r["M"], G_rest=r["G"], D_rest=r["D"], stiffness=am.stiffness[free],
+        damping=am.damping[free], B=T.T @ am.B, C=am.C @ T, inputs=am.inputs,
+        outputs=am.outputs, q0=am.q0, operating_point=am.operating_point,
+    )  # fmt: skip
 
 
 def linearise(

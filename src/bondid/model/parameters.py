@@ -85,8 +85,9 @@ def parameter_infos(doc: UrdfDocument) -> list[ParameterInfo]:
         out += [
             ParameterInfo(f"{n}.inertia.{c}", "inertia", n, c, "kg*m^2") for c in INERTIA_COMPONENTS
         ]
+    mimic = doc.mimic_joints()  # their springs/dampers are folded into the master's
     for j in doc.robot.joints:
-        if j.type not in ("revolute", "continuous", "prismatic"):
+        if j.type not in ("revolute", "continuous", "prismatic") or j.name in mimic:
             continue
         ku, du = _joint_units(j.type)
         out.append(ParameterInfo(f"{j.name}.stiffness", "stiffness", j.name, None, ku))
