@@ -45,6 +45,16 @@ def add_model_args(
     p.add_argument("--quiet", action="store_true", help="no progress display")
     add_package_path_arg(p)
     add_points_arg(p, alias=points_alias)
+    add_floating_base_arg(p)
+
+
+def add_floating_base_arg(p: argparse.ArgumentParser) -> None:
+    """``--floating-base``: the model's root is free (a free-free structure)."""
+    p.add_argument(
+        "--floating-base", action=argparse.BooleanOptionalAction, default=None,
+        help="the model's root is free (a free-free structure): add a floating joint above it"
+        " (rigid-body modes at 0 Hz, no gravity); or write a URDF floating joint",
+    )  # fmt: skip
 
 
 def add_points_arg(p: argparse.ArgumentParser, *, alias: bool = True) -> None:
@@ -57,12 +67,16 @@ def add_points_arg(p: argparse.ArgumentParser, *, alias: bool = True) -> None:
 
 
 def apply_model_options(doc: object, args: argparse.Namespace) -> None:
-    """Apply ``--package-path`` and ``--points`` (when the parser has them) to a loaded model
-    (a :class:`bondid.model.UrdfDocument`)."""
+    """Apply ``--package-path``, ``--floating-base`` and ``--points-file`` (when the parser
+    has them) to a loaded model (a :class:`bondid.model.UrdfDocument`)."""
     from .model.points import apply_declarations, load_points_file
 
     if getattr(args, "package_path", None):
         doc.package_path = [str(p) for p in args.package_path]  # type: ignore[attr-defined]
+    if getattr(args, "floating_base", None):
+        from .model.authoring import add_floating_base
+
+        add_floating_base(doc)  # type: ignore[arg-type]
     if getattr(args, "points_file", None) is not None:
         apply_declarations(doc, *load_points_file(args.points_file))
 

@@ -97,6 +97,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )  # fmt: skip
     cli.add_points_arg(p)
     cli.add_package_path_arg(p)
+    cli.add_floating_base_arg(p)
     args = p.parse_args(argv)
 
     def body() -> int:

@@ -24,6 +24,7 @@ from ..cli import (
     EXIT_FAILED,
     EXIT_OK,
     Progress,
+    add_floating_base_arg,
     add_package_path_arg,
     add_points_arg,
     make_parser,
@@ -74,11 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
         " acc=101:+3 (±1..±3 translation x/y/z, ±4..±6 rotation); repeatable; replaces the"
         " default map (node i = i-th transmitted joint)",
     )  # fmt: skip
-    p.add_argument(
-        "--floating-base", action=argparse.BooleanOptionalAction, default=None,
-        help="the model's root is free (a free-free structure): add a floating joint above it"
-        " (rigid-body modes at 0 Hz, no gravity); or write a URDF floating joint",
-    )  # fmt: skip
+    add_floating_base_arg(p)
     add_points_arg(p)
     p.add_argument(
         "--free", nargs="+", action="extend",

@@ -143,6 +143,13 @@ def add_floating_base(
         if name in (doc.link_names if kind == "link" else doc.joint_names):
             raise ModelError(f"{where}: a {kind} named {name!r} exists; choose another name")
     root = doc.root_link()
+    rigid = doc.grounded_links()  # the root and what is fixed to it: the floating body
+    if not any(doc.link(n).inertial is not None and doc.link(n).inertial.mass for n in rigid):
+        raise ModelError(
+            f"{where}: the root link {root!r} and the links fixed to it have no mass, so a"
+            " floating joint above it would be a DOF without inertia; make the structure's"
+            " first body the root (remove a 'ground'/'world' link and the joint below it)"
+        )
     doc.robot.links.insert(0, yourdfpy.Link(name=world))
     doc.robot.joints.insert(
         0, yourdfpy.Joint(name=joint, type="floating", parent=world, child=root, origin=np.eye(4))
