@@ -32,11 +32,12 @@ from ..consistency.pseudo_inertia import pi_from_urdf
 from ..exceptions import ModelError
 from ..model.document import UrdfDocument
 from ..model.parameters import link_inertial
-from ..model.points import check_gain_name
+from .channels import channel_gains, io_matrices
+from .channels import model_inputs as model_inputs  # re-exported: the model's channel names
+from .channels import model_outputs as model_outputs
 from .linear_model import LinearModel
 from .mimic import Coupling, full_operating_point, mimic_couplings, reduce_matrices, reduction
 from .operating_point import configuration
-from .points import point_rows
 
 #: pi_from_inertial is the consistency layer's map (mass, CoM, I about CoM) → π.
 pi_from_inertial = pi_from_urdf
@@ -191,74 +192,54 @@ def _transport_matrix(placement) -> np.ndarray:
     return T
 
 
-def model_inputs(doc: UrdfDocument) -> tuple[str, ...]:
-    """FRF input names of ``doc``: transmitted joints (file order), then measurement points."""
-    return tuple(t.joint for t in doc.transmissions) + tuple(p.name for p in doc.points)
-
-
-def model_outputs(doc: UrdfDocument) -> tuple[str, ...]:
-    """Every name an FRF output may have: movable joints (encoders), then measurement points."""
-    return tuple(doc.movable_joint_names) + tuple(p.name for p in doc.points)
-
-
-def _io_matrices(
-    doc: UrdfDocument, model, q0: np.ndarray, dofs: list[str], outputs: tuple[str, ...] | None
-) -> tuple[np.ndarray, np.ndarray, tuple[str, ...], tuple[str, ...]]:
-    """(B ``(nv, n_in)``, C ``(n_out, nv)``, inputs, outputs) without gains."""
-    where = doc.source or "<URDF>"
-    points = {p.name: p for p in doc.points}
-    clash = set(points) & set(dofs)
-    if clash:
-        raise ModelError(f"{where}: measurement point(s) {sorted(clash)} named like a joint")
-    inputs = model_inputs(doc)
-    if not inputs:
-        raise ModelError(
-            f"{where}: no <transmission> elements and no measurement points, so the model has"
-            " no FRF inputs"
-        )
-    outs = tuple(outputs) if outputs is not None else inputs
-    rows = point_rows(model, q0, list(points.values()), where)
-
-    def row(name: str, role: str) -> np.ndarray:
-        r = np.zeros(len(dofs))
-        if name in points:
-            return rows[list(points).index(name)]
-        if name not in dofs:
+def _dof_names(model, where: str) -> list[str]:
+    """Name of each velocity coordinate: the joint's, ``JOINT[vx]``… for a free-flyer."""
+    names = list(model.names)
+    dofs: list[str] = [""] * model.nv
+    for jid in range(1, model.njoints):
+        jm = model.joints[jid]
+        if jm.shortname() == "JointModelFreeFlyer":  # a URDF `floating` joint: free-free
+            for k, axis in enumerate(FREE_FLYER_AXES):
+                dofs[jm.idx_v + k] = f"{names[jid]}[{axis}]"
+            continue
+        if jm.nv != 1:
             raise ModelError(
-                f"{where}: {role} {name!r} is neither a movable joint nor a measurement point;"
-                f" valid: {', '.join(list(dofs) + list(points))}"
+                f"{where}: joint {names[jid]!r} has {jm.nv} DOF; bondid needs 1-DOF joints or"
+                " one `floating` joint (a free-flyer)"
             )
-        r[dofs.index(name)] = 1.0
-        return r
-
-    B = np.array([row(n, "input") for n in inputs]).reshape(len(inputs), len(dofs)).T
-    C = np.array([row(n, "output") for n in outs]).reshape(len(outs), len(dofs))
-    return B, C, inputs, outs
+        dofs[jm.idx_v] = names[jid]
+    return dofs
 
 
-def _gains(
-    doc: UrdfDocument, inputs: tuple[str, ...], outputs: tuple[str, ...]
-) -> tuple[np.ndarray, np.ndarray]:
-    """Transducer gains of the inputs and outputs (1 where none is declared)."""
-    where = doc.source or "<URDF>"
-    gi, go = np.ones(len(inputs)), np.ones(len(outputs))
-    valid_out = set(model_outputs(doc))
-    for name, value in doc.gains.items():
-        side, chan = check_gain_name(name, where)
-        if side == "in" and chan not in inputs:
-            raise ModelError(
-                f"{where}: gain {name!r}: {chan!r} is not an input; inputs: {', '.join(inputs)}"
-            )
-        if side == "out" and chan not in valid_out:
-            raise ModelError(
-                f"{where}: gain {name!r}: {chan!r} is not an output; valid:"
-                f" {', '.join(sorted(valid_out))}"
-            )
-        if side == "in":
-            gi[inputs.index(chan)] = value
-        elif chan in outputs:
-            go[outputs.index(chan)] = value
-    return gi, go
+def _joint_bases(model, data, q0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Joint-frame bases ``(njoints, 10, nv, nv)`` of M (columns from the torque regressor,
+    gravity off) and of the gravity stiffness (by differencing unit inertias)."""
+    import pinocchio as pin
+
+    nv = model.nv
+    zero = np.zeros(nv)
+    saved_gravity = model.gravity.linear.copy()
+    model.gravity.linear = np.zeros(3)
+    Mj = np.zeros((model.njoints, 10, nv, nv))
+    for col in range(nv):
+        a = np.zeros(nv)
+        a[col] = 1.0
+        Y = np.reshape(pin.computeJointTorqueRegressor(model, data, q0, zero, a), (nv, -1))
+        for jid in range(1, model.njoints):
+            Mj[jid, :, :, col] = Y[:, 10 * (jid - 1) : 10 * jid].T
+    model.gravity.linear = saved_gravity
+    Gj = np.zeros((model.njoints, 10, nv, nv))
+    saved = [model.inertias[j].copy() for j in range(model.njoints)]
+    for jid in range(1, model.njoints):
+        model.inertias[jid] = pin.Inertia.FromDynamicParameters(_REF_PI)
+        g0 = pin.computeGeneralizedGravityDerivatives(model, data, q0).copy()
+        for k in range(10):
+            e = _REF_PI.copy()
+            e[k] += 1.0
+            model.inertias[jid] = pin.Inertia.FromDynamicParameters(e)
+            Gj[jid, k] = pin.computeGeneralizedGravityDerivatives(model, data, q0) - g0
+        model.inertias[jid] = saved[jid]
+    return Mj, Gj
 
 
 def build_affine_model(
@@ -288,24 +269,9 @@ def build_affine_model(
     op = dict(operating_point or {})
     q0 = configuration(model, full_operating_point(op, couplings, where), where)
     nv = model.nv
-    names = list(model.names)
-    dofs: list[str] = [""] * nv
-    floating = False
-    for jid in range(1, model.njoints):
-        jm = model.joints[jid]
-        if jm.shortname() == "JointModelFreeFlyer":  # a URDF `floating` joint: free-free
-            floating = True
-            for k, axis in enumerate(FREE_FLYER_AXES):
-                dofs[jm.idx_v + k] = f"{names[jid]}[{axis}]"
-            continue
-        if jm.nv != 1:
-            raise ModelError(
-                f"{where}: joint {names[jid]!r} has {jm.nv} DOF; bondid needs 1-DOF joints or"
-                " one `floating` joint (a free-flyer)"
-            )
-        dofs[jm.idx_v] = names[jid]
-    if floating:  # a free-free structure on soft supports: they carry its weight
-        model.gravity.linear = np.zeros(3)
+    dofs = _dof_names(model, where)
+    if any("[" in d for d in dofs):  # a free-free structure on soft supports: they carry
+        model.gravity.linear = np.zeros(3)  # its weight
 
     def v_index(joint: str, role: str) -> int:
         if joint not in dofs:
@@ -315,7 +281,7 @@ def build_affine_model(
             )
         return dofs.index(joint)
 
-    B, C, inputs, outs = _io_matrices(doc, model, q0, dofs, outputs)
+    B, C, inputs, outs = io_matrices(doc, model, q0, dofs, outputs)
 
     stiffness = np.zeros(nv)
     damping = np.zeros(nv)
@@ -330,31 +296,8 @@ def build_affine_model(
     placements = _link_placements(model, bodies, where)
     pi = np.array([pi_from_urdf(*link_inertial(doc, b)) for b in bodies]).reshape(-1, 10)
 
-    # joint-frame bases: M columns from the torque regressor (gravity off), G by differencing
     data = model.createData()
-    zero = np.zeros(nv)
-    saved_gravity = model.gravity.linear.copy()
-    model.gravity.linear = np.zeros(3)
-    Mj = np.zeros((model.njoints, 10, nv, nv))
-    for col in range(nv):
-        a = np.zeros(nv)
-        a[col] = 1.0
-        Y = np.reshape(pin.computeJointTorqueRegressor(model, data, q0, zero, a), (nv, -1))
-        for jid in range(1, model.njoints):
-            Mj[jid, :, :, col] = Y[:, 10 * (jid - 1) : 10 * jid].T
-    model.gravity.linear = saved_gravity
-    Gj = np.zeros((model.njoints, 10, nv, nv))
-    saved = [model.inertias[j].copy() for j in range(model.njoints)]
-    for jid in range(1, model.njoints):
-        model.inertias[jid] = pin.Inertia.FromDynamicParameters(_REF_PI)
-        g0 = pin.computeGeneralizedGravityDerivatives(model, data, q0).copy()
-        for k in range(10):
-            e = _REF_PI.copy()
-            e[k] += 1.0
-            model.inertias[jid] = pin.Inertia.FromDynamicParameters(e)
-            Gj[jid, k] = pin.computeGeneralizedGravityDerivatives(model, data, q0) - g0
-        model.inertias[jid] = saved[jid]
-
+    Mj, Gj = _joint_bases(model, data, q0)
     nb = len(bodies)
     M_basis = np.zeros((nb, 10, nv, nv))
     G_basis = np.zeros((nb, 10, nv, nv))
@@ -390,7 +333,7 @@ def build_affine_model(
         operating_point=op,
     )
     am = _reduce_mimic(full, couplings) if couplings else full
-    return am.with_gains(*_gains(doc, inputs, outs))
+    return am.with_gains(*channel_gains(doc, inputs, outs))
 
 
 def _reduce_mimic(am: AffineModel, couplings: Mapping[str, Coupling]) -> AffineModel:
