@@ -365,3 +365,22 @@ def test_frf_jacobian_with_points_as_inputs_and_outputs_matches_finite_differenc
         e[k] = h
         fd = (H_at(p0 + e) - H_at(p0 - e)) / (2 * h)
         assert np.max(np.abs(J[..., k] - fd)) < JAC_FD_TOL * np.max(np.abs(J[..., k]))
+
+
+def test_study_file_model_keys(tmp_path):
+    from bondid.fit.study import load_study
+
+    path = tmp_path / "s.toml"
+    path.write_text(
+        'package_path = "ws"\nfloating_base = true\n'
+        '[points.acc]\nlink = "tip"\naxes = "local"\n'
+        '[gains]\n"gain.out.acc" = 0.0102\n[uff_map]\nacc = [901, -3]\n'
+    )
+    s = load_study(path)
+    assert s.points == [Point("acc", "tip", axes="local")]
+    assert s.gains == {"gain.out.acc": 0.0102}
+    assert s.uff_map == {"acc": (901, -3)}
+    assert s.package_path == [tmp_path / "ws"] and s.floating_base
+    path.write_text("[uff_map]\nacc = [901, 7]\n")
+    with pytest.raises(ConfigError, match=r"s\.toml: uff_map\.acc"):
+        load_study(path)

@@ -324,27 +324,9 @@ def summary(result: Any, content: dict[str, Any] | None, extra: dict[str, Any]) 
     return "\n".join(lines)
 
 
-def uff_map(s: StudySettings, items: Sequence[str]) -> dict[str, tuple[int, int]] | None:
-    """The study's ``[uff_map]`` updated by ``--uff-map`` items (None when neither gives one)."""
-    from ..data.for_model import parse_uff_map_item
-
-    out = dict(s.uff_map)
-    out.update(parse_uff_map_item(t) for t in items)
-    return out or None
-
-
-def declare_points(doc: UrdfDocument, s: StudySettings, points_file: Path | None) -> None:
-    """Put the study's points and gains, then those of ``--points`` (winning), into ``doc``."""
-    from ..model.points import apply_declarations, load_points_file
-
-    apply_declarations(doc, s.points, s.gains)
-    for f in (s.points_file, points_file):
-        if f is not None:
-            apply_declarations(doc, *load_points_file(f))
-
-
 def _body(args: argparse.Namespace) -> int:
     from ..data.for_model import load_datasets
+    from .model_setup import prepare_model, uff_map
     from .multistart import run_multistart
     from .outputs import check_out_dir, write_outputs
     from .staged import cost_at
@@ -354,12 +336,7 @@ def _body(args: argparse.Namespace) -> int:
     inputs: list[Path] = [s.model, *s.data] + ([s.source] if s.source else [])
     inputs += [f for f in (s.points_file, args.points_file) if f is not None]
     doc = UrdfDocument.load(s.model)
-    doc.package_path = [str(p) for p in [*args.package_path, *s.package_path]]
-    if args.floating_base if args.floating_base is not None else s.floating_base:
-        from ..model.authoring import add_floating_base
-
-        add_floating_base(doc)
-    declare_points(doc, s, args.points_file)
+    prepare_model(doc, s, args)
     datasets = [
         ds if ds.quantity == "receptance" else ds.to_quantity("receptance")
         for ds in load_datasets(doc, s.data, channel_map=uff_map(s, args.uff_map))

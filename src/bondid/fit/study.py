@@ -68,7 +68,7 @@ from typing import Any
 
 from ..cost.residuals import NORMS, RESIDUAL_KINDS
 from ..exceptions import ConfigError
-from ..model.points import Point, gains_from_table, points_from_table
+from ..model.points import Point
 
 #: Parameter kinds a bound key may name (besides names and globs).
 KINDS = ("mass", "com", "inertia", "stiffness", "damping", "gain")
@@ -354,25 +354,9 @@ def study_from_dict(
             raise _fail(where, "data", f"{doc['data']!r} is not a file path or a list of them")
         s.data = [_path(v, base, where, f"data[{i}]") for i, v in enumerate(items)]
 
-    if "points" in doc:
-        s.points = points_from_table(doc["points"], where)
-    if "gains" in doc:
-        s.gains = gains_from_table(doc["gains"], where)
-    if "points_file" in doc:
-        s.points_file = _path(doc["points_file"], base, where, "points_file")
-    if "package_path" in doc:
-        items = doc["package_path"]
-        items = [items] if isinstance(items, str) else items
-        if not isinstance(items, list):
-            raise _fail(where, "package_path", f"{items!r} is not a folder or a list of them")
-        s.package_path = [_path(v, base, where, f"package_path[{i}]") for i, v in enumerate(items)]
-    if "floating_base" in doc:
-        s.floating_base = check_bool(doc["floating_base"], where, "floating_base")
-    for name, v in _table(doc.get("uff_map", {}), where, "uff_map").items():
-        ok = isinstance(v, list) and len(v) == 2 and all(type(x) is int for x in v)
-        if not ok or not -6 <= v[1] <= 6 or v[0] < 0:
-            raise _fail(where, f"uff_map.{name}", f"{v!r} is not [NODE, DIRECTION (±1..±6)]")
-        s.uff_map[str(name)] = (int(v[0]), int(v[1]))
+    from .model_setup import read_model_keys
+
+    read_model_keys(doc, s, where, base)
 
     par = _table(doc.get("parameters", {}), where, "parameters")
     _check_keys(par, _SECTION_KEYS["parameters"], where, "parameters")
