@@ -384,3 +384,28 @@ def test_study_file_model_keys(tmp_path):
     path.write_text("[uff_map]\nacc = [901, 7]\n")
     with pytest.raises(ConfigError, match=r"s\.toml: uff_map\.acc"):
         load_study(path)
+
+
+def test_csv_quantity_per_output_is_converted_on_reading(tmp_path):
+    from bondid.data.io import read_frf
+    from bondid.exceptions import DataError
+
+    f = np.array([10.0, 20.0])
+    acc = np.array([3.0 - 1.0j, -2.0 + 0.5j])  # an accelerometer's m/s² per N
+    lines = [
+        "# bondid-frf: 1",
+        "# quantity: receptance",
+        "# quantities: acc=accelerance",
+        "freq_hz,x.x.re,x.x.im,acc.x.re,acc.x.im",
+    ]
+    lines += [f"{f[k]},1e-3,0.0,{acc[k].real},{acc[k].imag}" for k in range(2)]
+    (tmp_path / "mix.csv").write_text("\n".join(lines) + "\n")
+    d = read_frf(tmp_path / "mix.csv")
+    assert d.quantity == "receptance"
+    w = 2 * np.pi * f
+    assert np.allclose(d.H[d.outputs.index("acc"), 0], acc / -(w**2), rtol=1e-15, atol=0)
+    assert np.all(d.H[d.outputs.index("x"), 0] == 1e-3)
+    lines[2] = "# quantities: y=accelerance"
+    (tmp_path / "bad.csv").write_text("\n".join(lines) + "\n")
+    with pytest.raises(DataError, match=r"bad\.csv: line 3: 'quantities' names output 'y'"):
+        read_frf(tmp_path / "bad.csv")
