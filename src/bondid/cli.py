@@ -40,12 +40,30 @@ def add_model_args(
         p.add_argument(
             "--data", required=True, nargs="+", type=Path, help="measured FRF files (CSV/UFF58)"
         )
+        add_uff_map_arg(p)
     if out:
         p.add_argument("--out", type=Path, default=None, help="folder for the results")
     p.add_argument("--quiet", action="store_true", help="no progress display")
     add_package_path_arg(p)
     add_points_arg(p, alias=points_alias)
     add_floating_base_arg(p)
+
+
+def add_uff_map_arg(p: argparse.ArgumentParser) -> None:
+    """``--uff-map NAME=NODE:DIR`` (repeatable): UFF58 record → channel name."""
+    p.add_argument(
+        "--uff-map", action="append", default=[], metavar="NAME=NODE:DIR",
+        help="UFF58 files: the channel (joint or point) of a node and direction code, e.g."
+        " acc=101:+3 (±1..±3 translation x/y/z, ±4..±6 rotation); repeatable; replaces the"
+        " default map (node i = i-th transmitted joint)",
+    )  # fmt: skip
+
+
+def uff_channel_map(args: argparse.Namespace) -> dict[str, tuple[int, int]] | None:
+    """The ``--uff-map`` items as a channel map (None when none is given)."""
+    from .data.for_model import parse_uff_map_item
+
+    return dict(parse_uff_map_item(t) for t in getattr(args, "uff_map", [])) or None
 
 
 def add_floating_base_arg(p: argparse.ArgumentParser) -> None:

@@ -62,7 +62,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             from ..atomic import refuse_overwrite
 
             refuse_overwrite(Path(args.out) / "diagnosis.json", [args.model, *args.data])
-        data = load_datasets(doc, args.data)
+        data = load_datasets(doc, args.data, channel_map=cli.uff_channel_map(args))
         if args.points < 20:
             raise ConfigError(f"--points {args.points}: need at least 20")
         settings = Settings(

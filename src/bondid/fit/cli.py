@@ -27,6 +27,7 @@ from ..cli import (
     add_floating_base_arg,
     add_package_path_arg,
     add_points_arg,
+    add_uff_map_arg,
     make_parser,
     parse_band,
     run,
@@ -69,12 +70,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--study", type=Path, help="study TOML file; command-line options override it")
     add_package_path_arg(p)
-    p.add_argument(
-        "--uff-map", action="append", default=[], metavar="NAME=NODE:DIR",
-        help="UFF58 files: the channel (joint or point) of a node and direction code, e.g."
-        " acc=101:+3 (±1..±3 translation x/y/z, ±4..±6 rotation); repeatable; replaces the"
-        " default map (node i = i-th transmitted joint)",
-    )  # fmt: skip
+    add_uff_map_arg(p)
     add_floating_base_arg(p)
     add_points_arg(p)
     p.add_argument(
