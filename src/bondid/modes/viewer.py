@@ -86,9 +86,9 @@ def load_machine(
     """Pinocchio model and visual geometry of ``doc`` (primitives and meshes from the URDF)."""
     import pinocchio as pin
 
-    where = doc.source or "<URDF>"
     from ..model.packages import text_with_resolved_meshes
 
+    where = doc.source or "<URDF>"
     model = doc.build_pinocchio_model()
     text = text_with_resolved_meshes(doc)
     try:
