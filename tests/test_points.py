@@ -409,3 +409,20 @@ def test_csv_quantity_per_output_is_converted_on_reading(tmp_path):
     (tmp_path / "bad.csv").write_text("\n".join(lines) + "\n")
     with pytest.raises(DataError, match=r"bad\.csv: line 3: 'quantities' names output 'y'"):
         read_frf(tmp_path / "bad.csv")
+
+
+def test_fit_of_a_free_flying_body_recovers_its_mass_and_inertia():
+    from bondid.fit import fit
+    from bondid.model.parameters import set_parameter
+
+    truth = _free_body()
+    f = np.geomspace(5.0, 50.0, 8)
+    data = simulate(truth, freq_hz=f, outputs=("hit", "acc"))
+    start = _free_body()
+    names = ["base.mass", "base.inertia.izz"]
+    set_parameter(start, "base.mass", 2.2)  # default bounds ±20 %: the truth 2.5 inside
+    set_parameter(start, "base.inertia.izz", 0.045)
+    res = fit(start, [data], names, max_iter=100, presolve_iter=0, use_hull=False)
+    assert res.success
+    for k, name in enumerate(names):
+        assert abs(res.fitted[k] / get_parameter(truth, name) - 1.0) < 1e-6
