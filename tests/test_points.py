@@ -211,6 +211,15 @@ def test_points_and_gains_survive_write_and_read():
     back = UrdfDocument.from_string(doc.to_string())
     assert back.points == doc.points
     assert back.gains == {"gain.out.pb": 9.81}
+    import io
+
+    import pinocchio as pin
+    import yourdfpy
+
+    text = doc.to_string()  # other URDF readers ignore the two extension elements
+    assert pin.buildModelFromXML(text).nv == 2
+    raw = yourdfpy.URDF.load(io.BytesIO(text.encode()), load_meshes=False, build_scene_graph=False)
+    assert len(raw.robot.joints) == 2
     from bondid.model.points import plot_units
 
     assert plot_units(back, ["a", "pb"]) == {"a": "m", "pb": ("u(pb)", "N·m")}
