@@ -86,6 +86,8 @@ def sprung_robot(name: str, seed: int = 0) -> UrdfDocument:
     """An example-robot-data robot with a spring and damper on every joint and an actuator
     on every joint that has none (all through the authoring API)."""
     doc = UrdfDocument.load(robot_path(name))
+    for j in doc.mimic_joints():  # panda's second finger: an independent DOF here
+        doc.drop_mimic(j)
     rng = np.random.default_rng(seed)
     driven = {t.joint for t in doc.transmissions}
     for j in doc.movable_joint_names:

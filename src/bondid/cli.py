@@ -30,16 +30,82 @@ def make_parser(prog: str, description: str) -> argparse.ArgumentParser:
     return _Parser(prog=f"python -m bondid.{prog}", description=description)
 
 
-def add_model_args(p: argparse.ArgumentParser, *, data: bool = True, out: bool = True) -> None:
-    """The common options: --model, --data, --out, --quiet."""
+def add_model_args(
+    p: argparse.ArgumentParser, *, data: bool = True, out: bool = True, points_alias: bool = True
+) -> None:
+    """The common options: --model, --data, --out, --quiet, --package-path, --points-file
+    (also spelt --points unless ``points_alias`` is False: diagnose's --points is another)."""
     p.add_argument("--model", required=True, type=Path, help="the machine's URDF file")
     if data:
         p.add_argument(
             "--data", required=True, nargs="+", type=Path, help="measured FRF files (CSV/UFF58)"
         )
+        add_uff_map_arg(p)
     if out:
         p.add_argument("--out", type=Path, default=None, help="folder for the results")
     p.add_argument("--quiet", action="store_true", help="no progress display")
+    add_package_path_arg(p)
+    add_points_arg(p, alias=points_alias)
+    add_floating_base_arg(p)
+
+
+def add_uff_map_arg(p: argparse.ArgumentParser) -> None:
+    """``--uff-map NAME=NODE:DIR`` (repeatable): UFF58 record → channel name."""
+    p.add_argument(
+        "--uff-map", action="append", default=[], metavar="NAME=NODE:DIR",
+        help="UFF58 files: the channel (joint or point) of a node and direction code, e.g."
+        " acc=101:+3 (±1..±3 translation x/y/z, ±4..±6 rotation); repeatable; replaces the"
+        " default map (node i = i-th transmitted joint)",
+    )  # fmt: skip
+
+
+def uff_channel_map(args: argparse.Namespace) -> dict[str, tuple[int, int]] | None:
+    """The ``--uff-map`` items as a channel map (None when none is given)."""
+    from .data.for_model import parse_uff_map_item
+
+    return dict(parse_uff_map_item(t) for t in getattr(args, "uff_map", [])) or None
+
+
+def add_floating_base_arg(p: argparse.ArgumentParser) -> None:
+    """``--floating-base``: the model's root is free (a free-free structure)."""
+    p.add_argument(
+        "--floating-base", action=argparse.BooleanOptionalAction, default=None,
+        help="the model's root is free (a free-free structure): add a floating joint above it"
+        " (rigid-body modes at 0 Hz, no gravity); or write a URDF floating joint",
+    )  # fmt: skip
+
+
+def add_points_arg(p: argparse.ArgumentParser, *, alias: bool = True) -> None:
+    """``--points-file FILE`` (alias ``--points``): measurement points and transducer gains."""
+    names = ["--points-file", "--points"] if alias else ["--points-file"]
+    p.add_argument(
+        *names, dest="points_file", type=Path, default=None, metavar="TOML",
+        help="measurement points and transducer gains ([points], [gains] tables; see README)",
+    )  # fmt: skip
+
+
+def apply_model_options(doc: object, args: argparse.Namespace) -> None:
+    """Apply ``--package-path``, ``--floating-base`` and ``--points-file`` (when the parser
+    has them) to a loaded model (a :class:`bondid.model.UrdfDocument`)."""
+    from .model.points import apply_declarations, load_points_file
+
+    if getattr(args, "package_path", None):
+        doc.package_path = [str(p) for p in args.package_path]  # type: ignore[attr-defined]
+    if getattr(args, "floating_base", None):
+        from .model.authoring import add_floating_base
+
+        add_floating_base(doc)  # type: ignore[arg-type]
+    if getattr(args, "points_file", None) is not None:
+        apply_declarations(doc, *load_points_file(args.points_file))
+
+
+def add_package_path_arg(p: argparse.ArgumentParser) -> None:
+    """``--package-path DIR`` (repeatable): where ``package://`` meshes are looked up first."""
+    p.add_argument(
+        "--package-path", action="append", default=[], metavar="DIR",
+        help="folder holding (or being) a ROS package named by package:// mesh URIs; searched"
+        " before ROS_PACKAGE_PATH, the URDF's folders and example-robot-data; repeatable",
+    )  # fmt: skip
 
 
 def parse_band(text: str) -> tuple[float, float]:

@@ -116,6 +116,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     p.add_argument("--plot", type=Path, default=None, help="also draw a Bode plot (PNG)")
     p.add_argument("--quiet", action="store_true")
+    p.add_argument(
+        "--outputs", nargs="+", default=None, metavar="NAME",
+        help="sensed joints or points (default: the inputs: transmitted joints, then points)",
+    )  # fmt: skip
+    cli.add_points_arg(p)
+    cli.add_package_path_arg(p)
+    cli.add_floating_base_arg(p)
     args = p.parse_args(argv)
 
     def body() -> int:
@@ -129,6 +136,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise ConfigError(f"--noise {args.noise}: must be ≥ 0")
         refuse_overwrite(args.out, [args.model])
         doc = UrdfDocument.load(args.model)
+        cli.apply_model_options(doc, args)
         op = parse_operating_point(" ".join(args.q), "--q")
         data = simulate(
             doc,
@@ -141,6 +149,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             floor_ref=args.floor_ref,
             floor_quantity=args.floor_quantity,
             coherence=not args.no_coherence,
+            outputs=args.outputs,
         )
         data.source = str(args.out)
         is_uff = args.out.suffix.lower() in (".uff", ".unv", ".uff58")
@@ -154,7 +163,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             from .data.weights import noise_estimate
             from .plots import Curve, noise_curve, plot_bode
 
-            exact = simulate(doc, op, data.freq_hz, noise=0.0, quantity=args.quantity)
+            exact = simulate(
+                doc, op, data.freq_hz, noise=0.0, quantity=args.quantity, outputs=args.outputs
+            )
             plot_bode(
                 data.freq_hz,
                 [

@@ -2,7 +2,9 @@
 
 :class:`FrfProblem` ties a model, one or more measured data sets (each at its own operating
 point, so one linearisation per pose) and the cost options together. Its decision vector ``x``
-is whatever a *parameter model* maps onto the physical values; two exist:
+is whatever a *parameter model* maps onto the physical values (and, when it has
+``gain_values(x) -> {name: g}`` and ``gain_jacobian(x) -> {name: dg/dx (n,)}``, onto free
+transducer gains ``gain.in.X`` / ``gain.out.Y``: ``H = g_out · H_model · g_in``); two exist:
 :class:`bondid.linear.parameter_map.ParameterMap` (named URDF parameters) and the fit's
 log-Cholesky map. A parameter model has ``size``, ``values(x) -> (π (nb,10), k (nv,), d (nv,))``
 and ``jacobian(x) -> (dπ (nb,10,n), dk (nv,n), dd (nv,n))``.
@@ -24,7 +26,7 @@ from ..data.measurement import FrfData
 from ..data.weights import check_weighting, information_weights
 from ..exceptions import ChannelError, ConfigError
 from ..frf.jacobian import frf_and_jacobian, jacobian_blocks
-from ..linear.affine import AffineModel, build_affine_model
+from ..linear.affine import AffineModel, build_affine_model, model_inputs, model_outputs
 from ..model.document import UrdfDocument
 from ..threads import thread_map
 from .residuals import (
@@ -101,9 +103,52 @@ class _Block:
     channel: np.ndarray  # (n_sel,) channel name per point
 
 
-def _block_frf(b: _Block, values: tuple[np.ndarray, np.ndarray, np.ndarray]) -> np.ndarray:
+_Values = tuple[np.ndarray, np.ndarray, np.ndarray]
+_Gains = dict[str, float]
+
+
+def _free_gains(pmodel: ParameterModel, x: np.ndarray) -> _Gains:
+    """Free transducer gains of a parameter model (those with ``gain_values``), by name."""
+    fn = getattr(pmodel, "gain_values", None)
+    return dict(fn(x)) if fn is not None else {}
+
+
+def _gain_arrays(affine: AffineModel, gains: _Gains) -> tuple[np.ndarray, np.ndarray]:
+    """``(gain_in (n_in,), gain_out (n_out,))`` of ``affine`` with the free ``gains`` set."""
+    assert affine.gain_in is not None and affine.gain_out is not None
+    gi, go = affine.gain_in.copy(), affine.gain_out.copy()
+    for name, g in gains.items():
+        _, side, chan = name.split(".", 2)
+        names, arr = (affine.inputs, gi) if side == "in" else (affine.outputs, go)
+        if chan in names:
+            arr[names.index(chan)] = g
+    return gi, go
+
+
+def _block_affine(b: _Block, values: _Values, gains: _Gains) -> AffineModel:
+    affine = b.affine.with_values(*values)
+    return affine.with_gains(*_gain_arrays(affine, gains)) if gains else affine
+
+
+def _block_frf(b: _Block, values: _Values, gains: _Gains | None = None) -> np.ndarray:
     """Model FRF ``(n_out, n_in_model, n_fu)`` of a data set at parameter ``values``."""
-    return b.affine.with_values(*values).linear_model().frf(b.freq_hz)
+    return _block_affine(b, values, gains or {}).linear_model().frf(b.freq_hz)
+
+
+def _gain_columns(
+    affine: AffineModel, gains: _Gains, dgains: dict[str, np.ndarray], rows: np.ndarray,
+    cols: np.ndarray, Hs: np.ndarray,
+) -> np.ndarray:  # fmt: skip
+    """d Hs / d x ``(n_sel, n_p)`` through the free gains: ``Hs · d ln g / d x`` (``Hs``
+    already holds the gains, ``H = g_out · H_kin · g_in``)."""
+    n_p = next(iter(dgains.values())).size
+    dlog = np.zeros((Hs.size, n_p))
+    for name, g in gains.items():
+        _, side, chan = name.split(".", 2)
+        names, idx = (affine.inputs, cols) if side == "in" else (affine.outputs, rows)
+        if chan in names:
+            dlog[idx == names.index(chan)] += dgains[name] / g
+    return Hs[:, None] * dlog
 
 
 class FrfProblem:
@@ -118,11 +163,11 @@ class FrfProblem:
         check_weighting(self.options.weighting, "cost weighting")
         if not datasets:
             raise ConfigError("no measured data given")
-        inputs = tuple(t.joint for t in doc.transmissions)
+        inputs, outputs = model_inputs(doc), model_outputs(doc)
         movable = doc.movable_joint_names
         self.blocks: list[_Block] = []
         for ds in datasets:
-            check_against_model(ds, inputs=inputs, outputs=movable, joints=movable)
+            check_against_model(ds, inputs=inputs, outputs=outputs, joints=movable)
             affine = build_affine_model(doc, ds.operating_point, outputs=ds.outputs)
             self.blocks.append(self._block(ds, affine))
         total = sum(float(b.weight.sum()) for b in self.blocks)
@@ -184,8 +229,8 @@ class FrfProblem:
 
     def model_frf(self, pmodel: ParameterModel, x: np.ndarray) -> list[np.ndarray]:
         """Model FRF at each data set's used frequencies, ``(n_out, n_in_model, n_fu)`` each."""
-        values = pmodel.values(x)
-        return thread_map(lambda b: _block_frf(b, values), self.blocks)
+        values, gains = pmodel.values(x), _free_gains(pmodel, x)
+        return thread_map(lambda b: _block_frf(b, values, gains), self.blocks)
 
     def phase_wall_fraction(
         self, pmodel: ParameterModel, x: np.ndarray, limit_rad: float = np.pi / 2
@@ -203,10 +248,10 @@ class FrfProblem:
 
     def residual(self, pmodel: ParameterModel, x: np.ndarray) -> np.ndarray:
         """Scaled residual vector ``(n_residuals,)``; ``cost = ‖r‖²``."""
-        values = pmodel.values(x)
+        values, gains = pmodel.values(x), _free_gains(pmodel, x)
 
         def one(b: _Block) -> np.ndarray:
-            Hs = _block_frf(b, values)[b.rows, b.cols, b.fidx]
+            Hs = _block_frf(b, values, gains)[b.rows, b.cols, b.fidx]
             return self._weighted(b, residual(self.options.kind, Hs, b.Hm, b.scale))[0]
 
         return np.concatenate(thread_map(one, self.blocks))
@@ -219,7 +264,8 @@ class FrfProblem:
         The data sets (one linearisation each) are evaluated on parallel threads, each writing
         its rows of the result.
         """
-        values = pmodel.values(x)
+        values, gains = pmodel.values(x), _free_gains(pmodel, x)
+        dgains = pmodel.gain_jacobian(x) if gains else {}  # type: ignore[attr-defined]
         dpi, dk, dd = pmodel.jacobian(x)
         n_p, k = dpi.shape[2], parts(self.options.kind)
         sizes = [k * b.Hm.size for b in self.blocks]
@@ -231,14 +277,18 @@ class FrfProblem:
             b = self.blocks[i]
             rb = r[start[i] : start[i + 1]]
             Jb = J[start[i] : start[i + 1]].reshape(k, b.Hm.size, n_p)
-            if b.flat is None:
-                self._grid_rows(b, b.affine.with_values(*values), (dpi, dk, dd), rb, Jb)
+            affine = _block_affine(b, values, gains)
+            if b.flat is None and not gains:
+                self._grid_rows(b, affine, (dpi, dk, dd), rb, Jb)
                 return
-            H, dH = frf_and_jacobian(b.affine.with_values(*values), b.freq_hz, dpi, dk, dd)
+            H, dH = frf_and_jacobian(affine, b.freq_hz, dpi, dk, dd)
             Hs = H[b.rows, b.cols, b.fidx]
             res = residual(self.options.kind, Hs, b.Hm, b.scale)
             rb[:], weight = self._weighted(b, res)
-            dHs = dH.reshape(-1, n_p)[b.flat]
+            flat = np.arange(Hs.size) if b.flat is None else b.flat
+            dHs = dH.reshape(-1, n_p)[flat]
+            if gains:
+                dHs = dHs + _gain_columns(affine, gains, dgains, b.rows, b.cols, Hs)
             residual_jacobian(self.options.kind, Hs, b.Hm, dHs, b.scale, weight, out=Jb)
 
         thread_map(one, range(len(self.blocks)))

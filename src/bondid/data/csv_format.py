@@ -9,7 +9,10 @@ freq_hz,x.x.re,x.x.im,x.y.re,x.y.im,...[,x.x.coh,...]
 
 Optional metadata lines ``# outputs: x y z`` and ``# inputs: x y z`` (written by bondid) fix
 the joint order and keep joints whose channels are all missing; without them the order is
-that of first appearance in the header. Other ``#`` lines are comments. Numbers are written
+that of first appearance in the header. Extension: ``# quantities: acc=accelerance x=receptance``
+gives the quantity of single outputs (a mix of accelerometers and encoders); their rows are
+converted exactly (factors (jω)ᵏ) to the file's ``# quantity`` on reading. Other ``#`` lines
+are comments. Numbers are written
 with Python's shortest round-trip ``repr``, so a value read back is bit-identical.
 """
 
@@ -23,7 +26,7 @@ import numpy as np
 
 from ..atomic import write_text_atomic
 from ..exceptions import ChannelError, DataError
-from ..frf.quantity import QUANTITIES
+from ..frf.quantity import QUANTITIES, convert_quantity
 from ._common import (
     FORMAT_VERSION,
     check_frequencies,
@@ -35,7 +38,7 @@ from ._common import (
 )
 from .measurement import FrfData
 
-_META_KEYS = ("bondid-frf", "quantity", "operating_point", "outputs", "inputs")
+_META_KEYS = ("bondid-frf", "quantity", "operating_point", "outputs", "inputs", "quantities")
 _SUFFIXES = ("re", "im", "coh")
 
 
@@ -268,7 +271,32 @@ def read_csv(path: str | os.PathLike[str], *, drop_nan: bool = False) -> FrfData
                 )
             assert coh is not None
             coh[a, b] = col
+    if "quantities" in meta:
+        _convert_outputs(p, meta["quantities"], outputs, quantity, freq, H)
     return FrfData(freq, tuple(outputs), tuple(inputs), H, quantity, op, coh, str(p))
+
+
+def _convert_outputs(
+    path: Path, entry: tuple[str, int], outputs: list[str], quantity: str, freq: np.ndarray,
+    H: np.ndarray,
+) -> None:  # fmt: skip
+    """Convert the rows named by ``# quantities: OUT=QUANTITY …`` to the file's quantity."""
+    text, lineno = entry
+    where = f"{path}: line {lineno}"
+    for item in text.split():
+        out, eq, q = item.partition("=")
+        if not eq or q not in QUANTITIES:
+            raise DataError(
+                f"{where}: 'quantities' item {item!r} is not OUTPUT=QUANTITY; valid quantities:"
+                f" {', '.join(QUANTITIES)}"
+            )
+        if out not in outputs:
+            raise ChannelError(
+                f"{where}: 'quantities' names output {out!r}, which has no channel; outputs:"
+                f" {', '.join(outputs)}"
+            )
+        a = outputs.index(out)
+        H[a] = convert_quantity(H[a], freq, q, quantity)
 
 
 def write_csv(data: FrfData, path: str | os.PathLike[str]) -> Path:

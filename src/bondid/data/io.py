@@ -97,8 +97,10 @@ def check_against_model(
 
     Args:
         data: measured FRFs.
-        inputs: the model's input (excited) joint names.
-        outputs: the model's output (sensed) joint names.
+        inputs: the model's input names (transmitted joints, then measurement points;
+            :func:`bondid.linear.affine.model_inputs`).
+        outputs: the names a model output may have (movable joints and measurement points;
+            :func:`bondid.linear.affine.model_outputs`).
         joints: every joint name of the model (for the operating point).
 
     Raises:

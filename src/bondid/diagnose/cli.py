@@ -19,7 +19,7 @@ def build_parser() -> argparse.ArgumentParser:
         "Diagnose the gap between a model and measured FRFs: where it lies, which unmodelled "
         "effect causes it, how far it shrinks.",
     )
-    cli.add_model_args(p)
+    cli.add_model_args(p, points_alias=False)  # --points is the refit frequency count here
     p.add_argument(
         "--effects",
         default=None,
@@ -62,11 +62,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         from .report import gaps, summary, to_json_dict, write_outputs
 
         doc = UrdfDocument.load(args.model)
+        cli.apply_model_options(doc, args)
         if args.out is not None:
             from ..atomic import refuse_overwrite
 
             refuse_overwrite(Path(args.out) / "diagnosis.json", [args.model, *args.data])
-        data = load_datasets(doc, args.data)
+        data = load_datasets(doc, args.data, channel_map=cli.uff_channel_map(args))
         if args.points < 20:
             raise ConfigError(f"--points {args.points}: need at least 20")
         settings = Settings(

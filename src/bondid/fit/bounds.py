@@ -20,12 +20,11 @@ relative bounds.
 from __future__ import annotations
 
 import fnmatch
-import os
 from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from ..consistency.hull import Hull, link_hull, make_resolver
+from ..consistency.hull import Hull, link_hull
 from ..exceptions import ConfigError, ParameterError
 from ..model.document import UrdfDocument
 from ..model.parameters import ParameterInfo, get_parameter, link_inertial, parameter_infos
@@ -37,6 +36,7 @@ DEFAULT_REL: dict[str, float] = {
     "inertia": 0.5,
     "stiffness": 0.5,
     "damping": 0.5,
+    "gain": 9.0,  # a factor 1 + r either way: 10
 }
 
 _DEFAULT_LENGTH = 0.1  # m, length scale of a link without geometry
@@ -76,11 +76,13 @@ def infos_by_name(doc: UrdfDocument, names: Sequence[str]) -> list[ParameterInfo
 def link_hulls(doc: UrdfDocument, links: Sequence[str]) -> dict[str, Hull | None]:
     """Convex hull (link frame, m) of each link's collision geometry (None without geometry).
 
-    Meshes are resolved relative to the URDF's folder; ``package://`` URIs are not resolvable
-    here and raise :class:`bondid.exceptions.ModelError` from :func:`link_hull`.
+    Meshes (``package://``, ``file://``, relative) are resolved by
+    :func:`bondid.model.packages.mesh_resolver` (package path, ``ROS_PACKAGE_PATH``, the
+    URDF's folders, example-robot-data).
     """
-    base = os.path.dirname(os.path.abspath(doc.source)) if doc.source else os.getcwd()
-    resolve = make_resolver(base, {})
+    from ..model.packages import mesh_resolver
+
+    resolve = mesh_resolver(doc)
     return {name: link_hull(doc.link(name), resolve, name=name) for name in links}
 
 
@@ -137,6 +139,8 @@ def default_bounds(
             mean = float(np.trace(I_c)) / 3.0
             half = r * max(abs(v), 0.1 * abs(mean))
             lo[j], hi[j] = v - half, v + half
+        elif info.kind == "gain":  # relative r: a factor 1 + r either way (sign kept)
+            lo[j], hi[j] = sorted((v / (1.0 + r), v * (1.0 + r)))
         else:  # stiffness, damping
             if v == 0.0:
                 lo[j], hi[j] = 0.0, np.inf

@@ -24,6 +24,10 @@ from ..cli import (
     EXIT_FAILED,
     EXIT_OK,
     Progress,
+    add_floating_base_arg,
+    add_package_path_arg,
+    add_points_arg,
+    add_uff_map_arg,
     make_parser,
     parse_band,
     run,
@@ -52,6 +56,7 @@ _KIND_GLOB = {
     "inertia": "*.inertia.*",
     "stiffness": "*.stiffness",
     "damping": "*.damping",
+    "gain": "gain.*",
 }
 
 
@@ -65,6 +70,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="measured FRF files, CSV or UFF58 (or data = in --study)",
     )
     p.add_argument("--study", type=Path, help="study TOML file; command-line options override it")
+    add_package_path_arg(p)
+    add_uff_map_arg(p)
+    add_floating_base_arg(p)
+    add_points_arg(p)
     p.add_argument(
         "--free", nargs="+", action="extend",
         help="parameters to fit: names, globs (x_stage.*, *.stiffness), groups (inertial,"
@@ -330,6 +339,7 @@ def summary(result: Any, content: dict[str, Any] | None, extra: dict[str, Any]) 
 
 def _body(args: argparse.Namespace) -> int:
     from ..data.for_model import load_datasets
+    from .model_setup import prepare_model, uff_map
     from .multistart import run_multistart
     from .outputs import check_out_dir, write_outputs
     from .staged import cost_at
@@ -337,10 +347,12 @@ def _body(args: argparse.Namespace) -> int:
     s = resolve_settings(args)
     assert s.model is not None
     inputs: list[Path] = [s.model, *s.data] + ([s.source] if s.source else [])
+    inputs += [f for f in (s.points_file, args.points_file) if f is not None]
     doc = UrdfDocument.load(s.model)
+    prepare_model(doc, s, args)
     datasets = [
         ds if ds.quantity == "receptance" else ds.to_quantity("receptance")
-        for ds in load_datasets(doc, s.data)
+        for ds in load_datasets(doc, s.data, channel_map=uff_map(s, args.uff_map))
     ]
     if args.out is not None:
         check_out_dir(args.out, inputs, datasets)

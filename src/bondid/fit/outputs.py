@@ -93,8 +93,10 @@ def jsonable(value: Any) -> Any:
     return value
 
 
-def _units(doc: UrdfDocument, joints: Sequence[str]) -> dict[str, str]:
-    return {j: "m" if doc.joint(j).type == "prismatic" else "rad" for j in joints}
+def _units(doc: UrdfDocument, joints: Sequence[str]) -> dict[str, Any]:
+    from ..model.points import plot_units
+
+    return plot_units(doc, joints)
 
 
 def model_frf(doc: UrdfDocument, ds: FrfData) -> np.ndarray:

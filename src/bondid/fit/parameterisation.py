@@ -101,6 +101,16 @@ class JointVar:
     scale: float
 
 
+@dataclass
+class GainVar:
+    """A free transducer gain: ``g = g0 · e^z`` (log scale, the sign of ``g0`` kept)."""
+
+    name: str
+    index: int  # index in z
+    name_index: int  # index in names
+    g0: float = 1.0
+
+
 def named_from_pi(pi: np.ndarray) -> dict[str, float]:
     """URDF-form values ``{component: value}`` of one body's ``pi`` (10,)."""
     m, c, I_c = urdf_from_pi(pi)
@@ -172,7 +182,12 @@ class Layout:
             urdf.update({f"com.{a}": float(c[k]) for k, a in enumerate(COM_AXES)})
             urdf.update({f"inertia.{n}": float(I_c[_IJ[n]]) for n in INERTIA_COMPONENTS})
             blk.fixed = {k: v for k, v in urdf.items() if k not in blk.free}
+        self.gains: list[GainVar] = []
         for j, info in enumerate(self.infos):
+            if info.kind == "gain":
+                self.gains.append(GainVar(info.name, offset, j))
+                offset += 1
+                continue
             if info.is_inertial:
                 continue
             dof = affine.dofs.index(info.owner)
@@ -226,7 +241,24 @@ class Layout:
             hi = float(upper[jv.name_index])
             jv.scale = abs(v) if v != 0 else (hi if np.isfinite(hi) and hi > 0 else 1.0)
             z[jv.index] = v / jv.scale
+        for gv in self.gains:
+            gv.g0 = float(p0[gv.name_index])
+            z[gv.index] = 0.0
         return z
+
+    # -- transducer gains (the optional gain part of the parameter-model protocol) ----------
+    def gain_values(self, z: np.ndarray) -> dict[str, float]:
+        """Free gains by name at ``z``."""
+        return {g.name: g.g0 * float(np.exp(z[g.index])) for g in self.gains}
+
+    def gain_jacobian(self, z: np.ndarray) -> dict[str, np.ndarray]:
+        """d g / d z ``(size,)`` of every free gain."""
+        out = {}
+        for g in self.gains:
+            row = np.zeros(self.size)
+            row[g.index] = g.g0 * float(np.exp(z[g.index]))
+            out[g.name] = row
+        return out
 
     # -- parameter-model protocol (numpy) ------------------------------------------------
     def values(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -268,6 +300,8 @@ class Layout:
                 out[j] = vals[comp]
         for jv in self.joints:
             out[jv.name_index] = jv.scale * z[jv.index]
+        for gv in self.gains:
+            out[gv.name_index] = gv.g0 * float(np.exp(z[gv.index]))
         return out
 
     # -- variable bounds -------------------------------------------------------------------
@@ -306,6 +340,11 @@ class Layout:
             lbz[jv.index] = lower[jv.name_index] / jv.scale
             ubz[jv.index] = upper[jv.name_index] / jv.scale
             labels.append((jv.name, jv.index))
+        for gv in self.gains:
+            r = sorted((lower[gv.name_index] / gv.g0, upper[gv.name_index] / gv.g0))
+            lbz[gv.index] = np.log(r[0]) if r[0] > 0 else -np.inf
+            ubz[gv.index] = np.log(r[1]) if r[1] > 0 and np.isfinite(r[1]) else np.inf
+            labels.append((gv.name, gv.index))
         return lbz, ubz, labels
 
     # -- CasADi constraints ----------------------------------------------------------------

@@ -244,6 +244,8 @@ def _fitted_document(doc: UrdfDocument, setup: FitSetup, z: np.ndarray, p: np.nd
         set_link_inertial(out, link, vals["mass"], c, I_c)
     for jv in setup.layout.joints:
         set_parameter(out, jv.name, max(float(p[jv.name_index]), 0.0))
+    for gv in setup.layout.gains:
+        set_parameter(out, gv.name, float(p[gv.name_index]))
     return out
 
 

@@ -26,6 +26,21 @@ Every section and key is optional::
     [cost.channel_weights]
     "x.x" = 2.0
 
+    points_file = "points.toml"              # --points: [points] and [gains] tables
+    package_path = ["../ros_ws/src"]         # --package-path (package:// meshes)
+    floating_base = false                    # --floating-base (a free-free structure)
+
+    [uff_map]                                # --uff-map NAME=NODE:DIR (UFF58 files)
+    acc = [101, 3]                           # channel name = [node, direction code ±1..±6]
+
+    [points.load]                            # a measurement point (bondid.model.points)
+    link = "load"
+    kind = "rotation"
+    direction = [0, 0, 1]
+
+    [gains]                                  # transducer gains (fixed unless --free names them)
+    "gain.in.motor" = 0.35
+
     [search]
     multistart = 8                           # --multistart
     seed = 0                                 # --seed
@@ -55,13 +70,17 @@ from typing import Any
 from ..cost.residuals import NORMS, RESIDUAL_KINDS
 from ..data.weights import WEIGHTINGS
 from ..exceptions import ConfigError
+from ..model.points import Point
 
 #: Parameter kinds a bound key may name (besides names and globs).
-KINDS = ("mass", "com", "inertia", "stiffness", "damping")
+KINDS = ("mass", "com", "inertia", "stiffness", "damping", "gain")
 #: Stages of the staged fit, in the order they run.
 STAGES = ("stiffness", "damping", "inertia")
 
-_TOP_KEYS = ("model", "data", "parameters", "bounds", "cost", "search")
+_TOP_KEYS = (
+    "model", "data", "parameters", "bounds", "cost", "search", "points", "gains", "points_file",
+    "package_path", "floating_base", "uff_map",
+)  # fmt: skip
 _SECTION_KEYS = {
     "parameters": ("free", "fixed"),
     "cost": ("kind", "norm", "bands", "channels", "coherence", "weighting", "channel_weights"),
@@ -107,6 +126,11 @@ class StudySettings:
         presolve: IPOPT iterations on the normalised complex error before a log-cost fit
             (:data:`bondid.fit.solver.PRESOLVE_ITER`; 0 = none).
         source: the study file, or None.
+        points, gains: measurement points and transducer gains declared in the study
+            (:mod:`bondid.model.points`); points_file: a TOML file with more of them.
+        package_path: folders searched first for ``package://`` meshes.
+        floating_base: add a floating joint above the root (a free-free structure).
+        uff_map: channel name -> (node, direction) of UFF58 records.
     """
 
     model: Path | None = None
@@ -131,6 +155,12 @@ class StudySettings:
     max_iter: int = 200
     presolve: int = 60
     source: Path | None = None
+    points: list[Point] = field(default_factory=list)
+    gains: dict[str, float] = field(default_factory=dict)
+    points_file: Path | None = None
+    package_path: list[Path] = field(default_factory=list)
+    floating_base: bool = False
+    uff_map: dict[str, tuple[int, int]] = field(default_factory=dict)
 
     def to_json_dict(self) -> dict[str, Any]:
         """The settings as plain JSON values (paths as strings)."""
@@ -157,6 +187,12 @@ class StudySettings:
             "continuation": self.continuation,
             "max_iter": self.max_iter,
             "presolve": self.presolve,
+            "points": [vars(p) for p in self.points],
+            "gains": dict(self.gains),
+            "points_file": None if self.points_file is None else str(self.points_file),
+            "package_path": [str(p) for p in self.package_path],
+            "floating_base": self.floating_base,
+            "uff_map": {k: list(v) for k, v in self.uff_map.items()},
         }
 
 
@@ -322,6 +358,10 @@ def study_from_dict(
         if not isinstance(items, list) or not items:
             raise _fail(where, "data", f"{doc['data']!r} is not a file path or a list of them")
         s.data = [_path(v, base, where, f"data[{i}]") for i, v in enumerate(items)]
+
+    from .model_setup import read_model_keys
+
+    read_model_keys(doc, s, where, base)
 
     par = _table(doc.get("parameters", {}), where, "parameters")
     _check_keys(par, _SECTION_KEYS["parameters"], where, "parameters")

@@ -11,6 +11,14 @@ where ``π_b`` are the 10 dynamic parameters of link ``b`` in Pinocchio's order
 link-frame axes (not the joint frame: links merged into a joint by fixed joints keep their own
 parameters). ``M_rest``/``G_rest`` hold what no parameterised link contributes. This is what
 the fit and the sensitivities differentiate exactly.
+
+A URDF ``floating`` joint (Pinocchio's free-flyer) makes a free-free structure: its six
+velocity coordinates (``JOINT[vx]`` … ``JOINT[wz]``, body frame) have no spring, so the model
+has rigid-body modes at 0 Hz; gravity is left out of such a model (the soft supports of a
+free-free test carry the weight).
+
+``<mimic>`` joints are coupled DOFs (:mod:`bondid.linear.mimic`): the model is reduced to
+the independent coordinates, so ``dofs`` lists those only.
 """
 
 from __future__ import annotations
@@ -24,11 +32,18 @@ from ..consistency.pseudo_inertia import pi_from_urdf
 from ..exceptions import ModelError
 from ..model.document import UrdfDocument
 from ..model.parameters import link_inertial
+from .channels import channel_gains, io_matrices
+from .channels import model_inputs as model_inputs  # re-exported: the model's channel names
+from .channels import model_outputs as model_outputs
 from .linear_model import LinearModel
+from .mimic import Coupling, full_operating_point, mimic_couplings, reduce_matrices, reduction
 from .operating_point import configuration
 
 #: pi_from_inertial is the consistency layer's map (mass, CoM, I about CoM) → π.
 pi_from_inertial = pi_from_urdf
+
+#: Velocity coordinates of a free-flyer (Pinocchio: linear then angular, in the body frame).
+FREE_FLYER_AXES = ("vx", "vy", "vz", "wx", "wy", "wz")
 
 _REF_PI = np.array([1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 1.0])
 
@@ -44,9 +59,13 @@ class AffineModel:
         M_basis, G_basis: ``(nb, 10, nv, nv)`` basis matrices.
         M_rest, G_rest, D_rest: ``(nv, nv)``.
         stiffness, damping: per velocity coordinate, ``(nv,)`` (joint springs, dampers).
-        B: ``(nv, n_in)``; C: ``(n_out, nv)``.
-        inputs, outputs: joint names of the inputs and outputs.
+        B: ``(nv, n_in)``; C: ``(n_out, nv)``: with the transducer gains applied,
+            ``B = B_kin · diag(gain_in)``, ``C = diag(gain_out) · C_kin``.
+        inputs, outputs: names of the inputs and outputs (joints or measurement points).
         q0: configuration ``(nq,)``; operating_point: the named joint values.
+        B_kin, C_kin: the kinematic input / output matrices (joint selectors, and the frame
+            Jacobian rows of measurement points).
+        gain_in, gain_out: transducer gains ``(n_in,)``, ``(n_out,)`` (1 = none).
     """
 
     dofs: tuple[str, ...]
@@ -65,6 +84,20 @@ class AffineModel:
     outputs: tuple[str, ...]
     q0: np.ndarray
     operating_point: dict[str, float]
+    B_kin: np.ndarray | None = None
+    C_kin: np.ndarray | None = None
+    gain_in: np.ndarray | None = None
+    gain_out: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.B_kin is None:
+            self.B_kin = self.B.copy()
+        if self.C_kin is None:
+            self.C_kin = self.C.copy()
+        if self.gain_in is None:
+            self.gain_in = np.ones(self.B_kin.shape[1])
+        if self.gain_out is None:
+            self.gain_out = np.ones(self.C_kin.shape[0])
 
     @property
     def nv(self) -> int:
@@ -115,6 +148,18 @@ class AffineModel:
             damping=self.damping if damping is None else np.asarray(damping, float),
         )
 
+    def with_gains(
+        self, gain_in: np.ndarray | None = None, gain_out: np.ndarray | None = None
+    ) -> AffineModel:
+        """A copy with other transducer gains (``(n_in,)``, ``(n_out,)``)."""
+        assert self.B_kin is not None and self.C_kin is not None
+        gi = self.gain_in if gain_in is None else np.asarray(gain_in, dtype=float)
+        go = self.gain_out if gain_out is None else np.asarray(gain_out, dtype=float)
+        assert gi is not None and go is not None
+        return replace(
+            self, B=self.B_kin * gi[None, :], C=go[:, None] * self.C_kin, gain_in=gi, gain_out=go
+        )
+
 
 def _link_placements(model, links: list[str], where: str) -> dict[str, tuple[int, object]]:
     """For each link: (parent joint id, placement of the link frame in the joint frame)."""
@@ -147,74 +192,31 @@ def _transport_matrix(placement) -> np.ndarray:
     return T
 
 
-def build_affine_model(
-    doc: UrdfDocument,
-    operating_point: Mapping[str, float] | None = None,
-    *,
-    outputs: tuple[str, ...] | None = None,
-) -> AffineModel:
-    """Linearise ``doc`` at ``operating_point`` and expose the affine parameter structure.
-
-    Args:
-        doc: the model.
-        operating_point: joint positions (m or rad) by name; others at neutral.
-        outputs: sensed joints (default: the transmitted joints, in transmission order).
-
-    Raises:
-        ModelError: no transmissions, unknown output joint, a multi-DOF joint.
-        OperatingPointError: the operating point names a joint the model lacks.
-    """
-    import pinocchio as pin
-
-    where = doc.source or "<URDF>"
-    model = doc.build_pinocchio_model()
-    op = dict(operating_point or {})
-    q0 = configuration(model, op, where)
-    nv = model.nv
+def _dof_names(model, where: str) -> list[str]:
+    """Name of each velocity coordinate: the joint's, ``JOINT[vx]``… for a free-flyer."""
     names = list(model.names)
-    dofs: list[str] = [""] * nv
+    dofs: list[str] = [""] * model.nv
     for jid in range(1, model.njoints):
         jm = model.joints[jid]
+        if jm.shortname() == "JointModelFreeFlyer":  # a URDF `floating` joint: free-free
+            for k, axis in enumerate(FREE_FLYER_AXES):
+                dofs[jm.idx_v + k] = f"{names[jid]}[{axis}]"
+            continue
         if jm.nv != 1:
             raise ModelError(
-                f"{where}: joint {names[jid]!r} has {jm.nv} DOF; bondid needs 1-DOF joints"
+                f"{where}: joint {names[jid]!r} has {jm.nv} DOF; bondid needs 1-DOF joints or"
+                " one `floating` joint (a free-flyer)"
             )
         dofs[jm.idx_v] = names[jid]
+    return dofs
 
-    def v_index(joint: str, role: str) -> int:
-        if joint not in dofs:
-            raise ModelError(
-                f"{where}: {role} joint {joint!r} is not a movable joint;"
-                f" movable: {', '.join(dofs)}"
-            )
-        return dofs.index(joint)
 
-    inputs = tuple(t.joint for t in doc.transmissions)
-    if not inputs:
-        raise ModelError(f"{where}: no <transmission> elements, so the model has no FRF inputs")
-    outs = tuple(outputs) if outputs is not None else inputs
-    B = np.zeros((nv, len(inputs)))
-    for i, j in enumerate(inputs):
-        B[v_index(j, "transmission"), i] = 1.0
-    C = np.zeros((len(outs), nv))
-    for i, j in enumerate(outs):
-        C[i, v_index(j, "output")] = 1.0
+def _joint_bases(model, data, q0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Joint-frame bases ``(njoints, 10, nv, nv)`` of M (columns from the torque regressor,
+    gravity off) and of the gravity stiffness (by differencing unit inertias)."""
+    import pinocchio as pin
 
-    stiffness = np.zeros(nv)
-    damping = np.zeros(nv)
-    for j in doc.movable_joint_names:
-        stiffness[v_index(j, "spring")] = doc.stiffness(j)
-        damping[v_index(j, "damper")] = doc.damping(j)
-
-    grounded = doc.grounded_links()
-    bodies = [
-        lk.name for lk in doc.robot.links if lk.inertial is not None and lk.name not in grounded
-    ]
-    placements = _link_placements(model, bodies, where)
-    pi = np.array([pi_from_urdf(*link_inertial(doc, b)) for b in bodies]).reshape(-1, 10)
-
-    # joint-frame bases: M columns from the torque regressor (gravity off), G by differencing
-    data = model.createData()
+    nv = model.nv
     zero = np.zeros(nv)
     saved_gravity = model.gravity.linear.copy()
     model.gravity.linear = np.zeros(3)
@@ -237,7 +239,65 @@ def build_affine_model(
             model.inertias[jid] = pin.Inertia.FromDynamicParameters(e)
             Gj[jid, k] = pin.computeGeneralizedGravityDerivatives(model, data, q0) - g0
         model.inertias[jid] = saved[jid]
+    return Mj, Gj
 
+
+def build_affine_model(
+    doc: UrdfDocument,
+    operating_point: Mapping[str, float] | None = None,
+    *,
+    outputs: tuple[str, ...] | None = None,
+) -> AffineModel:
+    """Linearise ``doc`` at ``operating_point`` and expose the affine parameter structure.
+
+    Args:
+        doc: the model.
+        operating_point: joint positions (m or rad) by name; others at neutral.
+        outputs: sensed joints or measurement points (default: the inputs — transmitted
+            joints in transmission order, then the measurement points of ``doc``).
+
+    Raises:
+        ModelError: no inputs, unknown output, a multi-DOF joint, a point on an unknown
+            frame, a gain on an unknown channel.
+        OperatingPointError: the operating point names a joint the model lacks.
+    """
+    import pinocchio as pin
+
+    where = doc.source or "<URDF>"
+    couplings = mimic_couplings(doc, where)
+    model = doc.build_pinocchio_model()
+    op = dict(operating_point or {})
+    q0 = configuration(model, full_operating_point(op, couplings, where), where)
+    nv = model.nv
+    dofs = _dof_names(model, where)
+    if any("[" in d for d in dofs):  # a free-free structure on soft supports: they carry
+        model.gravity.linear = np.zeros(3)  # its weight
+
+    def v_index(joint: str, role: str) -> int:
+        if joint not in dofs:
+            raise ModelError(
+                f"{where}: {role} joint {joint!r} is not a movable joint;"
+                f" movable: {', '.join(dofs)}"
+            )
+        return dofs.index(joint)
+
+    B, C, inputs, outs = io_matrices(doc, model, q0, dofs, outputs)
+
+    stiffness = np.zeros(nv)
+    damping = np.zeros(nv)
+    for j in doc.movable_joint_names:
+        stiffness[v_index(j, "spring")] = doc.stiffness(j)
+        damping[v_index(j, "damper")] = doc.damping(j)
+
+    grounded = doc.grounded_links()
+    bodies = [
+        lk.name for lk in doc.robot.links if lk.inertial is not None and lk.name not in grounded
+    ]
+    placements = _link_placements(model, bodies, where)
+    pi = np.array([pi_from_urdf(*link_inertial(doc, b)) for b in bodies]).reshape(-1, 10)
+
+    data = model.createData()
+    Mj, Gj = _joint_bases(model, data, q0)
     nb = len(bodies)
     M_basis = np.zeros((nb, 10, nv, nv))
     G_basis = np.zeros((nb, 10, nv, nv))
@@ -254,7 +314,7 @@ def build_affine_model(
     G_full = pin.computeGeneralizedGravityDerivatives(model, data, q0).copy()
     M_rest = M_full - np.einsum("bk,bkij->ij", pi, M_basis)
     G_rest = G_full - np.einsum("bk,bkij->ij", pi, G_basis)
-    return AffineModel(
+    full = AffineModel(
         dofs=tuple(dofs),
         bodies=tuple(bodies),
         pi=pi,
@@ -272,6 +332,27 @@ def build_affine_model(
         q0=q0,
         operating_point=op,
     )
+    am = _reduce_mimic(full, couplings) if couplings else full
+    return am.with_gains(*channel_gains(doc, inputs, outs))
+
+
+def _reduce_mimic(am: AffineModel, couplings: Mapping[str, Coupling]) -> AffineModel:
+    """The model in the independent coordinates (see :mod:`bondid.linear.mimic`)."""
+    T, red = reduction(am.dofs, couplings)
+    free = np.array([d not in couplings for d in am.dofs])
+    fixed_k = np.diag(np.where(free, 0.0, am.stiffness))  # mimic joints' own springs
+    fixed_d = np.diag(np.where(free, 0.0, am.damping))
+    r = reduce_matrices(
+        T,
+        {"Mb": am.M_basis, "Gb": am.G_basis, "M": am.M_rest, "G": am.G_rest + fixed_k,
+         "D": am.D_rest + fixed_d},
+    )  # fmt: skip
+    return AffineModel(
+        dofs=red, bodies=am.bodies, pi=am.pi, M_basis=r["Mb"], G_basis=r["Gb"],
+        M_rest=r["M"], G_rest=r["G"], D_rest=r["D"], stiffness=am.stiffness[free],
+        damping=am.damping[free], B=T.T @ am.B, C=am.C @ T, inputs=am.inputs,
+        outputs=am.outputs, q0=am.q0, operating_point=am.operating_point,
+    )  # fmt: skip
 
 
 def linearise(

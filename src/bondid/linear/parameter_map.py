@@ -61,7 +61,9 @@ class ParameterMap:
                 raise ParameterError(
                     f"{doc.source or '<URDF>'}: unknown parameter {n!r}; see parameter_names()"
                 )
-            if info.is_inertial:
+            if info.kind == "gain":
+                self.slots.append(_Slot("gain", -1, info.name))
+            elif info.is_inertial:
                 if info.owner not in affine.bodies:
                     raise ParameterError(
                         f"{n}: link {info.owner!r} does not move; its inertia has no effect"
@@ -79,6 +81,22 @@ class ParameterMap:
     @property
     def size(self) -> int:
         return len(self.names)
+
+    def gain_values(self, p: np.ndarray) -> dict[str, float]:
+        """Free transducer gains by name (the gain part of the parameter-model protocol)."""
+        return {
+            str(s.component): float(v)
+            for s, v in zip(self.slots, np.asarray(p, dtype=float), strict=True)
+            if s.kind == "gain"
+        }
+
+    def gain_jacobian(self, p: np.ndarray) -> dict[str, np.ndarray]:
+        """d g / d p ``(size,)`` of every free gain (a unit row: gains are parameters)."""
+        out = {}
+        for col, s in enumerate(self.slots):
+            if s.kind == "gain":
+                out[str(s.component)] = np.eye(self.size)[col]
+        return out
 
     def _inertials(self, p: np.ndarray) -> list[tuple[float, np.ndarray, np.ndarray]]:
         inert = [
@@ -121,6 +139,8 @@ class ParameterMap:
         dk = np.zeros((self.nv, self.size))
         dd = np.zeros((self.nv, self.size))
         for col, s in enumerate(self.slots):
+            if s.kind == "gain":
+                continue
             if s.kind == "stiffness":
                 dk[s.index, col] = 1.0
                 continue

@@ -125,3 +125,32 @@ def insert_parasitic_joint(
         )
     doc.set_stiffness(name, stiffness, reference=0.0)
     return name
+
+
+def add_floating_base(
+    doc: UrdfDocument, joint: str = "floating_base", world: str = "world"
+) -> None:
+    """Make ``doc`` free-free: a new root link ``world`` and a URDF ``floating`` joint to the
+    old root (a free-flyer: six free coordinates, rigid-body modes at 0 Hz, no gravity; see
+    :mod:`bondid.linear.affine`). For robots such as solo12 that a URDF writes with their
+    base as the root although it is not bolted down. Edits ``doc`` in place."""
+    import yourdfpy
+
+    where = doc.source or "<URDF>"
+    if any(j.type == "floating" for j in doc.robot.joints):
+        raise ModelError(f"{where}: the model already has a floating joint")
+    for name, kind in ((world, "link"), (joint, "joint")):
+        if name in (doc.link_names if kind == "link" else doc.joint_names):
+            raise ModelError(f"{where}: a {kind} named {name!r} exists; choose another name")
+    root = doc.root_link()
+    rigid = doc.grounded_links()  # the root and what is fixed to it: the floating body
+    if not any(doc.link(n).inertial is not None and doc.link(n).inertial.mass for n in rigid):
+        raise ModelError(
+            f"{where}: the root link {root!r} and the links fixed to it have no mass, so a"
+            " floating joint above it would be a DOF without inertia; make the structure's"
+            " first body the root (remove a 'ground'/'world' link and the joint below it)"
+        )
+    doc.robot.links.insert(0, yourdfpy.Link(name=world))
+    doc.robot.joints.insert(
+        0, yourdfpy.Joint(name=joint, type="floating", parent=world, child=root, origin=np.eye(4))
+    )

@@ -3,8 +3,10 @@
 yourdfpy parses the kinematic tree (links, joints, inertials, geometry) but drops the
 elements bondid also relies on: ``<transmission>`` (actuators = FRF inputs) and Gazebo's
 ``<gazebo reference="JOINT">`` extension (joint springs). This class keeps every top-level
-element yourdfpy does not model, verbatim, and writes it back, so nothing in a user's file is
-lost by a read → write round trip.
+element yourdfpy does not model, verbatim, and writes it back, and restores what yourdfpy's
+writer drops inside links and joints (``<mimic>``, ``<safety_controller>``, ``<calibration>``,
+unknown elements and attributes; :mod:`.preserve`), so nothing in a user's file is lost by a
+read → write round trip.
 """
 
 from __future__ import annotations
@@ -19,6 +21,15 @@ import numpy as np
 
 from ..atomic import refuse_overwrite, write_text_atomic
 from ..exceptions import ModelError
+from .points import (
+    GAIN_TAG,
+    POINT_TAG,
+    Point,
+    check_gain_name,
+    gain_from_element,
+    point_from_element,
+)
+from .preserve import LostPart, lost_parts, restore
 
 MOVABLE_TYPES = ("revolute", "continuous", "prismatic")
 _YOURDFPY_TAGS = ("link", "joint", "material")
@@ -47,10 +58,20 @@ class UrdfDocument:
     write. Springs and transmissions are read from and written to the extension elements.
     """
 
-    def __init__(self, urdf: object, extras: list[ET.Element], source: str | None = None):
+    def __init__(
+        self,
+        urdf: object,
+        extras: list[ET.Element],
+        source: str | None = None,
+        lost: list[LostPart] | None = None,
+    ):
         self._urdf = urdf
         self.extras = extras
         self.source = source
+        #: parts inside links/joints that yourdfpy does not write back (restored on writing)
+        self.lost: list[LostPart] = list(lost or [])
+        #: folders searched first for ``package://`` meshes (:mod:`.packages`)
+        self.package_path: list[str] = []
         self._check()
 
     # -- reading ------------------------------------------------------------------------
@@ -83,14 +104,18 @@ class UrdfDocument:
             import io
 
             urdf = yourdfpy.URDF.load(
-                io.BytesIO(ET.tostring(core)),
+                io.BytesIO(ET.tostring(_writable(core))),
                 build_scene_graph=False,
                 load_meshes=False,
                 filename_handler=yourdfpy.filename_handler_null,
             )
         except Exception as exc:  # yourdfpy raises assorted errors on bad files
             raise ModelError(f"{where}: yourdfpy could not read the URDF ({exc})") from exc
-        return cls(urdf, extras, source)
+        try:
+            lost = lost_parts(core, ET.fromstring(urdf.write_xml_string()))
+        except Exception:  # yourdfpy cannot write it back: to_string will say so
+            lost = []
+        return cls(urdf, extras, source, lost)
 
     def _check(self) -> None:
         where = self.source or "<URDF string>"
@@ -164,7 +189,7 @@ class UrdfDocument:
         """Links rigidly attached to the root (through fixed joints only), root included."""
         fixed: dict[str, list[str]] = {}
         for j in self.robot.joints:
-            if j.type not in MOVABLE_TYPES:
+            if j.type == "fixed":
                 fixed.setdefault(j.parent, []).append(j.child)
         out, stack = set(), [self.root_link()]
         while stack:
@@ -269,10 +294,56 @@ class UrdfDocument:
         ET.SubElement(act, "mechanicalReduction").text = "1"
         self.extras.append(el)
 
+    def mimic_joints(self) -> dict[str, str]:
+        """Joints with a ``<mimic>`` element → the joint they mimic."""
+        return {j.name: str(j.mimic.joint) for j in self.robot.joints if getattr(j, "mimic", None)}
+
+    def drop_mimic(self, joint: str) -> None:
+        """Remove ``<mimic>`` from ``joint``: it becomes an independent DOF (bondid refuses
+        to linearise a model with mimic joints, which it cannot couple)."""
+        j = self.joint(joint)
+        j.mimic = None
+        key = ("joint", "name=" + joint)
+        self.lost = [
+            p
+            for p in self.lost
+            if not (p.path == (key,) and p.element is not None and p.element.tag == "mimic")
+        ]
+
+    # -- extension elements: measurement points and transducer gains --------------------
+    @property
+    def points(self) -> list[Point]:
+        """Measurement points (``<measurement_point>``), file order (see :mod:`.points`)."""
+        where = self.source or "<URDF>"
+        return [point_from_element(el, where) for el in self.extras if el.tag == POINT_TAG]
+
+    def set_point(self, point: Point) -> None:
+        """Add a point, or replace the one of the same name."""
+        self.extras = [
+            el for el in self.extras if not (el.tag == POINT_TAG and el.get("name") == point.name)
+        ]
+        self.extras.append(point.to_element())
+
+    @property
+    def gains(self) -> dict[str, float]:
+        """Transducer gains by name (``gain.in.X``, ``gain.out.Y``); absent = 1."""
+        where = self.source or "<URDF>"
+        return dict(gain_from_element(el, where) for el in self.extras if el.tag == GAIN_TAG)
+
+    def set_gain(self, name: str, value: float) -> None:
+        """Set (or create) the gain ``name`` (``gain.in.X`` / ``gain.out.Y``)."""
+        check_gain_name(name, self.source or "<URDF>")
+        for el in self.extras:
+            if el.tag == GAIN_TAG and el.get("name") == name:
+                el.set("value", repr(float(value)))
+                return
+        self.extras.append(ET.Element(GAIN_TAG, {"name": name, "value": repr(float(value))}))
+
     # -- writing ------------------------------------------------------------------------
     def to_string(self) -> str:
         """The whole model as URDF text (pretty-printed, full double precision)."""
         core = ET.fromstring(self._urdf.write_xml_string())  # type: ignore[attr-defined]
+        restore(core, self.lost)
         for el in self.extras:
             core.append(copy.deepcopy(el))
         ET.indent(core, space="  ")
@@ -289,7 +360,11 @@ class UrdfDocument:
 
     def copy(self) -> UrdfDocument:
         """A deep copy (edits to it leave this document untouched)."""
-        return UrdfDocument(copy.deepcopy(self._urdf), copy.deepcopy(self.extras), self.source)
+        out = UrdfDocument(
+            copy.deepcopy(self._urdf), copy.deepcopy(self.extras), self.source, self.lost
+        )
+        out.package_path = list(self.package_path)
+        return out
 
     def build_pinocchio_model(self):  # -> pinocchio.Model
         """The Pinocchio model of this document (built from memory, no file written)."""
@@ -301,6 +376,17 @@ class UrdfDocument:
             raise ModelError(
                 f"{self.source or '<URDF>'}: Pinocchio could not build the model ({exc})"
             ) from exc
+
+
+def _writable(core: ET.Element) -> ET.Element:
+    """A copy of ``core`` without what yourdfpy reads but cannot write back (a ``<texture>``
+    without ``filename``); :mod:`.preserve` restores it on writing."""
+    out = copy.deepcopy(core)
+    for mat in out.iter("material"):
+        for tex in mat.findall("texture"):
+            if tex.get("filename") is None:
+                mat.remove(tex)
+    return out
 
 
 def rotation_and_translation(T: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:

@@ -10,7 +10,12 @@ name                           meaning                                      unit
 ``LINK.inertia.ixx`` (...)     inertia about the CoM, link-frame axes       kg·m²
 ``JOINT.stiffness``            Gazebo joint spring                          N/m, N·m/rad
 ``JOINT.damping``              joint viscous damper                         N·s/m, N·m·s/rad
+``gain.in.X``, ``gain.out.Y``  transducer gain of input X / output Y         file unit per SI
 =============================  ==========================================  ===============
+
+A gain is a parameter only where the model declares it (``<transducer_gain>``, from a study's
+``[gains]`` table or ``--points`` file; see :mod:`bondid.model.points`); it belongs to the
+group ``gains`` and to no other group.
 
 The inertia components are ``ixx ixy ixz iyy iyz izz``. A URDF ``<inertial>`` with a rotated
 origin is read correctly (its tensor is rotated into the link frame); writing a parameter
@@ -18,7 +23,8 @@ stores the inertial with ``rpy = 0``.
 
 Groups: ``inertial`` (the 10 parameters of every moving link with an ``<inertial>``),
 ``parasitic`` (stiffness and damping of every movable joint without a transmission),
-``joints`` (stiffness and damping of every movable joint), ``all`` (``inertial`` + ``joints``).
+``joints`` (stiffness and damping of every movable joint), ``all`` (``inertial`` + ``joints``),
+``gains`` (the declared transducer gains).
 """
 
 from __future__ import annotations
@@ -42,7 +48,7 @@ _INERTIA_INDEX = {
     "iyz": (1, 2),
     "izz": (2, 2),
 }
-GROUPS = ("inertial", "parasitic", "joints", "all")
+GROUPS = ("inertial", "parasitic", "joints", "all", "gains")
 
 
 @dataclass(frozen=True)
@@ -79,12 +85,15 @@ def parameter_infos(doc: UrdfDocument) -> list[ParameterInfo]:
         out += [
             ParameterInfo(f"{n}.inertia.{c}", "inertia", n, c, "kg*m^2") for c in INERTIA_COMPONENTS
         ]
+    mimic = doc.mimic_joints()  # their springs/dampers are folded into the master's
     for j in doc.robot.joints:
-        if j.type not in ("revolute", "continuous", "prismatic"):
+        if j.type not in ("revolute", "continuous", "prismatic") or j.name in mimic:
             continue
         ku, du = _joint_units(j.type)
         out.append(ParameterInfo(f"{j.name}.stiffness", "stiffness", j.name, None, ku))
         out.append(ParameterInfo(f"{j.name}.damping", "damping", j.name, None, du))
+    for name in doc.gains:
+        out.append(ParameterInfo(name, "gain", name, None, "1"))
     return out
 
 
@@ -132,6 +141,8 @@ def set_link_inertial(
 def get_parameter(doc: UrdfDocument, name: str) -> float:
     """The value of parameter ``name`` (SI units, see the module table)."""
     info = _info(doc, name)
+    if info.kind == "gain":
+        return doc.gains[name]
     if info.kind == "stiffness":
         return doc.stiffness(info.owner)
     if info.kind == "damping":
@@ -153,6 +164,11 @@ def set_parameter(doc: UrdfDocument, name: str, value: float) -> None:
         raise ParameterError(f"{name}: value {value} is not finite")
     if info.kind in ("stiffness", "damping", "mass") and value < 0:
         raise ParameterError(f"{name}: value {value} is negative; valid: ≥ 0")
+    if info.kind == "gain":
+        if value == 0:
+            raise ParameterError(f"{name}: a gain of 0 cuts the channel; valid: ≠ 0")
+        doc.set_gain(name, value)
+        return
     if info.kind == "stiffness":
         doc.set_stiffness(info.owner, value)
         return
@@ -186,12 +202,15 @@ def group_members(doc: UrdfDocument, group: str) -> list[str]:
     driven = {t.joint for t in doc.transmissions}
     if group == "inertial":
         return [p.name for p in infos if p.is_inertial]
+    joint_kinds = ("stiffness", "damping")
     if group == "parasitic":
-        return [p.name for p in infos if not p.is_inertial and p.owner not in driven]
+        return [p.name for p in infos if p.kind in joint_kinds and p.owner not in driven]
     if group == "joints":
-        return [p.name for p in infos if not p.is_inertial]
+        return [p.name for p in infos if p.kind in joint_kinds]
     if group == "all":
-        return [p.name for p in infos]
+        return [p.name for p in infos if p.kind != "gain"]
+    if group == "gains":
+        return [p.name for p in infos if p.kind == "gain"]
     raise ParameterError(f"unknown parameter group {group!r}; valid: {', '.join(GROUPS)}")
 
 

@@ -18,6 +18,7 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from ..cli import Progress, add_model_args, make_parser, run
 from ..exceptions import ConfigError
@@ -64,11 +65,13 @@ def _parser():
     return p
 
 
-def _analyse(path: Path, op: dict[str, float]) -> tuple[object, ModalResult]:
+def _analyse(path: Path, op: dict[str, float], args: Any) -> tuple[object, ModalResult]:
+    from ..cli import apply_model_options
     from ..linear import build_affine_model
     from ..model import UrdfDocument
 
     doc = UrdfDocument.load(path)
+    apply_model_options(doc, args)
     aff = build_affine_model(doc, op)
     return doc, modal_analysis(aff.linear_model(), op)
 
@@ -92,8 +95,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         if not args.amplitude > 0:
             raise ConfigError(f"--amplitude {args.amplitude}: must be > 0 (fraction of size)")
         op = parse_operating_point(" ".join(args.q or []), "--q")
-        doc, result = _analyse(args.model, op)
-        fitted = _analyse(args.fitted, op) if args.fitted is not None else None
+        doc, result = _analyse(args.model, op, args)
+        fitted = _analyse(args.fitted, op, args) if args.fitted is not None else None
         index = args.mode if args.mode is not None else _default_mode(result)
         if not 1 <= index <= len(result.modes):
             raise ConfigError(f"--mode {index}: {args.model} has modes 1..{len(result.modes)}")

@@ -86,9 +86,11 @@ def load_machine(
     """Pinocchio model and visual geometry of ``doc`` (primitives and meshes from the URDF)."""
     import pinocchio as pin
 
+    from ..model.packages import text_with_resolved_meshes
+
     where = doc.source or "<URDF>"
     model = doc.build_pinocchio_model()
-    text = doc.to_string()
+    text = text_with_resolved_meshes(doc)
     try:
         geom = pin.buildGeomFromUrdfString(model, text, pin.GeometryType.VISUAL)
         if geom.ngeoms == 0:

@@ -70,11 +70,12 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         t_start = time.perf_counter()
         doc = UrdfDocument.load(args.model)
+        cli.apply_model_options(doc, args)
         inputs = [args.model, *args.data]
         if args.out is not None:
             for name in [*output.PNG_NAMES.values(), "sensitivity.json"]:
                 refuse_overwrite(args.out / name, inputs)
-        datasets = load_datasets(doc, args.data)
+        datasets = load_datasets(doc, args.data, channel_map=cli.uff_channel_map(args))
         channels = cli.split_names(args.channels) or None
         options = CostOptions(kind=args.cost, bands=args.band, channels=channels)
         setup = make_setup(doc, datasets, options, cli.split_names(args.free),
