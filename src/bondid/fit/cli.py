@@ -24,10 +24,12 @@ from ..cli import (
     EXIT_FAILED,
     EXIT_OK,
     Progress,
+    check_workers,
     make_parser,
     parse_band,
     run,
     split_names,
+    warn_lines,
 )
 from ..cost.problem import CostOptions
 from ..cost.residuals import NORMS, RESIDUAL_KINDS
@@ -118,9 +120,17 @@ def build_parser() -> argparse.ArgumentParser:
         help="IPOPT iterations on the normalised complex error before a log-cost fit (default"
         " 60; 0 = none): crosses the walls a log cost has where a cross term changes sign",
     )  # fmt: skip
+    p.add_argument(
+        "--drop-nan", action="store_true",
+        help="drop the frequency rows of a data file that hold a NaN or empty cell",
+    )  # fmt: skip
     p.add_argument("--out", type=Path, default=None, help="folder for the results")
     p.add_argument("--quiet", action="store_true", help="no progress display")
     return p
+
+
+#: the names ``bondid.fit`` may write under ``--out``
+OUT_PATTERNS = ("fit.json", "fitted.urdf", "convergence.png", "bode_*.png")
 
 
 def _positive(value: int | None, name: str, minimum: int) -> int | None:
@@ -166,7 +176,8 @@ def resolve_settings(args: argparse.Namespace) -> StudySettings:
     s.multistart = _positive(args.multistart, "--multistart", 1) or s.multistart
     if args.seed is not None:
         s.seed = int(_positive(args.seed, "--seed", 0) or 0)
-    s.workers = _positive(args.workers, "--workers", 1) or s.workers
+    if args.workers is not None:
+        s.workers = check_workers(args.workers)
     if args.staged is not None:
         s.staged = args.staged
     cli_stage: dict[str, list[tuple[float, float]]] = {}
@@ -235,7 +246,7 @@ def resolve_names(
 
 
 def resolve_bounds(
-    doc: UrdfDocument, names: list[str], s: StudySettings
+    doc: UrdfDocument, names: list[str], s: StudySettings, f_max_hz: float | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Bounds from the defaults, the study and ``--bound`` (a kind key applies to its kind)."""
     from .bounds import default_bounds
@@ -255,9 +266,36 @@ def resolve_bounds(
         if any(fnmatch.fnmatchcase(n, _KIND_GLOB.get(k, k)) for n in names)
     }
     try:
-        return default_bounds(doc, names, rel=s.rel_bounds, absolute=absolute)
+        return default_bounds(doc, names, rel=s.rel_bounds, absolute=absolute, f_max_hz=f_max_hz)
     except ConfigError as exc:
         raise ConfigError(f"{s.source or '--bound'}: {exc}") from None
+
+
+def check_weights(s: StudySettings, datasets: list[FrfData]) -> None:
+    """Every ``--weight`` / study weight must name a channel of the data."""
+    have = sorted({ch for ds in datasets for ch in ds.channels})
+    for ch in s.channel_weights:
+        if ch not in have:
+            raise ConfigError(
+                f"{s.source or '--weight'}: channel {ch!r} is not in the data; valid:"
+                f" {', '.join(have)}"
+            )
+
+
+def start_outside_bounds(
+    doc: UrdfDocument, names: list[str], lower: np.ndarray, upper: np.ndarray
+) -> list[str]:
+    """Warnings for model values outside their bounds (the fit starts from the bound,
+    and reports that clipped value as ``initial``)."""
+    out = []
+    for n, v, lo, hi in zip(names, get_parameters(doc, names), lower, upper, strict=True):
+        if not lo <= v <= hi:
+            out.append(
+                f"{n}: the model's value {float(v):.6g} is outside the bounds"
+                f" [{float(lo):.6g}, {float(hi):.6g}]; the fit starts from"
+                f" {float(np.clip(v, lo, hi)):.6g} (reported as initial)"
+            )
+    return out
 
 
 def _fmt(v: float) -> str:
@@ -313,23 +351,27 @@ def summary(result: Any, content: dict[str, Any] | None, extra: dict[str, Any]) 
 
 def _body(args: argparse.Namespace) -> int:
     from ..data.for_model import load_datasets
+    from ..results import open_results
+    from ..validation import check_inputs, load_model
     from .multistart import run_multistart
-    from .outputs import check_out_dir, write_outputs
+    from .outputs import FIT_JSON, check_out_dir, write_outputs
     from .staged import cost_at
 
     s = resolve_settings(args)
     assert s.model is not None
     inputs: list[Path] = [s.model, *s.data] + ([s.source] if s.source else [])
-    doc = UrdfDocument.load(s.model)
-    datasets = [
-        ds if ds.quantity == "receptance" else ds.to_quantity("receptance")
-        for ds in load_datasets(doc, s.data)
-    ]
+    res = None if args.out is None else open_results(args.out, "fit", inputs, patterns=OUT_PATTERNS)
+    doc, warnings = load_model(s.model)
+    raw = load_datasets(doc, s.data, drop_nan=args.drop_nan)
+    warnings += check_inputs(doc, raw, s.data)
+    datasets = [ds if ds.quantity == "receptance" else ds.to_quantity("receptance") for ds in raw]
     if args.out is not None:
         check_out_dir(args.out, inputs, datasets)
+    check_weights(s, datasets)
     options = cost_options(s)
     names = resolve_names(doc, datasets, s, options)
-    lower, upper = resolve_bounds(doc, names, s)
+    lower, upper = resolve_bounds(doc, names, s, max(float(d.freq_hz[-1]) for d in datasets))
+    warnings += start_outside_bounds(doc, names, lower, upper)
 
     single = s.multistart == 1 or s.workers == 1
     prog = Progress(
@@ -371,20 +413,30 @@ def _body(args: argparse.Namespace) -> int:
         "settings": s.to_json_dict(),
         "multistart": ms.spread(),
         "stages": [st.to_json_dict() for st in ms.best_run.stages] or None,
+        "warnings": warnings,
     }
     content = None
-    if args.out is not None:
+    if res is not None:
         histories = [r.result.cost_history if r.result else [] for r in ms.runs]
         content = write_outputs(
-            args.out, result=result, initial_doc=doc, datasets=datasets, options=options,
+            res.tmp, result=result, initial_doc=doc, datasets=datasets, options=options,
             inputs=inputs, histories=histories,
             history_labels=[f"start {r.index}" for r in ms.runs], extra=extra,
         )  # fmt: skip
+        res.commit(warnings=warnings, main=FIT_JSON)
     print(summary(result, content, extra))
+    for line in warn_lines(warnings):
+        print(line)
     if args.out is not None:
         print(f"results: {args.out} ({', '.join(content['outputs']) if content else ''})")
     else:
         print("(no --out given: nothing written)")
+    if result.status == "failed":
+        print(
+            f"error: the fit failed ({result.failure}); fit.json keeps the best point reached",
+            file=sys.stderr,
+        )
+        return EXIT_FAILED
     if not result.success:
         print(
             f"error: the fit did not converge (solver status: {result.status}); raise"
