@@ -149,7 +149,7 @@ def default_bounds(
     rel = dict(rel or {})
     for k, v in rel.items():
         if not np.isfinite(v) or v < 0:
-            raise ConfigError(f"bounds: relative width {v!r} for {k!r} is invalid; give >= 0")
+            raise ConfigError(f"bounds: relative width {float(v)!r} for {k!r}: give a value >= 0")
     infos = infos_by_name(doc, names)
     hull_links = sorted({i.owner for i in infos if i.kind == "com"})
     hulls = link_hulls(doc, hull_links)
