@@ -105,7 +105,7 @@ def check_out(
     where = p if p.exists() else anc
     parent = p.absolute().parent if p.exists() else anc
     for d in {where, parent}:
-        if d.is_dir() and not os.access(d, os.W_OK | os.X_OK):
+        if d.is_dir() and not _writable(d):
             raise ConfigError(f"{option} {p}: the folder {d} is not writable; choose another")
     if not file:
         for i in ins:
@@ -119,6 +119,21 @@ def check_out(
                     " inputs; choose another output folder (inputs are never overwritten)"
                 )
     return p
+
+
+def _writable(folder: Path) -> bool:
+    """Whether a file can be created in ``folder`` (tried: permission bits do not tell for
+    root, read-only mounts or /proc)."""
+    import tempfile
+
+    try:
+        fd, name = tempfile.mkstemp(prefix=".bondid-probe-", dir=folder)
+    except OSError:
+        return False
+    os.close(fd)
+    with contextlib.suppress(OSError):
+        os.unlink(name)
+    return True
 
 
 class Results:
