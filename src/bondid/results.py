@@ -38,7 +38,8 @@ import json
 import os
 import secrets
 import shutil
-from collections.abc import Iterable, Sequence
+import threading
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -155,6 +156,7 @@ class Results:
         self.tmp = self.parent / f".{out.name}.bondid-tmp-{os.getpid()}-{secrets.token_hex(4)}"
         self._extra: dict[str, Path] = {}
         self.committed = False
+        self.thread = threading.get_ident()  # close_all() abandons the runs of its own thread
 
     # -- lock and stage -----------------------------------------------------------------
     def _lock(self) -> None:
@@ -243,10 +245,14 @@ class Results:
         for target in self._extra.values():
             if any(_same(target, i) for i in self.inputs):
                 raise ConfigError(f"{target}: refusing to overwrite an input file")
-        written = self._commit_file(files) if self.file else self._commit_dir(files, warnings, main)
-        for staged, target in self._extra.items():
-            _move(Path(staged), target)
-            written.append(target)
+        with _signals_deferred():  # a Ctrl-C now lands after the commit, not in its middle
+            if self.file:
+                written = self._commit_file(files)
+            else:
+                written = self._commit_dir(files, warnings, main)
+            for staged, target in self._extra.items():
+                _move(Path(staged), target)
+                written.append(target)
         self.committed = True
         self.close()
         return written
@@ -326,9 +332,12 @@ def open_results(
 
 
 def close_all() -> None:
-    """Abandon every uncommitted :class:`Results` (called by :func:`bondid.cli.run`)."""
+    """Abandon every uncommitted :class:`Results` of this thread (called by
+    :func:`bondid.cli.run`; runs in other threads, e.g. Dask workers, are left alone)."""
+    me = threading.get_ident()
     for r in list(_OPEN):
-        r.close()
+        if r.thread == me:
+            r.close()
 
 
 def read_manifest(
@@ -361,6 +370,22 @@ def read_manifest(
             ):
                 raise DataError(f"{path}: {n} is missing or differs from the run that wrote it")
     return m
+
+
+@contextlib.contextmanager
+def _signals_deferred() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM back (main thread only) until the block ends."""
+    import signal
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = {signal.SIGINT, signal.SIGTERM}
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 def _sha256(path: Path) -> str:

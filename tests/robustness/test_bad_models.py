@@ -50,6 +50,13 @@ CASES: dict[str, tuple[object, tuple[str, ...]]] = {
         ),
         ("kinematic loop", "x_stage"),
     ),
+    "missing_mesh": (
+        (
+            r'(<collision name="x_stage[^"]*">\s*<origin[^>]*>\s*)<geometry>.*?</geometry>',
+            '\\1<geometry><mesh filename="meshes/nope.stl"/></geometry>',
+        ),
+        ("x_stage", "nope.stl", "not found"),
+    ),
     "duplicate_transmission": ((f"({TRANSMISSION})", "\\1\\1"), ("'x'", "two transmissions")),
     "no_transmission": (("ALL_TRANSMISSIONS", ""), ("no <transmission>",)),
     "binary_file": (("BINARY", ""), ("not a text file",)),

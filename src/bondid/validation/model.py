@@ -51,7 +51,28 @@ def check_model(doc: UrdfDocument) -> list[str]:
     _check_joints(doc, where)
     _check_bodies(doc, where)
     _check_moved_mass(doc, where)
+    _check_meshes(doc, where)
+    doc.build_pinocchio_model()  # raises ModelError naming the file
     return _com_warnings(doc, where)
+
+
+def _check_meshes(doc: UrdfDocument, where: str) -> None:
+    """Every mesh file named by a path (not ``package://``) must exist, resolved against the
+    URDF's folder."""
+    base = os.path.dirname(os.path.abspath(doc.source)) if doc.source else os.getcwd()
+    for lk in doc.robot.links:
+        for el in [*(lk.collisions or []), *(lk.visuals or [])]:
+            mesh = getattr(getattr(el, "geometry", None), "mesh", None)
+            name = getattr(mesh, "filename", None) if mesh is not None else None
+            if not name or name.startswith("package://"):
+                continue
+            path = name[len("file://") :] if name.startswith("file://") else name
+            full = os.path.join(base, path)
+            if not os.path.isfile(full):
+                raise ModelError(
+                    f"{where}: link {lk.name!r}: mesh file {name!r} not found (looked for"
+                    f" {full}); valid: a path relative to the URDF's folder, or absolute"
+                )
 
 
 def _check_tree(doc: UrdfDocument, where: str) -> None:
