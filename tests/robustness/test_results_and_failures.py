@@ -119,3 +119,22 @@ def test_failed_ipopt_still_writes_fit_json(inputs, run, tmp_path, monkeypatch):
     assert p["fitted"] is not None and p["lower"] <= p["fitted"] <= p["upper"]
     assert fit["cost_final"] <= fit["cost_initial"]  # the best point, not the last one
     assert read_manifest(out, "fit") is not None
+
+
+def test_fit_without_any_iterate_still_says_why(inputs, run, tmp_path, monkeypatch):
+    """Every run failed before IPOPT reached a feasible point: fit.json still tells."""
+    from bondid.exceptions import SolverError
+    from bondid.fit import multistart
+
+    def fail(*a, **kw):  # type: ignore[no-untyped-def]
+        raise SolverError(
+            "all 1 fit run(s) failed; start 0: Restoration_Failed", "Restoration_Failed"
+        )
+
+    monkeypatch.setattr(multistart, "run_multistart", fail)
+    out = tmp_path / "fit"
+    code, _, err = run("fit", *fast_args("fit", inputs["model"], [inputs["d0"]], out))
+    assert code == 1 and "Restoration_Failed" in err
+    fit = json.loads((out / "fit.json").read_text())
+    assert fit["status"] == "failed" and "Restoration_Failed" in fit["failure"]
+    assert fit["parameters"][0]["initial"] == 200000.0 and fit["parameters"][0]["fitted"] is None

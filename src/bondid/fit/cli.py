@@ -34,7 +34,7 @@ from ..cli import (
 from ..cost.problem import CostOptions
 from ..cost.residuals import NORMS, RESIDUAL_KINDS
 from ..data.measurement import FrfData
-from ..exceptions import ConfigError, DependencyError
+from ..exceptions import ConfigError, DependencyError, SolverError
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameters, parameter_infos, select_parameters
 from .study import (
@@ -298,6 +298,39 @@ def start_outside_bounds(
     return out
 
 
+def write_failure(
+    res: Any,
+    exc: SolverError,
+    doc: UrdfDocument,
+    names: list[str],
+    lower: np.ndarray,
+    upper: np.ndarray,
+    s: StudySettings,
+    warnings: list[str],
+) -> None:
+    """``fit.json`` of a fit that failed without a usable iterate: status ``"failed"``, the
+    reason, and the start (the best point known) as ``initial`` with ``fitted`` null."""
+    import json
+
+    from .outputs import FIT_JSON, jsonable
+
+    start = np.clip(get_parameters(doc, names), lower, upper)
+    content = {
+        "status": "failed", "success": False, "solver_status": exc.status,
+        "failure": str(exc), "cost_initial": None, "cost_final": None, "cost_name": None,
+        "iterations": 0, "wall_s": None, "command": "bondid.fit",
+        "model_file": str(s.model), "settings": s.to_json_dict(), "warnings": warnings,
+        "parameters": [
+            {"name": n, "initial": float(x), "fitted": None, "lower": float(lo),
+             "upper": float(hi), "std": None}
+            for n, x, lo, hi in zip(names, start, lower, upper, strict=True)
+        ],
+        "outputs": [FIT_JSON],
+    }  # fmt: skip
+    res.path(FIT_JSON).write_text(json.dumps(jsonable(content), indent=2) + "\n")
+    res.commit(warnings=warnings, main=FIT_JSON)
+
+
 def _fmt(v: float) -> str:
     return "—" if not math.isfinite(v) else f"{v:.6g}"
 
@@ -390,12 +423,17 @@ def _body(args: argparse.Namespace) -> int:
             )
             prog.update(1, f"start {out.index}: {info}")
 
-    ms = run_multistart(
-        doc, datasets, names, lower=lower, upper=upper, options=options, n_starts=s.multistart,
-        seed=s.seed, max_iter=s.max_iter, workers=s.workers, staged=s.staged,
-        continuation=s.continuation, stage_bands=s.stage_bands or None, on_run=on_run,
-        on_iteration=on_iteration, presolve_iter=s.presolve,
-    )  # fmt: skip
+    try:
+        ms = run_multistart(
+            doc, datasets, names, lower=lower, upper=upper, options=options,
+            n_starts=s.multistart, seed=s.seed, max_iter=s.max_iter, workers=s.workers,
+            staged=s.staged, continuation=s.continuation, stage_bands=s.stage_bands or None,
+            on_run=on_run, on_iteration=on_iteration, presolve_iter=s.presolve,
+        )  # fmt: skip
+    except SolverError as exc:  # no run kept an iterate: still say so in fit.json
+        if res is not None:
+            write_failure(res, exc, doc, names, lower, upper, s, warnings)
+        raise
     result = ms.best
     prog.close(f"{result.status}, cost {result.cost_final:.4g}")
     start0 = ms.runs[0].result
