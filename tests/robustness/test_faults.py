@@ -120,8 +120,11 @@ def test_sigint_during_a_fit_and_a_concurrent_run(inputs, long_data, run, tmp_pa
     assert {p: sha(p) for p in before} == before
 
 
-@pytest.mark.parametrize("command", ["fit", "diagnose"])
-def test_sigint_stops_worker_processes(command, inputs, long_data, tmp_path):
+@pytest.mark.parametrize(
+    ("command", "n_up", "settle"), [("fit", 2, 1.5), ("diagnose", 2, 1.5), ("diagnose", 1, 0.0)]
+)
+def test_sigint_stops_worker_processes(command, n_up, settle, inputs, long_data, tmp_path):
+    """Workers at work, and (diagnose, spawned) workers still starting up."""
     out = tmp_path / "out"
     if command == "fit":
         argv = ["--model", inputs["model"], "--data", long_data, "--free", "all",
@@ -131,10 +134,10 @@ def test_sigint_stops_worker_processes(command, inputs, long_data, tmp_path):
                 "--points", "60", "--workers", "2", "--effects", "joint_compliance"]  # fmt: skip
     r = Run(command, *argv, "--out", out, cwd=tmp_path)
     t0 = time.monotonic()
-    while len(r.children()) < 2:  # the workers are up (and working)
+    while len(r.children()) < n_up:  # the workers are up (and working)
         assert r.p.poll() is None and time.monotonic() - t0 < 60, "".join(r.err)
-        time.sleep(0.1)
-    time.sleep(1.5)
+        time.sleep(0.05)
+    time.sleep(settle)
     workers = r.children()
     code, dt = r.interrupt()
     assert code == 130 and dt <= 2.0, ("".join(r.err), dt)

@@ -198,6 +198,9 @@ class _Pool:
                 self.ex.submit(int, 0).result()  # start the workers with this environment
                 for _ in range(workers - 1):
                     self.ex.submit(time.sleep, 0.0)
+            except BaseException:  # Ctrl-C while the workers start: stop them now
+                kill_workers(self.ex)
+                raise
             finally:
                 for k, v in saved.items():
                     if v is None:
