@@ -121,7 +121,8 @@ def test_sigint_during_a_fit_and_a_concurrent_run(inputs, long_data, run, tmp_pa
 
 
 @pytest.mark.parametrize(
-    ("command", "n_up", "settle"), [("fit", 2, 1.5), ("diagnose", 2, 1.5), ("diagnose", 1, 0.0)]
+    ("command", "n_up", "settle"),
+    [("fit", 2, 1.5), ("sensitivity", 2, 0.5), ("diagnose", 2, 1.5), ("diagnose", 1, 0.0)],
 )
 def test_sigint_stops_worker_processes(command, n_up, settle, inputs, long_data, tmp_path):
     """Workers at work, and (diagnose, spawned) workers still starting up."""
@@ -129,6 +130,9 @@ def test_sigint_stops_worker_processes(command, n_up, settle, inputs, long_data,
     if command == "fit":
         argv = ["--model", inputs["model"], "--data", long_data, "--free", "all",
                 "--multistart", "2", "--workers", "2", "--max-iter", "300"]  # fmt: skip
+    elif command == "sensitivity":
+        argv = ["--model", inputs["model"], "--data", long_data, "--free", "all",
+                "--workers", "2"]  # fmt: skip
     else:
         argv = ["--model", inputs["model"], "--data", inputs["d0"], inputs["d1"],
                 "--points", "60", "--workers", "2", "--effects", "joint_compliance"]  # fmt: skip
