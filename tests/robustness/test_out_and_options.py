@@ -81,6 +81,7 @@ def test_an_input_inside_out_under_an_output_name_is_refused(command, name, inpu
 # option → (command, extra argv, words of the reason)
 OPTION_CASES = {
     "weight_unknown_channel": ("fit", ["--weight", "q.q=2"], ("q.q", "not in the data")),
+    "weight_infinite": ("fit", ["--weight", "x.x=inf"], ("--weight", "finite")),
     "workers_0_fit": ("fit", ["--workers", "0"], ("--workers 0", ">= 1")),
     "workers_0_sensitivity": ("sensitivity", ["--workers", "0"], ("--workers 0", ">= 1")),
     "workers_0_diagnose": ("diagnose", ["--workers", "0"], ("--workers 0", ">= 1")),

@@ -164,8 +164,8 @@ def resolve_settings(args: argparse.Namespace) -> StudySettings:
             value = float(w)
         except ValueError:
             value = math.nan
-        if not sep or ch.count(".") != 1 or not value >= 0:
-            raise ConfigError(f"--weight {text!r}: not OUT.IN=W with a weight W >= 0")
+        if not sep or ch.count(".") != 1 or not 0 <= value < math.inf:
+            raise ConfigError(f"--weight {text!r}: not OUT.IN=W with a finite weight W >= 0")
         s.channel_weights[ch] = value
     if args.cost is not None:
         s.cost = args.cost
