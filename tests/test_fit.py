@@ -268,7 +268,13 @@ def test_default_bounds(bonder: UrdfDocument) -> None:
     )
     np.testing.assert_allclose(lo[0:3], [1.67 * 0.8, 0.0, 2e5 * 0.9])
     np.testing.assert_allclose(hi[[0, 2]], [1.67 * 1.2, 2e5 * 1.1])
-    assert hi[1] == np.inf  # a zero stiffness has nothing to be relative to
+    # a zero stiffness has nothing to be relative to: finite, from the joint's inertia
+    from bondid.fit.bounds import DEFAULT_F_MAX, STIFF_FACTOR
+    from bondid.linear.affine import build_affine_model
+
+    am = build_affine_model(bonder, {})
+    m_xx = am.mass_matrix()[am.dofs.index("x"), am.dofs.index("x")]
+    assert hi[1] == pytest.approx(STIFF_FACTOR * m_xx * (2 * np.pi * DEFAULT_F_MAX) ** 2)
     # CoM: room relative to the hull size when the value is small (hull diagonal ~0.33 m)
     assert hi[3] - lo[3] > 2 * 0.5 * 0.011
     assert (lo[4], hi[4]) == (0.0, 1.0)

@@ -8,6 +8,7 @@ runs its body through :func:`run`, and reports progress with :class:`Progress`.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -123,18 +124,45 @@ def parse_freq(text: str) -> tuple[float, float, int]:
     """``"F_LO:F_HI:N"`` → (f_lo Hz, f_hi Hz, n) for a log-spaced grid."""
     try:
         lo_s, hi_s, n_s = text.split(":")
-        lo, hi, n = float(lo_s), float(hi_s), int(n_s)
+        lo, hi, n_f = float(lo_s), float(hi_s), float(n_s)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(f"--freq {text!r} is not F_LO:F_HI:N") from exc
-    if not (0 < lo < hi) or n < 2:
-        raise argparse.ArgumentTypeError(f"--freq {text!r}: need 0 < F_LO < F_HI and N ≥ 2")
-    return lo, hi, n
+    if not (0 < lo < hi < math.inf) or not (2 <= n_f <= MAX_FREQ) or n_f != int(n_f):
+        raise argparse.ArgumentTypeError(
+            f"--freq {text!r}: need 0 < F_LO < F_HI (finite, Hz) and an integer N from 2 to"
+            f" {MAX_FREQ}"
+        )
+    return lo, hi, int(n_f)
+
+
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
+
+#: the most frequencies a command accepts on one grid (``--freq``): 1.6 MB per channel
+MAX_FREQ = 100_000
 
 
 def run(body: Callable[[], int | None]) -> int:
-    """Run a command body, mapping bondid errors onto the spec's exit codes."""
+    """Run a command body, mapping bondid errors onto the spec's exit codes.
+
+    Ctrl-C (SIGINT) prints ``interrupted`` and returns 130; worker processes are stopped and
+    no partial result is left (:mod:`bondid.interrupt`, :mod:`bondid.results`).
+    """
+    from . import interrupt, results
+
+    previous = interrupt.install()
+    try:
+        return _run(body)
+    finally:
+        results.close_all()
+        interrupt.restore(previous)
+
+
+def _run(body: Callable[[], int | None]) -> int:
     try:
         code = body()
+        from . import interrupt
+
+        interrupt.check()
     except ComputationError as exc:
         status = getattr(exc, "status", None)
         extra = f" (solver status: {status})" if status else ""
@@ -145,7 +173,7 @@ def run(body: Callable[[], int | None]) -> int:
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
-        return EXIT_FAILED
+        return EXIT_INTERRUPTED
     return EXIT_OK if code is None else int(code)
 
 
@@ -194,3 +222,17 @@ def split_names(values: Sequence[str] | None) -> list[str]:
     for v in values or ():
         out += [t for t in v.replace(",", " ").split() if t]
     return out
+
+
+def check_workers(value: int, option: str = "--workers") -> int:
+    """The same rule in every command: an integer ≥ 1 (1 = in this process)."""
+    from .exceptions import ConfigError
+
+    if value is None or int(value) < 1:
+        raise ConfigError(f"{option} {value}: give an integer >= 1 (1 = no worker processes)")
+    return int(value)
+
+
+def warn_lines(warnings: Sequence[str]) -> list[str]:
+    """``warning: …`` lines for a command's printed summary."""
+    return [f"warning: {w}" for w in warnings]

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .data.io import CSV_SUFFIXES, UFF_SUFFIXES
 from .data.measurement import FrfData
 from .model.document import UrdfDocument
 
@@ -87,6 +88,35 @@ def simulate(
     )
 
 
+#: file types ``--out`` and ``--plot`` accept
+DATA_SUFFIXES = (*CSV_SUFFIXES, *UFF_SUFFIXES)
+PLOT_SUFFIXES = (".png", ".pdf", ".svg")
+
+
+def _check_options(args) -> None:  # type: ignore[no-untyped-def]
+    """Refuse impossible option values before any work."""
+    import math
+
+    from .exceptions import ConfigError
+
+    if not (math.isfinite(args.noise) and args.noise >= 0):
+        raise ConfigError(f"--noise {args.noise}: give a finite relative error >= 0 (0 = exact)")
+    if not args.floor_db < 0:
+        raise ConfigError(
+            f"--floor-db {args.floor_db}: the sensor floor is given in dB below the response;"
+            " valid: a negative number such as -70 (-inf for no floor); a floor at or above"
+            " the signal would leave nothing but noise"
+        )
+    if args.seed is not None and not 0 <= args.seed < 2**63:
+        raise ConfigError(f"--seed {args.seed}: give an integer >= 0")
+    if args.out.suffix.lower() not in DATA_SUFFIXES:
+        raise ConfigError(f"--out {args.out}: valid file types: {', '.join(DATA_SUFFIXES)}")
+    if args.plot is not None and args.plot.suffix.lower() not in PLOT_SUFFIXES:
+        raise ConfigError(f"--plot {args.plot}: valid image types: {', '.join(PLOT_SUFFIXES)}")
+    if args.plot is not None and args.plot.absolute() == args.out.absolute():
+        raise ConfigError(f"--plot {args.plot}: is the --out file; give another name")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     from . import cli
 
@@ -126,18 +156,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = p.parse_args(argv)
 
     def body() -> int:
-        from .atomic import refuse_overwrite
         from .data.for_model import model_channel_map
         from .data.io import write_frf
-        from .exceptions import ConfigError
         from .linear.operating_point import parse_operating_point
+        from .results import open_results
+        from .validation import check_inputs, load_model
 
-        if args.noise < 0:
-            raise ConfigError(f"--noise {args.noise}: must be ≥ 0")
-        refuse_overwrite(args.out, [args.model])
-        doc = UrdfDocument.load(args.model)
-        cli.apply_model_options(doc, args)
+        _check_options(args)
         op = parse_operating_point(" ".join(args.q), "--q")
+        res = open_results(args.out, "simulate", [args.model], file=True)
+        plot_path = None
+        if args.plot is not None:
+            from .results import check_out
+
+            check_out(args.plot, [args.model, args.out], file=True, option="--plot")
+            plot_path = res.stage_extra(args.plot)
+        doc, warnings = load_model(args.model, lambda d: cli.apply_model_options(d, args))
+        warnings += check_inputs(doc, operating_points={"--q": op})
         data = simulate(
             doc,
             op,
@@ -153,13 +188,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
         data.source = str(args.out)
         is_uff = args.out.suffix.lower() in (".uff", ".unv", ".uff58")
-        write_frf(data, args.out, channel_map=model_channel_map(doc) if is_uff else None)
-        print(
-            f"wrote {args.out}: {len(data.channels)} channels × {data.freq_hz.size} frequencies"
-            f" ({data.freq_hz[0]:g}–{data.freq_hz[-1]:g} Hz), {args.quantity},"
-            f" noise {args.noise:g}, seed {args.seed}, operating point {op or 'neutral'}"
-        )
-        if args.plot is not None:
+        staged = res.path(args.out.name)
+        write_frf(data, staged, channel_map=model_channel_map(doc) if is_uff else None)
+        if plot_path is not None:
             from .data.weights import noise_estimate
             from .plots import Curve, noise_curve, plot_bode
 
@@ -175,11 +206,20 @@ def main(argv: Sequence[str] | None = None) -> int:
                 ],
                 outputs=data.outputs,
                 inputs=data.inputs,
-                path=args.plot,
+                path=plot_path,
                 title=f"{doc.name}: simulated FRF at {op or 'neutral'}",
                 quantity=args.quantity,
             )
+        res.commit(warnings=warnings)
+        print(
+            f"wrote {args.out}: {len(data.channels)} channels × {data.freq_hz.size} frequencies"
+            f" ({data.freq_hz[0]:g}–{data.freq_hz[-1]:g} Hz), {args.quantity},"
+            f" noise {args.noise:g}, seed {args.seed}, operating point {op or 'neutral'}"
+        )
+        if args.plot is not None:
             print(f"wrote {args.plot}")
+        for line in cli.warn_lines(warnings):
+            print(line)
         return 0
 
     return cli.run(body)

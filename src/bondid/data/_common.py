@@ -85,12 +85,12 @@ def check_frequencies(freq_hz: np.ndarray, where: str, labels: list[str] | None 
     bad = np.flatnonzero(~np.isfinite(freq_hz))
     if bad.size:
         k = int(bad[0])
-        raise DataError(f"{where}: {label(k)}: frequency {freq_hz[k]!r} Hz is not finite")
+        raise DataError(f"{where}: {label(k)}: frequency {float(freq_hz[k])!r} Hz is not finite")
     bad = np.flatnonzero(~(freq_hz > 0))
     if bad.size:
         k = int(bad[0])
         raise DataError(
-            f"{where}: {label(k)}: frequency {freq_hz[k]!r} Hz is not positive; "
+            f"{where}: {label(k)}: frequency {float(freq_hz[k])!r} Hz is not positive; "
             f"frequencies must be > 0"
         )
     steps = np.flatnonzero(np.diff(freq_hz) <= 0)
@@ -98,8 +98,8 @@ def check_frequencies(freq_hz: np.ndarray, where: str, labels: list[str] | None 
         k = int(steps[0]) + 1
         kind = "duplicate" if freq_hz[k] == freq_hz[k - 1] else "unsorted"
         raise DataError(
-            f"{where}: {label(k)}: {kind} frequency {freq_hz[k]!r} Hz after "
-            f"{freq_hz[k - 1]!r} Hz; frequencies must be strictly increasing"
+            f"{where}: {label(k)}: {kind} frequency {float(freq_hz[k])!r} Hz after "
+            f"{float(freq_hz[k - 1])!r} Hz; frequencies must be strictly increasing"
         )
 
 

@@ -238,7 +238,8 @@ def read_csv(path: str | os.PathLike[str], *, drop_nan: bool = False) -> FrfData
         k, j = np.argwhere(nan)[0]
         raise DataError(
             f"{p}: line {linenos[k]} (data row {k + 1}), column {header[j]!r}: NaN or empty "
-            f"value; give a number or read with drop_nan=True"
+            f"value; give a number, or pass --drop-nan (drop_nan=True in Python) to drop the"
+            " rows that hold one"
         )
     inf = np.isinf(values)
     if inf.any():

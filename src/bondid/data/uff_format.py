@@ -367,7 +367,7 @@ def read_uff58(
             bad = np.flatnonzero((values < 0) | (values > 1))
             if bad.size:
                 raise DataError(
-                    f"{where}: point {bad[0] + 1}: coherence {values[bad[0]]!r} outside 0..1"
+                    f"{where}: point {bad[0] + 1}: coherence {float(values[bad[0]])!r} outside 0..1"
                 )
             coh[(out, inp)] = values.astype(float)
             continue
@@ -417,7 +417,8 @@ def read_uff58(
         if not drop_nan:
             j = int(np.flatnonzero(nan)[0])
             raise DataError(
-                f"{p}: NaN at point {j + 1} ({freq[j]!r} Hz); read with drop_nan=True to drop it"
+                f"{p}: NaN at point {j + 1} ({float(freq[j]):.6g} Hz); give a number, or pass"
+                " --drop-nan (drop_nan=True in Python) to drop that point"
             )
         keep = ~nan
         freq, H = freq[keep], H[:, :, keep]

@@ -46,7 +46,26 @@ def build_parser() -> argparse.ArgumentParser:
         help="point weights: auto (coherence combined with the noise estimated from the data,"
         " the estimate alone without coherence; default), coherence, estimated or none",
     )  # fmt: skip
+    p.add_argument(
+        "--drop-nan", action="store_true",
+        help="drop the frequency rows of a data file that hold a NaN or empty cell",
+    )  # fmt: skip
     return p
+
+
+#: the names ``bondid.diagnose`` may write under ``--out``
+OUT_PATTERNS = ("diagnosis.json", "refit.urdf", "augmented.urdf", "residual_map.png", "bode_*.png")
+
+
+def absolute_mesh_paths(doc, base: Path) -> None:  # type: ignore[no-untyped-def]
+    """Rewrite relative mesh file names of ``doc`` against ``base`` (the URDF's folder), so
+    the model text sent to worker processes and written as refit.urdf resolves anywhere."""
+    for lk in doc.robot.links:
+        for el in [*(lk.collisions or []), *(lk.visuals or [])]:
+            mesh = getattr(getattr(el, "geometry", None), "mesh", None)
+            name = getattr(mesh, "filename", None)
+            if mesh is not None and name and "://" not in name and not Path(name).is_absolute():
+                mesh.filename = str((base / name).resolve())
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -57,26 +76,32 @@ def main(argv: Sequence[str] | None = None) -> int:
     def body() -> int:
         from ..data.for_model import load_datasets
         from ..exceptions import ConfigError
-        from ..model.document import UrdfDocument
+        from ..results import open_results
+        from ..validation import check_inputs, load_model
         from .pipeline import Settings, diagnose
         from .report import gaps, summary, to_json_dict, write_outputs
 
-        doc = UrdfDocument.load(args.model)
-        cli.apply_model_options(doc, args)
-        if args.out is not None:
-            from ..atomic import refuse_overwrite
-
-            refuse_overwrite(Path(args.out) / "diagnosis.json", [args.model, *args.data])
-        data = load_datasets(doc, args.data, channel_map=cli.uff_channel_map(args))
+        cli.check_workers(args.workers)
         if args.points < 20:
             raise ConfigError(f"--points {args.points}: need at least 20")
+        res = None
+        if args.out is not None:
+            res = open_results(
+                args.out, "diagnose", [args.model, *args.data], patterns=OUT_PATTERNS
+            )
+        doc, warnings = load_model(args.model, lambda d: cli.apply_model_options(d, args))
+        absolute_mesh_paths(doc, Path(args.model).absolute().parent)
+        data = load_datasets(
+            doc, args.data, drop_nan=args.drop_nan, channel_map=cli.uff_channel_map(args)
+        )
+        warnings += check_inputs(doc, data, args.data)
         settings = Settings(
             effects=cli.split_names([args.effects]) if args.effects else None,
             free=cli.split_names(args.free) if args.free else None,
             bands=args.band,
             channels=cli.split_names([args.channels]) if args.channels else None,
             n_points=args.points,
-            workers=max(1, args.workers),
+            workers=args.workers,
             weighting=args.weighting,
         )
         prog = cli.Progress("diagnose", quiet=args.quiet)
@@ -88,13 +113,16 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         diag = diagnose(doc, data, settings, progress=on_progress)
         prog.close()
-        if args.out is not None:
-            written = write_outputs(diag, Path(args.out), plots=not args.no_plots)
-            content = __import__("json").loads(written[0].read_text())
+        if res is not None:
+            staged = write_outputs(diag, res.tmp, plots=not args.no_plots, warnings=warnings)
+            content = __import__("json").loads(staged[0].read_text())
+            written = res.commit(warnings=warnings, main="diagnosis.json")
         else:
             content = to_json_dict(diag, gaps(diag))
         print(summary(diag, content))
-        if args.out is not None:
+        for line in cli.warn_lines(warnings):
+            print(line)
+        if res is not None:
             print(f"wrote {', '.join(str(p) for p in written)}")
         return 0
 

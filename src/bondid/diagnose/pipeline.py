@@ -35,6 +35,7 @@ from ..cost.problem import CostOptions
 from ..data.measurement import FrfData
 from ..data.weights import check_weighting
 from ..exceptions import ConfigError, DataError
+from ..interrupt import ignore_in_worker, kill_workers
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameter, select_parameters
 from . import scoring
@@ -202,10 +203,15 @@ class _Pool:
             for k in THREAD_VARS:
                 os.environ[k] = "1"
             try:
-                self.ex = ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"))
+                self.ex = ProcessPoolExecutor(
+                    workers, mp_context=mp.get_context("spawn"), initializer=ignore_in_worker
+                )
                 self.ex.submit(int, 0).result()  # start the workers with this environment
                 for _ in range(workers - 1):
                     self.ex.submit(time.sleep, 0.0)
+            except BaseException:  # Ctrl-C while the workers start: stop them now
+                kill_workers(self.ex)
+                raise
             finally:
                 for k, v in saved.items():
                     if v is None:
@@ -225,6 +231,11 @@ class _Pool:
     def close(self) -> None:
         if self.ex is not None:
             self.ex.shutdown(cancel_futures=True)
+
+    def kill(self) -> None:
+        """Stop now (Ctrl-C, an error): cancel the queue and terminate the workers."""
+        kill_workers(self.ex)
+        self.ex = None
 
 
 def diagnose(
@@ -310,6 +321,9 @@ def diagnose(
             results.append(r)
             if progress:
                 progress(len(results) + 1, total, r.label)
+    except BaseException:
+        pool.kill()
+        raise
     finally:
         pool.close()
     scores = [scoring.score(r.heldout_rms, r.n_train, r.n_new) for r in results]

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -201,11 +202,15 @@ def to_json_dict(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, An
     return _num(out)
 
 
-def write_outputs(diag: Diagnosis, out_dir: Path, *, plots: bool = True) -> list[Path]:
-    """Write diagnosis.json, refit.urdf, augmented.urdf (winner), residual map and Bode PNGs."""
+def write_outputs(
+    diag: Diagnosis, out_dir: Path, *, plots: bool = True, warnings: Sequence[str] = ()
+) -> list[Path]:
+    """Write diagnosis.json (with the input ``warnings``), refit.urdf, augmented.urdf (the
+    winner), residual map and Bode PNGs."""
     out_dir.mkdir(parents=True, exist_ok=True)
     reports = gaps(diag)
     content = to_json_dict(diag, reports)
+    content["warnings"] = list(warnings)
     written = [write_text_atomic(out_dir / "diagnosis.json", json.dumps(content, indent=2) + "\n")]
     written.append(write_text_atomic(out_dir / "refit.urdf", diag.baseline.urdf))
     if diag.winner is not None and diag.winner.urdf:

@@ -8,8 +8,14 @@ Relative bounds are ``value · (1 ± rel)`` around the model's value, with these
   geometry ``ℓ`` is taken as 0.1 m).
 * ``inertia``: ``I ± rel · max(|I|, 0.1 Ī)`` with ``Ī`` the mean principal moment of that link,
   so that a product of inertia near 0 still gets room (the diagonal entries are ``I (1 ± rel)``).
-* ``stiffness`` / ``damping``: ``v (1 ± rel)`` and never below 0; a value of 0 gives
-  ``[0, +inf)`` (there is nothing to be relative to).
+* ``stiffness`` / ``damping``: ``v (1 ± rel)`` and never below 0. A value of 0 has nothing to
+  be relative to; its bounds are ``[0, K_MAX]`` and ``[0, D_MAX]`` with
+  ``K_MAX = STIFF_FACTOR · M_jj · (2π f_max)²`` and ``D_MAX = DAMP_FACTOR · M_jj · 2π f_max``:
+  ``M_jj`` is the joint's effective inertia (the diagonal of the mass matrix at the neutral
+  configuration, kg or kg·m²) and ``f_max`` the highest frequency of the data (Hz; 4 kHz
+  when unknown). A spring stiffer than ``K_MAX`` puts the joint's own mode ten times above
+  the data (invisible); a damper above ``D_MAX`` damps a mode at ten times ``f_max``
+  critically. So every default bound is finite and a fit cannot diverge to infinity.
 
 ``rel`` maps a kind (``mass``, ``com``, ``inertia``, ``stiffness``, ``damping``), a parameter name
 or a glob pattern (``x_stage.*``) to a fraction; the most specific entry wins (exact name, then
@@ -40,6 +46,30 @@ DEFAULT_REL: dict[str, float] = {
 }
 
 _DEFAULT_LENGTH = 0.1  # m, length scale of a link without geometry
+#: see the module docstring: the joint's own mode at 10 f_max, and critical damping there
+STIFF_FACTOR = 100.0
+DAMP_FACTOR = 20.0
+#: ``f_max`` when the data's highest frequency is not known (Hz)
+DEFAULT_F_MAX = 4000.0
+
+
+def zero_value_upper(
+    doc: UrdfDocument, joint: str, kind: str, f_max_hz: float, cache: dict | None = None
+) -> float:
+    """Upper bound of a stiffness or damping whose model value is 0 (module docstring);
+    ``cache`` keeps the mass matrix between calls."""
+    from ..linear.affine import build_affine_model
+
+    cache = {} if cache is None else cache
+    if "M" not in cache:
+        am = build_affine_model(doc, {})
+        cache["M"], cache["dofs"] = am.mass_matrix(), list(am.dofs)
+    k = cache["dofs"].index(joint)
+    w = 2.0 * np.pi * float(f_max_hz)
+    mjj = float(cache["M"][k, k])
+    if not mjj > 0:
+        raise ConfigError(f"{doc.source or '<URDF>'}: joint {joint!r} moves no inertia")
+    return STIFF_FACTOR * mjj * w**2 if kind == "stiffness" else DAMP_FACTOR * mjj * w
 
 
 def infos_by_name(doc: UrdfDocument, names: Sequence[str]) -> list[ParameterInfo]:
@@ -102,6 +132,7 @@ def default_bounds(
     names: Sequence[str],
     rel: Mapping[str, float] | None = None,
     absolute: Mapping[str, tuple[float, float]] | None = None,
+    f_max_hz: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Lower and upper bounds ``(n,)``, ``(n,)`` (SI units) of the named parameters.
 
@@ -111,6 +142,8 @@ def default_bounds(
         rel: fraction per kind, name or glob (see the module docstring); missing kinds use
             :data:`DEFAULT_REL`.
         absolute: ``(lo, hi)`` per name or glob, overriding the relative bounds.
+        f_max_hz: the data's highest frequency (Hz) for the bounds of zero-valued stiffness
+            and damping (default :data:`DEFAULT_F_MAX`).
 
     Raises:
         ParameterError: unknown name. ConfigError: a negative fraction, or ``lo > hi``.
@@ -118,12 +151,13 @@ def default_bounds(
     rel = dict(rel or {})
     for k, v in rel.items():
         if not np.isfinite(v) or v < 0:
-            raise ConfigError(f"bounds: relative width {v!r} for {k!r} is invalid; give >= 0")
+            raise ConfigError(f"bounds: relative width {float(v)!r} for {k!r}: give a value >= 0")
     infos = infos_by_name(doc, names)
     hull_links = sorted({i.owner for i in infos if i.kind == "com"})
     hulls = link_hulls(doc, hull_links)
     lo = np.empty(len(infos))
     hi = np.empty(len(infos))
+    cache: dict = {}
     for j, info in enumerate(infos):
         v = get_parameter(doc, info.name)
         r = _rel_for(info, rel)
@@ -143,7 +177,8 @@ def default_bounds(
             lo[j], hi[j] = sorted((v / (1.0 + r), v * (1.0 + r)))
         else:  # stiffness, damping
             if v == 0.0:
-                lo[j], hi[j] = 0.0, np.inf
+                f = DEFAULT_F_MAX if f_max_hz is None else f_max_hz
+                lo[j], hi[j] = 0.0, zero_value_upper(doc, info.owner, info.kind, f, cache)
             else:
                 lo[j], hi[j] = max(0.0, v - r * abs(v)), v + r * abs(v)
     for key, (a, b) in (absolute or {}).items():
@@ -151,6 +186,6 @@ def default_bounds(
         if not hits:
             raise ConfigError(f"bounds: {key!r} matches none of the fitted parameters")
         if not a <= b:
-            raise ConfigError(f"bounds: {key!r} has lower {a!r} > upper {b!r}")
+            raise ConfigError(f"bounds: {key!r} has lower {float(a):g} > upper {float(b):g}")
         lo[hits], hi[hits] = float(a), float(b)
     return lo, hi

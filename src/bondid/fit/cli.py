@@ -28,16 +28,18 @@ from ..cli import (
     add_package_path_arg,
     add_points_arg,
     add_uff_map_arg,
+    check_workers,
     make_parser,
     parse_band,
     run,
     split_names,
+    warn_lines,
 )
 from ..cost.problem import CostOptions
 from ..cost.residuals import NORMS, RESIDUAL_KINDS
 from ..data.measurement import FrfData
 from ..data.weights import WEIGHTINGS
-from ..exceptions import ConfigError, DependencyError
+from ..exceptions import ConfigError, DependencyError, SolverError
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameters, parameter_infos, select_parameters
 from .study import (
@@ -134,9 +136,17 @@ def build_parser() -> argparse.ArgumentParser:
         help="IPOPT iterations on the normalised complex error before a log-cost fit (default"
         " 60; 0 = none): crosses the walls a log cost has where a cross term changes sign",
     )  # fmt: skip
+    p.add_argument(
+        "--drop-nan", action="store_true",
+        help="drop the frequency rows of a data file that hold a NaN or empty cell",
+    )  # fmt: skip
     p.add_argument("--out", type=Path, default=None, help="folder for the results")
     p.add_argument("--quiet", action="store_true", help="no progress display")
     return p
+
+
+#: the names ``bondid.fit`` may write under ``--out``
+OUT_PATTERNS = ("fit.json", "fitted.urdf", "convergence.png", "bode_*.png")
 
 
 def _positive(value: int | None, name: str, minimum: int) -> int | None:
@@ -170,8 +180,8 @@ def resolve_settings(args: argparse.Namespace) -> StudySettings:
             value = float(w)
         except ValueError:
             value = math.nan
-        if not sep or ch.count(".") != 1 or not value >= 0:
-            raise ConfigError(f"--weight {text!r}: not OUT.IN=W with a weight W >= 0")
+        if not sep or ch.count(".") != 1 or not 0 <= value < math.inf:
+            raise ConfigError(f"--weight {text!r}: not OUT.IN=W with a finite weight W >= 0")
         s.channel_weights[ch] = value
     if args.cost is not None:
         s.cost = args.cost
@@ -184,7 +194,8 @@ def resolve_settings(args: argparse.Namespace) -> StudySettings:
     s.multistart = _positive(args.multistart, "--multistart", 1) or s.multistart
     if args.seed is not None:
         s.seed = int(_positive(args.seed, "--seed", 0) or 0)
-    s.workers = _positive(args.workers, "--workers", 1) or s.workers
+    if args.workers is not None:
+        s.workers = check_workers(args.workers)
     if args.staged is not None:
         s.staged = args.staged
     cli_stage: dict[str, list[tuple[float, float]]] = {}
@@ -254,7 +265,7 @@ def resolve_names(
 
 
 def resolve_bounds(
-    doc: UrdfDocument, names: list[str], s: StudySettings
+    doc: UrdfDocument, names: list[str], s: StudySettings, f_max_hz: float | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Bounds from the defaults, the study and ``--bound`` (a kind key applies to its kind)."""
     from .bounds import default_bounds
@@ -274,9 +285,69 @@ def resolve_bounds(
         if any(fnmatch.fnmatchcase(n, _KIND_GLOB.get(k, k)) for n in names)
     }
     try:
-        return default_bounds(doc, names, rel=s.rel_bounds, absolute=absolute)
+        return default_bounds(doc, names, rel=s.rel_bounds, absolute=absolute, f_max_hz=f_max_hz)
     except ConfigError as exc:
         raise ConfigError(f"{s.source or '--bound'}: {exc}") from None
+
+
+def check_weights(s: StudySettings, datasets: list[FrfData]) -> None:
+    """Every ``--weight`` / study weight must name a channel of the data."""
+    have = sorted({ch for ds in datasets for ch in ds.channels})
+    for ch in s.channel_weights:
+        if ch not in have:
+            raise ConfigError(
+                f"{s.source or '--weight'}: channel {ch!r} is not in the data; valid:"
+                f" {', '.join(have)}"
+            )
+
+
+def start_outside_bounds(
+    doc: UrdfDocument, names: list[str], lower: np.ndarray, upper: np.ndarray
+) -> list[str]:
+    """Warnings for model values outside their bounds (the fit starts from the bound,
+    and reports that clipped value as ``initial``)."""
+    out = []
+    for n, v, lo, hi in zip(names, get_parameters(doc, names), lower, upper, strict=True):
+        if not lo <= v <= hi:
+            out.append(
+                f"{n}: the model's value {float(v):.6g} is outside the bounds"
+                f" [{float(lo):.6g}, {float(hi):.6g}]; the fit starts from"
+                f" {float(np.clip(v, lo, hi)):.6g} (reported as initial)"
+            )
+    return out
+
+
+def write_failure(
+    res: Any,
+    exc: SolverError,
+    doc: UrdfDocument,
+    names: list[str],
+    lower: np.ndarray,
+    upper: np.ndarray,
+    s: StudySettings,
+    warnings: list[str],
+) -> None:
+    """``fit.json`` of a fit that failed without a usable iterate: status ``"failed"``, the
+    reason, and the start (the best point known) as ``initial`` with ``fitted`` null."""
+    import json
+
+    from .outputs import FIT_JSON, jsonable
+
+    start = np.clip(get_parameters(doc, names), lower, upper)
+    content = {
+        "status": "failed", "success": False, "solver_status": exc.status,
+        "failure": str(exc), "cost_initial": None, "cost_final": None, "cost_name": None,
+        "iterations": 0, "wall_s": None, "command": "bondid.fit",
+        "model_file": str(s.model), "settings": s.to_json_dict(), "warnings": warnings,
+        "parameters": [
+            {"name": n, "initial": float(x), "fitted": None, "lower": float(lo),
+             "upper": float(hi), "std": None}
+            for n, x, lo, hi in zip(names, start, lower, upper, strict=True)
+        ],
+        "outputs": [FIT_JSON],
+    }  # fmt: skip
+    res.path(FIT_JSON).write_text(json.dumps(jsonable(content), indent=2) + "\n")
+    res.commit(warnings=warnings, main=FIT_JSON)
 
 
 def _fmt(v: float) -> str:
@@ -339,26 +410,31 @@ def summary(result: Any, content: dict[str, Any] | None, extra: dict[str, Any]) 
 
 def _body(args: argparse.Namespace) -> int:
     from ..data.for_model import load_datasets
+    from ..results import open_results
+    from ..validation import check_inputs, load_model
     from .model_setup import prepare_model, uff_map
     from .multistart import run_multistart
-    from .outputs import check_out_dir, write_outputs
+    from .outputs import FIT_JSON, check_out_dir, write_outputs
     from .staged import cost_at
 
     s = resolve_settings(args)
     assert s.model is not None
     inputs: list[Path] = [s.model, *s.data] + ([s.source] if s.source else [])
     inputs += [f for f in (s.points_file, args.points_file) if f is not None]
-    doc = UrdfDocument.load(s.model)
-    prepare_model(doc, s, args)
-    datasets = [
-        ds if ds.quantity == "receptance" else ds.to_quantity("receptance")
-        for ds in load_datasets(doc, s.data, channel_map=uff_map(s, args.uff_map))
-    ]
+    res = None if args.out is None else open_results(args.out, "fit", inputs, patterns=OUT_PATTERNS)
+    doc, warnings = load_model(s.model, lambda d: prepare_model(d, s, args))
+    raw = load_datasets(
+        doc, s.data, drop_nan=args.drop_nan, channel_map=uff_map(s, args.uff_map)
+    )
+    warnings += check_inputs(doc, raw, s.data)
+    datasets = [ds if ds.quantity == "receptance" else ds.to_quantity("receptance") for ds in raw]
     if args.out is not None:
         check_out_dir(args.out, inputs, datasets)
+    check_weights(s, datasets)
     options = cost_options(s)
     names = resolve_names(doc, datasets, s, options)
-    lower, upper = resolve_bounds(doc, names, s)
+    lower, upper = resolve_bounds(doc, names, s, max(float(d.freq_hz[-1]) for d in datasets))
+    warnings += start_outside_bounds(doc, names, lower, upper)
 
     single = s.multistart == 1 or s.workers == 1
     prog = Progress(
@@ -377,12 +453,17 @@ def _body(args: argparse.Namespace) -> int:
             )
             prog.update(1, f"start {out.index}: {info}")
 
-    ms = run_multistart(
-        doc, datasets, names, lower=lower, upper=upper, options=options, n_starts=s.multistart,
-        seed=s.seed, max_iter=s.max_iter, workers=s.workers, staged=s.staged,
-        continuation=s.continuation, stage_bands=s.stage_bands or None, on_run=on_run,
-        on_iteration=on_iteration, presolve_iter=s.presolve,
-    )  # fmt: skip
+    try:
+        ms = run_multistart(
+            doc, datasets, names, lower=lower, upper=upper, options=options,
+            n_starts=s.multistart, seed=s.seed, max_iter=s.max_iter, workers=s.workers,
+            staged=s.staged, continuation=s.continuation, stage_bands=s.stage_bands or None,
+            on_run=on_run, on_iteration=on_iteration, presolve_iter=s.presolve,
+        )  # fmt: skip
+    except SolverError as exc:  # no run kept an iterate: still say so in fit.json
+        if res is not None:
+            write_failure(res, exc, doc, names, lower, upper, s, warnings)
+        raise
     result = ms.best
     prog.close(f"{result.status}, cost {result.cost_final:.4g}")
     start0 = ms.runs[0].result
@@ -400,20 +481,30 @@ def _body(args: argparse.Namespace) -> int:
         "settings": s.to_json_dict(),
         "multistart": ms.spread(),
         "stages": [st.to_json_dict() for st in ms.best_run.stages] or None,
+        "warnings": warnings,
     }
     content = None
-    if args.out is not None:
+    if res is not None:
         histories = [r.result.cost_history if r.result else [] for r in ms.runs]
         content = write_outputs(
-            args.out, result=result, initial_doc=doc, datasets=datasets, options=options,
+            res.tmp, result=result, initial_doc=doc, datasets=datasets, options=options,
             inputs=inputs, histories=histories,
             history_labels=[f"start {r.index}" for r in ms.runs], extra=extra,
         )  # fmt: skip
+        res.commit(warnings=warnings, main=FIT_JSON)
     print(summary(result, content, extra))
+    for line in warn_lines(warnings):
+        print(line)
     if args.out is not None:
         print(f"results: {args.out} ({', '.join(content['outputs']) if content else ''})")
     else:
         print("(no --out given: nothing written)")
+    if result.status == "failed":
+        print(
+            f"error: the fit failed ({result.failure}); fit.json keeps the best point reached",
+            file=sys.stderr,
+        )
+        return EXIT_FAILED
     if not result.success:
         print(
             f"error: the fit did not converge (solver status: {result.status}); raise"

@@ -260,7 +260,14 @@ def run_multistart(
             if on_run is not None:
                 on_run(k + 1, n_starts, out)
     else:
-        with ProcessPoolExecutor(max_workers=min(workers, n_starts)) as pool:
+        from ..interrupt import ignore_in_worker, terminate_on_interrupt
+
+        with (
+            ProcessPoolExecutor(
+                max_workers=min(workers, n_starts), initializer=ignore_in_worker
+            ) as pool,
+            terminate_on_interrupt(pool),
+        ):
             futures: dict[Future[RunOutcome], int] = {
                 pool.submit(_run_job, j): j.index for j in jobs
             }

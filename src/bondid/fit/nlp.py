@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from .. import interrupt
 from ..cost.problem import FrfProblem, ParameterModel
 from ..exceptions import ComputationError, ConfigError
 
@@ -179,7 +180,9 @@ def _callback_class() -> tuple[Any, Any]:
     class IterationCallback(casadi.Callback):  # type: ignore[misc]
         """IPOPT's per-iteration hook: records the objective, calls ``progress``."""
 
-        def __init__(self, nx: int, ng: int, record: Callable[[float], None]):
+        def __init__(
+            self, nx: int, ng: int, record: Callable[[float, np.ndarray, np.ndarray], None]
+        ):
             casadi.Callback.__init__(self)
             self._nx, self._ng = nx, ng
             self._record = record
@@ -208,8 +211,14 @@ def _callback_class() -> tuple[Any, Any]:
             return casadi.Sparsity(0, 0)
 
         def eval(self, arg: Any) -> Any:  # type: ignore[override]
-            self._record(float(arg[casadi.nlpsol_out().index("f")]))
-            return [0]
+            names = casadi.nlpsol_out()
+            self._record(
+                float(arg[names.index("f")]),
+                np.asarray(arg[names.index("x")], dtype=float).reshape(-1),
+                np.asarray(arg[names.index("g")], dtype=float).reshape(-1),
+            )
+            # non-zero asks IPOPT to stop (User_Requested_Stop): a Ctrl-C that CasADi caught
+            return [1 if interrupt.requested() else 0]
 
     return NumpyCallback, IterationCallback
 
@@ -228,6 +237,10 @@ class NlpOutcome:
     cost: float
     history: list[float] = field(default_factory=list)
     wall_s: float = 0.0
+    #: the lowest-cost iterate that met the constraints (to 1e-6), and its cost (kept so that
+    #: a failed solve still reports the best point it reached); None when there was none
+    best_z: np.ndarray | None = None
+    best_cost: float = float("inf")
 
 
 class FitNlp:
@@ -349,9 +362,14 @@ class FitNlp:
         import casadi
 
         history: list[float] = []
+        best: dict[str, Any] = {"z": None, "cost": float("inf")}
+        lbg, ubg = np.asarray(self.lbg, float), np.asarray(self.ubg, float)
 
-        def record(cost: float) -> None:
+        def record(cost: float, z: np.ndarray, g: np.ndarray) -> None:
             history.append(cost)
+            feasible = bool(np.all(g >= lbg - 1e-6) and np.all(g <= ubg + 1e-6))
+            if feasible and np.isfinite(cost) and cost < best["cost"]:
+                best["z"], best["cost"] = z.copy(), cost
             if progress is not None:
                 progress(len(history) - 1, cost)
 
@@ -376,6 +394,7 @@ class FitNlp:
         solver = casadi.nlpsol("bondid_fit", "ipopt", nlp, opts)
         t0 = time.perf_counter()
         sol = solver(x0=z0, lbx=lbz, ubx=ubz, lbg=self.lbg, ubg=self.ubg)
+        interrupt.check()  # a Ctrl-C during the solve stopped IPOPT: stop the run too
         wall = time.perf_counter() - t0
         stats = solver.stats()
         return NlpOutcome(
@@ -389,4 +408,6 @@ class FitNlp:
             cost=float(sol["f"]),
             history=history,
             wall_s=wall,
+            best_z=best["z"],
+            best_cost=float(best["cost"]),
         )

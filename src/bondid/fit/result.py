@@ -118,6 +118,10 @@ class FitResult:
     active_constraints: list[str]
     document: UrdfDocument
     notes: list[str] = field(default_factory=list)
+    #: IPOPT's own return status (``status`` is ``"failed"`` when IPOPT failed outright)
+    solver_status: str | None = None
+    #: why the fit failed (None when it did not); ``fitted`` is then the best point reached
+    failure: str | None = None
 
     def parameter(self, name: str) -> float:
         """Fitted value of ``name``."""
@@ -148,4 +152,6 @@ class FitResult:
             "active_constraints": list(self.active_constraints),
             "cost_history": [_num(c) for c in self.cost_history],
             "notes": list(self.notes),
+            "solver_status": self.solver_status or self.status,
+            "failure": self.failure,
         }

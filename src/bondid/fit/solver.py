@@ -45,6 +45,7 @@ from typing import Any
 
 import numpy as np
 
+from .. import interrupt
 from ..consistency.log_cholesky import pi_from_theta
 from ..consistency.pseudo_inertia import second_moment_com
 from ..cost.problem import CostOptions, FrfProblem
@@ -136,7 +137,8 @@ def prepare(
     n = len(names)
     notes: list[str] = []
     if lower is None or upper is None:
-        dlo, dhi = default_bounds(doc, names)
+        f_max = max((float(np.max(d.freq_hz)) for d in datasets), default=None)
+        dlo, dhi = default_bounds(doc, names, f_max_hz=f_max)
         lower = dlo if lower is None else lower
         upper = dhi if upper is None else upper
     lo = np.asarray(lower, dtype=float).reshape(-1)
@@ -254,14 +256,26 @@ def _ipopt(setup: FitSetup, **solve_kw: Any) -> NlpOutcome:
     try:
         out = setup.nlp.solve(setup.z0, setup.lbz, setup.ubz, **solve_kw)
     except RuntimeError as exc:
+        interrupt.check()  # CasADi turned a Ctrl-C into an error: it is an interrupt
         raise SolverError(f"IPOPT failed: {str(exc).splitlines()[0]}", status="exception") from exc
     if out.status not in SUCCESS_STATUSES | SOFT_STATUSES:
-        raise SolverError(
+        err = SolverError(
             f"IPOPT stopped with {out.status} after {out.iterations} iterations "
             f"(cost {out.cost:.6g}); check the bounds and the start",
             status=out.status,
         )
+        err.outcome = out  # type: ignore[attr-defined]  # its best iterate (see fit)
+        err.setup = setup  # type: ignore[attr-defined]
+        raise err
     return out
+
+
+def _best_iterate(error: SolverError) -> tuple[FitSetup, NlpOutcome, int] | None:
+    """The lowest-cost feasible iterate of a failed IPOPT run as an outcome (or None)."""
+    out: NlpOutcome | None = getattr(error, "outcome", None)
+    if out is None or out.best_z is None:
+        return None
+    return error.setup, replace(out, z=out.best_z, cost=out.best_cost), 0  # type: ignore[attr-defined]
 
 
 def _solution(
@@ -376,9 +390,15 @@ def fit(
         except SolverError as exc:
             notes.append(f"the presolved fit failed ({exc.status}); kept the direct one")
             error = error or exc
+    failure = None
     if not runs:
         assert error is not None
-        raise error
+        kept = _best_iterate(error)
+        if kept is None:
+            raise error
+        runs.append(kept)
+        failure = str(error)
+        notes.append(f"IPOPT failed ({error.status}); kept its best feasible iterate")
     best = min(range(len(runs)), key=lambda k: runs[k][1].cost)
     setup, out, pre_iterations = runs[best]
     if len(runs) > 1:
@@ -392,8 +412,10 @@ def fit(
     r, J = setup.problem.residual_and_jacobian(pmap, x)
     std, corr = parameter_statistics(J, r)
     return FitResult(
-        status=out.status,
-        success=out.status in SUCCESS_STATUSES,
+        status="failed" if failure else out.status,
+        success=failure is None and out.status in SUCCESS_STATUSES,
+        solver_status=out.status,
+        failure=failure,
         names=list(setup.names),
         initial=initial,
         fitted=fitted,

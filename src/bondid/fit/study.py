@@ -395,8 +395,8 @@ def study_from_dict(
     if "channel_weights" in cost:
         for ch, w in _table(cost["channel_weights"], where, "cost.channel_weights").items():
             key = f"cost.channel_weights.{ch}"
-            if isinstance(w, bool) or not isinstance(w, int | float) or not w >= 0:
-                raise _fail(where, key, f"{w!r} is not a weight >= 0")
+            if isinstance(w, bool) or not isinstance(w, int | float) or not 0 <= w < float("inf"):
+                raise _fail(where, key, f"{w!r} is not a finite weight >= 0")
             if ch.count(".") != 1:
                 raise _fail(where, key, "not a channel name OUT.IN such as x.y")
             s.channel_weights[ch] = float(w)

@@ -83,6 +83,10 @@ class UrdfDocument:
             text = p.read_text(encoding="utf-8")
         except OSError as exc:
             raise ModelError(f"{p}: cannot read the URDF file ({exc.strerror})") from exc
+        except UnicodeDecodeError as exc:
+            raise ModelError(
+                f"{p}: not a text file (byte {exc.start} is not UTF-8); valid: a URDF (XML) file"
+            ) from exc
         return cls.from_string(text, source=str(p))
 
     @classmethod

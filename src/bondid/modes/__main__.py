@@ -65,13 +65,19 @@ def _parser():
     return p
 
 
-def _analyse(path: Path, op: dict[str, float], args: Any) -> tuple[object, ModalResult]:
+#: the names ``bondid.modes`` may write under ``--out``
+OUT_PATTERNS = ("modes.json", "modes.html", "mode_*.html")
+
+
+def _analyse(
+    path: Path, op: dict[str, float], args: Any, warnings: list[str]
+) -> tuple[object, ModalResult]:
     from ..cli import apply_model_options
     from ..linear import build_affine_model
-    from ..model import UrdfDocument
+    from ..validation import check_inputs, load_model
 
-    doc = UrdfDocument.load(path)
-    apply_model_options(doc, args)
+    doc, found = load_model(path, lambda d: apply_model_options(d, args))
+    warnings += found + check_inputs(doc, operating_points={"--q": op})
     aff = build_affine_model(doc, op)
     return doc, modal_analysis(aff.linear_model(), op)
 
@@ -95,8 +101,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         if not args.amplitude > 0:
             raise ConfigError(f"--amplitude {args.amplitude}: must be > 0 (fraction of size)")
         op = parse_operating_point(" ".join(args.q or []), "--q")
-        doc, result = _analyse(args.model, op, args)
-        fitted = _analyse(args.fitted, op, args) if args.fitted is not None else None
+        res = None
+        if args.out is not None:
+            from ..results import open_results
+
+            inputs = [args.model] + ([args.fitted] if args.fitted is not None else [])
+            res = open_results(args.out, "modes", inputs, patterns=OUT_PATTERNS)
+        warnings: list[str] = []
+        doc, result = _analyse(args.model, op, args, warnings)
+        fitted = _analyse(args.fitted, op, args, warnings) if args.fitted is not None else None
         index = args.mode if args.mode is not None else _default_mode(result)
         if not 1 <= index <= len(result.modes):
             raise ConfigError(f"--mode {index}: {args.model} has modes 1..{len(result.modes)}")
@@ -106,9 +119,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         if fitted is not None:
             print(f"\nmodes of the fitted model {args.fitted}:")
             print(fitted[1].table())
+        for w in warnings:
+            print(f"warning: {w}")
 
-        if args.out is not None:
-            _write_outputs(args, doc, result, fitted, index)
+        if res is not None:
+            _write_outputs(args, res.tmp, doc, result, fitted, index, warnings)
+            res.commit(warnings=warnings, main="modes.json")
+            print(f"wrote {args.out / 'modes.json'}" + ("" if args.no_html else " and pages"))
         if args.serve:
             _serve(args, doc, result, fitted, index)
         return 0
@@ -131,12 +148,12 @@ def _scene(args, doc, result: ModalResult, fitted, index: int):
     return scene, mode_caption(mode, fmode)
 
 
-def _write_outputs(args, doc, result: ModalResult, fitted, index: int) -> None:
+def _write_outputs(
+    args, out: Path, doc, result: ModalResult, fitted, index: int, warnings: list[str]
+) -> None:
+    """Write modes.json and the pages into ``out`` (the run's staging folder)."""
     from ..atomic import write_text_atomic
 
-    out: Path = args.out
-    if out.exists() and not out.is_dir():
-        raise ConfigError(f"--out {out}: exists and is not a folder")
     if not args.no_html:
         from .viewer import write_mode_html
 
@@ -158,8 +175,8 @@ def _write_outputs(args, doc, result: ModalResult, fitted, index: int) -> None:
     if fitted is not None:
         fdata = fitted[1].to_dict()
         data["fitted"] = {"model": str(args.fitted), "modes": fdata["modes"]}
+    data["warnings"] = list(warnings)
     write_text_atomic(out / "modes.json", json.dumps(data, indent=2) + "\n")
-    print(f"wrote {out / 'modes.json'}" + ("" if args.no_html else f" and {out / 'modes.html'}"))
 
 
 def _serve(args, doc, result: ModalResult, fitted, index: int) -> None:

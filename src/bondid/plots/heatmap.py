@@ -101,7 +101,7 @@ def build_heatmap(
                 val = v[i, j]
                 if not np.isfinite(val) or (log and val <= 0):
                     continue
-                rgba = cmap(norm(val))
+                rgba = np.asarray(cmap(norm(val))).reshape(-1, 4)[0]  # 1 value: (1, 4)
                 lum = 0.299 * rgba[0] + 0.587 * rgba[1] + 0.114 * rgba[2]
                 ax.text(
                     j, i, _format(float(val)), ha="center", va="center",

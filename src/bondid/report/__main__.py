@@ -30,9 +30,20 @@ def main(argv: Sequence[str] | None = None) -> int:
         p.error("give the results folder (RESULTS_DIR or --out DIR)")
 
     def body() -> int:
-        from .build import build_report
+        from ..results import open_results
+        from .build import REPORT_NAME, build_report_html, check_results_dir, manifest_warnings
 
-        path = build_report(args.results or args.out, args.out)
+        results = Path(args.results or args.out)
+        check_results_dir(results)
+        out = Path(args.out) if args.out is not None else results
+        res = open_results(out, "report", [], patterns=(REPORT_NAME,))
+        warnings = manifest_warnings(results)
+        text, _ = build_report_html(results, out)
+        res.path(REPORT_NAME).write_text(text, encoding="utf-8")
+        res.commit(warnings=warnings, main=REPORT_NAME)
+        path = out / REPORT_NAME
+        for w in warnings:
+            print(f"warning: {w}", file=sys.stderr)
         if not args.quiet:
             print(f"wrote {path} ({path.stat().st_size / 1024:.0f} KiB)")
         return 0

@@ -94,8 +94,7 @@ def build_report_html(results: Path, out_dir: Path) -> tuple[str, Found]:
     Raises:
         ConfigError: ``results`` is not a folder, or holds no result file or PNG.
     """
-    if not results.is_dir():
-        raise ConfigError(f"{results}: results folder does not exist (or is not a folder)")
+    check_results_dir(results)
     found = scan(results)
     if found.empty:
         raise ConfigError(
@@ -188,8 +187,35 @@ def build_report(results: str | Path, out_dir: str | Path | None = None) -> Path
         The path of the written page.
     """
     res = Path(results)
+    check_results_dir(res)
     out = res if out_dir is None else Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ConfigError(f"--out {out}: exists and is not a folder")
     text, _ = build_report_html(res, out)
     return write_text_atomic(out / REPORT_NAME, text)
+
+
+def check_results_dir(results: Path) -> None:
+    """Raise :class:`ConfigError` naming RESULTS_DIR when it is not a folder."""
+    if not results.is_dir():
+        what = "is a file" if results.exists() else "does not exist"
+        raise ConfigError(
+            f"{results}: the results folder {what}; valid: a folder written by bondid.fit,"
+            " bondid.sensitivity, bondid.diagnose or bondid.modes"
+        )
+
+
+def manifest_warnings(results: Path) -> list[str]:
+    """Problems with the run manifests under ``results`` (:mod:`bondid.results`): a listed
+    file missing or changed since its run wrote it."""
+    from ..exceptions import DataError
+    from ..results import read_manifest
+
+    out = []
+    for m in sorted(results.rglob("*.manifest.json")):
+        command = m.name[: -len(".manifest.json")]
+        try:
+            read_manifest(m.parent, command)
+        except DataError as exc:
+            out.append(str(exc))
+    return out

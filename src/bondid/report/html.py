@@ -95,9 +95,34 @@ def key_values(items: Mapping[str, Any]) -> str:
     return table(["item", "value"], [[esc(k), fmt(v)] for k, v in items.items()])
 
 
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+PNG_END = b"IEND\xaeB`\x82"  # the IEND chunk a complete PNG ends with
+
+
+def png_problem(raw: bytes) -> str | None:
+    """Why ``raw`` is not a complete PNG (None when it is one)."""
+    if not raw.startswith(PNG_SIGNATURE):
+        return "not a PNG file"
+    if not raw.rstrip(b"\0").endswith(PNG_END):
+        return "truncated PNG (no IEND chunk: its run was killed while writing?)"
+    return None
+
+
 def png_figure(path: Path, caption: str) -> str:
-    """The PNG at ``path`` embedded as a base64 data URI in a ``<figure>``."""
-    data = base64.b64encode(path.read_bytes()).decode("ascii")
+    """The PNG at ``path`` embedded as a base64 data URI in a ``<figure>``; a corrupt or
+    truncated file is named in a warning instead (and on stderr), never embedded."""
+    import sys
+
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        problem: str | None = f"unreadable ({exc.strerror})"
+    else:
+        problem = png_problem(raw)
+    if problem is not None:
+        print(f"warning: {path}: {problem}; not embedded", file=sys.stderr)
+        return f'<p class="warn">{esc(caption)}: {esc(problem)}; not embedded</p>'
+    data = base64.b64encode(raw).decode("ascii")
     return (
         f'<figure><img alt="{esc(caption)}" src="data:image/png;base64,{data}">'
         f"<figcaption>{esc(caption)}</figcaption></figure>"

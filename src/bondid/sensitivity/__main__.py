@@ -55,13 +55,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--no-sweep", action="store_true", help="skip the one-at-a-time sweep")
     p.add_argument("--scales", type=_scales, default=None, help="sweep LO:HI:STEP (0.5:1.5:0.1)")
     p.add_argument("--workers", type=int, default=2, help="processes for the sweep (default 2)")
+    p.add_argument(
+        "--drop-nan", action="store_true",
+        help="drop the frequency rows of a data file that hold a NaN or empty cell",
+    )  # fmt: skip
     args = p.parse_args(argv)
 
     def body() -> int:
-        from ..atomic import refuse_overwrite
         from ..cost import CostOptions
         from ..data.for_model import load_datasets
-        from ..model.document import UrdfDocument
+        from ..results import open_results
+        from ..validation import check_inputs, load_model
         from . import output
         from ._common import make_setup
         from .identifiability import analyse_identifiability
@@ -69,13 +73,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         from .sweep import run_sweep
 
         t_start = time.perf_counter()
-        doc = UrdfDocument.load(args.model)
-        cli.apply_model_options(doc, args)
+        cli.check_workers(args.workers)
         inputs = [args.model, *args.data]
+        names = [*output.PNG_NAMES.values(), "sensitivity.json"]
+        res = None
         if args.out is not None:
-            for name in [*output.PNG_NAMES.values(), "sensitivity.json"]:
-                refuse_overwrite(args.out / name, inputs)
-        datasets = load_datasets(doc, args.data, channel_map=cli.uff_channel_map(args))
+            res = open_results(args.out, "sensitivity", inputs, patterns=names)
+        doc, warnings = load_model(args.model, lambda d: cli.apply_model_options(d, args))
+        datasets = load_datasets(
+            doc, args.data, drop_nan=args.drop_nan, channel_map=cli.uff_channel_map(args)
+        )
+        warnings += check_inputs(doc, datasets, args.data)
         channels = cli.split_names(args.channels) or None
         options = CostOptions(kind=args.cost, bands=args.band, channels=channels)
         setup = make_setup(doc, datasets, options, cli.split_names(args.free),
@@ -98,7 +106,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
         for line in output.summary_lines(local, ident, sweep, cost_kind=options.kind):
             print(line)
-        if args.out is not None:
+        for line in cli.warn_lines(warnings):
+            print(line)
+        if res is not None:
             timing: dict[str, float | None] = {
                 "jacobian_s": lin.wall_s,
                 "local_s": t1 - t0,
@@ -110,8 +120,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                 local, ident, sweep, model=str(args.model), data=[str(d) for d in args.data],
                 cost_name=options.name, n_residuals=setup.problem.n_residuals, timing=timing,
             )  # fmt: skip
-            path = output.write_json(Path(args.out) / "sensitivity.json", content)
-            pngs = output.write_plots(Path(args.out), local, sweep, title=doc.name)
+            content["warnings"] = warnings
+            output.write_json(res.path("sensitivity.json"), content)
+            pngs = output.write_plots(res.tmp, local, sweep, title=doc.name)
+            res.commit(warnings=warnings, main="sensitivity.json")
+            path = Path(args.out) / "sensitivity.json"
             print(f"wrote {path} and {len(pngs)} PNG file(s) in {args.out}")
         return 0
 

@@ -25,6 +25,7 @@ import numpy as np
 from ..cost import CostOptions
 from ..data.measurement import FrfData
 from ..exceptions import ComputationError, ConfigError
+from ..interrupt import ignore_in_worker, terminate_on_interrupt
 from ..model.document import UrdfDocument
 from ._common import Setup, make_setup
 
@@ -80,6 +81,11 @@ _STATE: dict[str, object] = {}
 def _init(setup: Setup, dir_masks: np.ndarray) -> None:
     _STATE["setup"] = setup
     _STATE["masks"] = dir_masks
+
+
+def _init_worker(setup: Setup, dir_masks: np.ndarray) -> None:
+    ignore_in_worker()  # the parent stops the workers on Ctrl-C
+    _init(setup, dir_masks)
 
 
 def _costs_for(i: int, values: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
@@ -155,9 +161,12 @@ def run_sweep(
             _STATE.clear()
     else:
         try:
-            with ProcessPoolExecutor(
-                max_workers=n_workers, initializer=_init, initargs=(setup, masks)
-            ) as pool:
+            with (
+                ProcessPoolExecutor(
+                    max_workers=n_workers, initializer=_init_worker, initargs=(setup, masks)
+                ) as pool,
+                terminate_on_interrupt(pool),
+            ):
                 futures = [pool.submit(_costs_for, i, todo[i]) for i in range(n_p)]
                 for fut in as_completed(futures):
                     store(*fut.result())

@@ -1,0 +1,89 @@
+"""Ctrl-C that stops a run: a recorded interrupt, checks for it, and worker clean-up.
+
+CasADi calls back into Python during an IPOPT solve; a ``KeyboardInterrupt`` raised inside such
+a callback is caught by CasADi (it prints a warning and the solve carries on). So the command
+line installs :func:`install`, whose SIGINT handler *records* the interrupt before raising;
+the fit's per-iteration callback asks :func:`requested` and stops IPOPT, and the code after a
+solve calls :func:`check`, which raises ``KeyboardInterrupt`` again. Worker processes ignore
+SIGINT (:func:`ignore_in_worker`, a pool initializer) and are terminated by the parent
+(:func:`kill_workers`, :func:`terminate_on_interrupt`), so a single Ctrl-C suffices and ends
+the run within a second or two.
+
+Nothing happens on import; :func:`install` changes the process's SIGINT handler and returns
+the previous one for :func:`restore`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+from collections.abc import Iterator
+from typing import Any
+
+_FLAG = threading.Event()
+
+
+def _handler(signum: int, frame: Any) -> None:
+    _FLAG.set()
+    raise KeyboardInterrupt
+
+
+def install() -> Any:
+    """Record every SIGINT (then raise ``KeyboardInterrupt`` as Python does); returns the
+    previous handler. Does nothing outside the main thread (returns None)."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    _FLAG.clear()
+    return signal.signal(signal.SIGINT, _handler)
+
+
+def restore(previous: Any) -> None:
+    """Put back the handler :func:`install` returned (None: leave it)."""
+    if previous is not None and threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, previous)
+
+
+def requested() -> bool:
+    """True once a SIGINT arrived since :func:`install`."""
+    return _FLAG.is_set()
+
+
+def check() -> None:
+    """Raise ``KeyboardInterrupt`` if an interrupt was recorded (e.g. one CasADi swallowed)."""
+    if _FLAG.is_set():
+        raise KeyboardInterrupt
+
+
+def ignore_in_worker(*_: Any) -> None:
+    """Pool initializer: the worker ignores SIGINT (its parent stops it)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def kill_workers(executor: Any, timeout: float = 1.0) -> None:
+    """Cancel pending work and terminate the worker processes of a ``ProcessPoolExecutor``
+    now (SIGTERM, then SIGKILL after ``timeout`` s) instead of waiting for running tasks."""
+    if executor is None:
+        return
+    procs = list((getattr(executor, "_processes", None) or {}).values())
+    with contextlib.suppress(Exception):
+        executor.shutdown(wait=False, cancel_futures=True)
+    for p in procs:
+        with contextlib.suppress(Exception):
+            p.terminate()
+    for p in procs:
+        with contextlib.suppress(Exception):
+            p.join(timeout)
+            if p.is_alive():
+                p.kill()
+                p.join(timeout)
+
+
+@contextlib.contextmanager
+def terminate_on_interrupt(executor: Any) -> Iterator[Any]:
+    """Context: on any exception (Ctrl-C included) kill ``executor``'s workers at once."""
+    try:
+        yield executor
+    except BaseException:
+        kill_workers(executor)
+        raise

@@ -1,0 +1,69 @@
+"""Warnings about an operating point: outside the joint limits, or unstable there.
+
+:func:`check_operating_point` returns readable warnings (never raises for these): the run
+goes on, and every command prints them and stores them under ``warnings`` in its JSON.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from ..exceptions import BondidError
+from ..model.document import UrdfDocument
+
+#: an eigenvalue with Re λ > this fraction of |λ| (or > 1e-9 s⁻¹ for λ ≈ 0) counts as unstable
+UNSTABLE_TOL = 1e-9
+
+
+def limit_warnings(doc: UrdfDocument, op: Mapping[str, float], what: str) -> list[str]:
+    """Joints of ``op`` whose value lies outside their URDF ``<limit>``."""
+    out = []
+    for name, value in op.items():
+        try:
+            j = doc.joint(name)
+        except BondidError:
+            continue
+        lim = getattr(j, "limit", None)
+        if lim is None or j.type not in ("revolute", "prismatic"):
+            continue
+        lo, hi = lim.lower, lim.upper
+        if lo is None or hi is None or lo > hi:
+            continue
+        if not lo <= float(value) <= hi:
+            out.append(
+                f"{what}: {name} = {float(value):.6g} is outside the joint's limits"
+                f" [{float(lo):.6g}, {float(hi):.6g}] of {doc.source or 'the model'}"
+            )
+    return out
+
+
+def stability_warnings(doc: UrdfDocument, op: Mapping[str, float], what: str) -> list[str]:
+    """An eigenvalue of the linearised model with Re λ > 0 (e.g. gravity beats a spring)."""
+    from ..linear.affine import build_affine_model
+
+    try:
+        lm = build_affine_model(doc, dict(op)).linear_model()
+        n = lm.nv
+        Minv = np.linalg.inv(lm.M)
+        A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ lm.K, -Minv @ lm.D]])
+        lam = np.linalg.eigvals(A)
+    except (BondidError, np.linalg.LinAlgError, ValueError):
+        return []
+    bad = lam[lam.real > UNSTABLE_TOL * np.maximum(np.abs(lam), 1.0)]
+    if bad.size == 0:
+        return []
+    worst = bad[np.argmax(bad.real)]
+    return [
+        f"{what}: the linearised model of {doc.source or 'the model'} is unstable there"
+        f" ({bad.size} eigenvalue(s) with Re λ > 0, largest {worst.real:.4g} 1/s): a negative"
+        " stiffness (gravity beyond a spring?) — an FRF of an unstable model is not measurable"
+    ]
+
+
+def check_operating_point(
+    doc: UrdfDocument, op: Mapping[str, float], what: str = "operating point"
+) -> list[str]:
+    """Limit and stability warnings for one operating point (``what`` names its origin)."""
+    return limit_warnings(doc, op, what) + stability_warnings(doc, op, what)
