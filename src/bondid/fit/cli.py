@@ -423,9 +423,7 @@ def _body(args: argparse.Namespace) -> int:
     inputs += [f for f in (s.points_file, args.points_file) if f is not None]
     res = None if args.out is None else open_results(args.out, "fit", inputs, patterns=OUT_PATTERNS)
     doc, warnings = load_model(s.model, lambda d: prepare_model(d, s, args))
-    raw = load_datasets(
-        doc, s.data, drop_nan=args.drop_nan, channel_map=uff_map(s, args.uff_map)
-    )
+    raw = load_datasets(doc, s.data, drop_nan=args.drop_nan, channel_map=uff_map(s, args.uff_map))
     warnings += check_inputs(doc, raw, s.data)
     datasets = [ds if ds.quantity == "receptance" else ds.to_quantity("receptance") for ds in raw]
     if args.out is not None:
