@@ -220,3 +220,15 @@ def test_tables_keep_their_columns_with_failed_cases() -> None:
     assert "| 3.0 |" in lines[2]  # diagnose / fit time ratio
     summary = summary_table([ok, bad])
     assert "| gantry | harsh | 2 (1) | 0% (0/1) | – | 1/1 |" in summary
+
+
+def test_blind_benchmark_runs_a_case_end_to_end(capsys: pytest.CaptureFixture[str]) -> None:
+    import blind_benchmark
+
+    assert blind_benchmark.main(["--list", "--quick"]) == 0
+    assert len(capsys.readouterr().out.splitlines()) == 3
+    blind_benchmark.main(["--cases", "bonder/none_a/coh", "--freq", "100", "--points", "50",
+                          "--workers", "1", "--effects", "sensor_delay", "--no-fit"])  # fmt: skip
+    out = capsys.readouterr().out
+    assert "| bonder/none_a/coh | none | – |" in out
+    assert "| bonder | coh | 1 (0) |" in out

@@ -186,22 +186,6 @@ def test_cli_exit_2_on_missing_file(tmp_path):
     assert "missing.csv" in proc.stderr
 
 
-def test_blind_benchmark_quick_runs(capsys):
-    sys.path.insert(0, str(ROOT / "tools"))
-    import blind_benchmark
-
-    assert len(blind_benchmark.CASES) >= 15
-    counts: dict[str, int] = {}
-    for c in blind_benchmark.CASES:
-        counts[c.effect] = counts.get(c.effect, 0) + 1
-    assert min(counts.values()) >= 2 and counts["none"] >= 3
-    blind_benchmark.main(["--quick", "--cases", "none_a", "--freq", "150", "--points", "80",
-                          "--workers", "1", "--effects", "sensor_delay"])  # fmt: skip
-    out = capsys.readouterr().out
-    assert "| none_a | none |" in out
-    assert "cases 1 (0 failed)" in out
-
-
 def test_rotational_candidates_carry_pivot_variants(doc):
     from bondid.diagnose.effects import get_effect
     from bondid.diagnose.effects.topology import axis_vector
