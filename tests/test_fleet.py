@@ -152,6 +152,17 @@ def test_killed_worker_loses_nothing(first_run):
         assert st["attempt"] == 2 and st["status"] == "ok"
 
 
+def test_report_has_a_fleet_section(first_run):
+    from bondid.report.build import build_report_html
+
+    out = first_run[0]
+    text, found = build_report_html(out, out)
+    assert '<section id="fleet">' in text and "fleet_strip.png" in text
+    assert "y_guide_rx.stiffness" in text and "m03" in text
+    assert "fit.json" not in found.json_paths  # the machines' own results stay out
+    assert "not found" not in text
+
+
 def test_second_run_skips_finished_machines(first_run, fleet, cluster, capsys):
     out, _, _, _, _ = first_run
     _, machines, _ = fleet
