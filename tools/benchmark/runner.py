@@ -108,19 +108,21 @@ def truth_db(paths: list[Path], exact: list[np.ndarray], diag: dict[str, Any]) -
     from bondid.diagnose.split import limit_bands, mask_incoherent
     from bondid.frf.quantity import convert_quantity
 
-    weighting = diag.get("weighting") or (diag.get("scoring") or {}).get("weighting")
+    info = diag.get("weighting")
+    rule = info.get("weighting") if isinstance(info, dict) else info
     try:
         raw = [read_frf(p) for p in paths]
-        data = [mask_incoherent(limit_bands(r, None)) for r in raw]  # may convert the quantity
+        data = [limit_bands(r, None) for r in raw]  # may convert the quantity
         exact = [convert_quantity(H, r.freq_hz, r.quantity, d.quantity)
                  for H, r, d in zip(exact, raw, data, strict=True)]  # fmt: skip
-        if isinstance(weighting, str):  # the diagnosis says how its db_rms is weighted
-            try:
-                return float(gap_report(data, exact, channels=diag.get("channels"),
-                                        weighting=weighting).db_rms)  # fmt: skip
-            except Exception:
-                pass
-        return float(gap_report(data, exact, channels=diag.get("channels")).db_rms)
+        if isinstance(rule, str):  # weighted as diagnosis.json's gap.db_rms is
+            from bondid.data.weights import with_weights_as_coherence
+
+            weighted = [with_weights_as_coherence(d, rule) for d in data]
+            return float(gap_report(weighted, exact, channels=diag.get("channels"),
+                                    weighting="coherence").db_rms)  # fmt: skip
+        masked = [mask_incoherent(d) for d in data]
+        return float(gap_report(masked, exact, channels=diag.get("channels")).db_rms)
     except Exception as exc:  # the package's API moved: say so, do not guess
         print(f"truth gap not computed: {exc}", file=sys.stderr)
         return None
