@@ -17,7 +17,7 @@ Layout of the decision vector ``z`` (all entries O(1)):
   (σ̄ the mean principal second moment at the start), σ scaled by ``√σ̄``, t scaled by the
   body length ``L`` (half the hull's bounding-box diagonal);
 * for every free ``JOINT.stiffness`` / ``JOINT.damping``, one entry ``p / s`` with ``s`` the
-  magnitude of its starting value (the finite upper bound, or 1, when that is 0).
+  magnitude of its starting value (1 in SI units when that is 0).
 
 :class:`Layout` is a *parameter model* for :class:`bondid.cost.FrfProblem` (``size``,
 ``values``, ``jacobian``) and also builds the CasADi constraint expressions of the NLP:
@@ -238,8 +238,10 @@ class Layout:
                 blk.fixed_v = z[blk.offset + 1 : blk.offset + 7].copy()
         for jv in self.joints:
             v = float(p0[jv.name_index])
-            hi = float(upper[jv.name_index])
-            jv.scale = abs(v) if v != 0 else (hi if np.isfinite(hi) and hi > 0 else 1.0)
+            # a start at 0 keeps the SI unit as its scale: IPOPT pushes a start off its bound
+            # by ~1e-2 scaled units, which, scaled by the (finite, far) upper bound, would be a
+            # stiff spring on the joint (measured: the bundled --free all fit then stalls)
+            jv.scale = abs(v) if v != 0 else 1.0
             z[jv.index] = v / jv.scale
         for gv in self.gains:
             gv.g0 = float(p0[gv.name_index])
