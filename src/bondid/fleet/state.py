@@ -53,7 +53,11 @@ def clean_stale(machines_dir: Path) -> int:
     if not machines_dir.is_dir():
         return 0
     for p in machines_dir.iterdir():
-        if p.is_dir() and p.name.startswith(".") and (".part-" in p.name or ".old-" in p.name):
+        if not (p.name.startswith(".") and (".part-" in p.name or ".old-" in p.name)):
+            continue
+        if p.is_dir():  # a work folder, or the staging folder of a killed fit in it
             shutil.rmtree(p, ignore_errors=True)
-            n += 1
+        else:  # the lock file a killed fit leaves next to its --out
+            p.unlink(missing_ok=True)
+        n += 1
     return n
