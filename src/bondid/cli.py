@@ -67,6 +67,25 @@ def uff_channel_map(args: argparse.Namespace) -> dict[str, tuple[int, int]] | No
     return dict(parse_uff_map_item(t) for t in getattr(args, "uff_map", [])) or None
 
 
+def add_drop_nan_arg(p: argparse.ArgumentParser) -> None:
+    """``--drop-nan``: drop the frequency rows of a data file that hold a NaN or empty cell."""
+    p.add_argument(
+        "--drop-nan", action="store_true",
+        help="drop the frequency rows of a data file that hold a NaN or empty cell",
+    )  # fmt: skip
+
+
+def add_weighting_arg(p: argparse.ArgumentParser, default: str | None = None) -> None:
+    """``--weighting``: the point weights (:mod:`bondid.data.weights`)."""
+    from .data.weights import WEIGHTINGS
+
+    p.add_argument(
+        "--weighting", default=default, choices=WEIGHTINGS,
+        help="point weights: auto (coherence combined with the noise estimated from the data,"
+        " the estimate alone without coherence; default), coherence, estimated or none",
+    )  # fmt: skip
+
+
 def add_floating_base_arg(p: argparse.ArgumentParser) -> None:
     """``--floating-base``: the model's root is free (a free-free structure)."""
     p.add_argument(

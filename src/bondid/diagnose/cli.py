@@ -41,15 +41,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--points", type=int, default=500, help="frequencies per data set for refits")
     p.add_argument("--workers", type=int, default=2, help="worker processes (1 = in-process)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
-    p.add_argument(
-        "--weighting", default="auto", choices=["auto", "coherence", "estimated", "none"],
-        help="point weights: auto (coherence combined with the noise estimated from the data,"
-        " the estimate alone without coherence; default), coherence, estimated or none",
-    )  # fmt: skip
-    p.add_argument(
-        "--drop-nan", action="store_true",
-        help="drop the frequency rows of a data file that hold a NaN or empty cell",
-    )  # fmt: skip
+    cli.add_weighting_arg(p, "auto")
+    cli.add_drop_nan_arg(p)
     return p
 
 

@@ -24,10 +24,12 @@ from ..cli import (
     EXIT_FAILED,
     EXIT_OK,
     Progress,
+    add_drop_nan_arg,
     add_floating_base_arg,
     add_package_path_arg,
     add_points_arg,
     add_uff_map_arg,
+    add_weighting_arg,
     check_workers,
     make_parser,
     parse_band,
@@ -38,7 +40,6 @@ from ..cli import (
 from ..cost.problem import CostOptions
 from ..cost.residuals import NORMS, RESIDUAL_KINDS
 from ..data.measurement import FrfData
-from ..data.weights import WEIGHTINGS
 from ..exceptions import ConfigError, DependencyError, SolverError
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameters, parameter_infos, select_parameters
@@ -107,11 +108,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="use the file's coherence column in the weights where present (default on);"
         " --no-coherence ignores it (the weights then come from the estimated noise)",
     )  # fmt: skip
-    p.add_argument(
-        "--weighting", choices=WEIGHTINGS,
-        help="point weights: auto (coherence combined with the noise estimated from the data,"
-        " the estimate alone without coherence; default), coherence, estimated or none",
-    )  # fmt: skip
+    add_weighting_arg(p)
     p.add_argument("--multistart", type=int, metavar="N", help="number of starts (default 1)")
     p.add_argument("--seed", type=int, help="Latin-hypercube seed (default 0)")
     p.add_argument("--workers", type=int, help="parallel processes for --multistart (default 2)")
@@ -136,10 +133,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="IPOPT iterations on the normalised complex error before a log-cost fit (default"
         " 60; 0 = none): crosses the walls a log cost has where a cross term changes sign",
     )  # fmt: skip
-    p.add_argument(
-        "--drop-nan", action="store_true",
-        help="drop the frequency rows of a data file that hold a NaN or empty cell",
-    )  # fmt: skip
+    add_drop_nan_arg(p)
     p.add_argument("--out", type=Path, default=None, help="folder for the results")
     p.add_argument("--quiet", action="store_true", help="no progress display")
     return p

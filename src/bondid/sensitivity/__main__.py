@@ -55,10 +55,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--no-sweep", action="store_true", help="skip the one-at-a-time sweep")
     p.add_argument("--scales", type=_scales, default=None, help="sweep LO:HI:STEP (0.5:1.5:0.1)")
     p.add_argument("--workers", type=int, default=2, help="processes for the sweep (default 2)")
-    p.add_argument(
-        "--drop-nan", action="store_true",
-        help="drop the frequency rows of a data file that hold a NaN or empty cell",
-    )  # fmt: skip
+    cli.add_drop_nan_arg(p)
     args = p.parse_args(argv)
 
     def body() -> int:
