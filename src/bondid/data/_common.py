@@ -155,3 +155,16 @@ def read_file_bytes(path: Path) -> bytes:
         raise DataError(f"{path}: is a directory, not a data file") from None
     except OSError as exc:
         raise DataError(f"{path}: cannot read the file ({exc.strerror})") from None
+
+
+def frf_arrays(H: np.ndarray, freq_hz: np.ndarray, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(H complex (n_out, n_in, n_freq), freq_hz float (n_freq,))``; raises
+    :class:`DataError` naming ``where`` when the shapes do not match."""
+    Hc = np.asarray(H, dtype=complex)
+    f = np.asarray(freq_hz, dtype=float)
+    if Hc.ndim != 3 or f.ndim != 1 or Hc.shape[2] != f.size:
+        raise DataError(
+            f"{where}: H has shape {Hc.shape} and freq_hz {f.shape}; "
+            f"expected (n_out, n_in, n_freq) and (n_freq,)"
+        )
+    return Hc, f

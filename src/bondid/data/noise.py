@@ -6,8 +6,9 @@ import math
 
 import numpy as np
 
-from ..exceptions import ConfigError, DataError
+from ..exceptions import ConfigError
 from ..frf.quantity import QUANTITIES, quantity_factor
+from ._common import frf_arrays
 
 
 def _complex_normal(rng: np.random.Generator, shape: tuple[int, ...]) -> np.ndarray:
@@ -92,13 +93,7 @@ def add_measurement_noise(
         the same shape (NaN where ``H`` is NaN). With ``rel = 0`` and no floor, ``H_noisy``
         equals ``H`` and the coherence is 1.
     """
-    H = np.asarray(H, dtype=complex)
-    freq = np.asarray(freq_hz, dtype=float)
-    if H.ndim != 3 or freq.ndim != 1 or H.shape[2] != freq.size:
-        raise DataError(
-            f"add_measurement_noise: H has shape {H.shape} and freq_hz {freq.shape}; "
-            f"expected (n_out, n_in, n_freq) and (n_freq,)"
-        )
+    H, freq = frf_arrays(H, freq_hz, "add_measurement_noise")
     if not (math.isfinite(rel) and rel >= 0):
         raise ConfigError(f"noise: relative error {rel!r} is invalid; give a finite value >= 0")
     if floor_db is not None and (math.isnan(floor_db) or floor_db == math.inf):

@@ -42,6 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..exceptions import DataError
+from ._common import frf_arrays
 
 #: half-width of the floor windows [octaves]
 OCTAVES = 0.25
@@ -296,13 +297,7 @@ def estimate_noise(
     Returns:
         :class:`NoiseEstimate`. Channels shorter than :data:`MIN_POINTS` frequencies get NaN.
     """
-    f = np.asarray(freq_hz, dtype=float)
-    H = np.asarray(H, dtype=complex)
-    if H.ndim != 3 or f.ndim != 1 or H.shape[2] != f.size:
-        raise DataError(
-            f"{where}: estimate_noise: H has shape {H.shape} and freq_hz {f.shape}; "
-            f"expected (n_out, n_in, n_freq) and (n_freq,)"
-        )
+    H, f = frf_arrays(H, freq_hz, f"{where}: estimate_noise")
     if (f.size > 1 and not np.all(np.diff(f) > 0)) or not np.all(f > 0):
         raise DataError(f"{where}: estimate_noise: frequencies must be positive and increasing")
     n_o, n_i, n = H.shape
