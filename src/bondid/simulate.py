@@ -93,7 +93,7 @@ DATA_SUFFIXES = (*CSV_SUFFIXES, *UFF_SUFFIXES)
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
 
 
-def _check_options(args) -> None:  # type: ignore[no-untyped-def]
+def _check_options(args) -> None:
     """Refuse impossible option values before any work."""
     import math
 

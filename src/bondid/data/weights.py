@@ -49,7 +49,7 @@ def noise_estimate(ds: FrfData) -> NoiseEstimate:
     same array)."""
     cached = ds.__dict__.get(_CACHE)
     if cached is not None and cached[0] is ds.H:
-        return cached[1]  # type: ignore[no-any-return]
+        return cached[1]
     names = [[f"{o}.{i}" for i in ds.inputs] for o in ds.outputs]
     est = estimate_noise(ds.freq_hz, ds.H, names, where=ds.source or "<data>")
     ds.__dict__[_CACHE] = (ds.H, est)

@@ -50,7 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
 OUT_PATTERNS = ("diagnosis.json", "refit.urdf", "augmented.urdf", "residual_map.png", "bode_*.png")
 
 
-def absolute_mesh_paths(doc, base: Path) -> None:  # type: ignore[no-untyped-def]
+def absolute_mesh_paths(doc, base: Path) -> None:
     """Rewrite relative mesh file names of ``doc`` against ``base`` (the URDF's folder), so
     the model text sent to worker processes and written as refit.urdf resolves anywhere."""
     for lk in doc.robot.links:

@@ -122,7 +122,7 @@ class Refit:
             out[int(self.variables[k].modifier)] = v[k]  # type: ignore[arg-type]
         return out
 
-    def _matrices(self, block, values):  # type: ignore[no-untyped-def]
+    def _matrices(self, block, values):
         aff = block.affine.with_values(*values)
         return aff, aff.mass_matrix(), aff.stiffness_matrix(), aff.damping_matrix()
 
@@ -355,7 +355,7 @@ class Refit:
             out.append(H[:, cols, :])
         return out
 
-    def frf_at(self, u: np.ndarray, block, freq_hz: np.ndarray) -> np.ndarray:  # type: ignore[no-untyped-def]
+    def frf_at(self, u: np.ndarray, block, freq_hz: np.ndarray) -> np.ndarray:
         """Model FRF ``(n_out, n_in_model, n_f)`` of one data set's block at ``freq_hz``."""
         v = self.values(u)
         aff, M, K, D = self._matrices(block, self.pmap.values(self.T @ v))

@@ -113,8 +113,8 @@ class JobResult:
     db_rms_unweighted: float = float("nan")
 
 
-def _modifier(effect, candidate):  # type: ignore[no-untyped-def]
-    def fn(values, freq_hz, outputs, inputs):  # type: ignore[no-untyped-def]
+def _modifier(effect, candidate):
+    def fn(values, freq_hz, outputs, inputs):
         return effect.modifier(candidate, values, freq_hz, outputs, inputs)
 
     return fn

@@ -130,7 +130,7 @@ class Evaluator:
 def _callback_class() -> tuple[Any, Any]:
     import casadi
 
-    class NumpyCallback(casadi.Callback):  # type: ignore[misc]
+    class NumpyCallback(casadi.Callback):
         """A CasADi function of dense column inputs evaluated by a Python function."""
 
         def __init__(
@@ -170,14 +170,14 @@ def _callback_class() -> tuple[Any, Any]:
         def get_sparsity_out(self, i: int) -> Any:
             return casadi.Sparsity.dense(*self._out[i])
 
-        def eval(self, arg: Any) -> Any:  # type: ignore[override]
+        def eval(self, arg: Any) -> Any:
             out = self._fn(*[np.asarray(a, dtype=float).reshape(-1) for a in arg])
             return [
                 casadi.DM(np.asarray(o, dtype=float).reshape(s))
                 for o, s in zip(out, self._out, strict=True)
             ]
 
-    class IterationCallback(casadi.Callback):  # type: ignore[misc]
+    class IterationCallback(casadi.Callback):
         """IPOPT's per-iteration hook: records the objective, calls ``progress``."""
 
         def __init__(
@@ -210,7 +210,7 @@ def _callback_class() -> tuple[Any, Any]:
                 return casadi.Sparsity.dense(self._ng, 1)
             return casadi.Sparsity(0, 0)
 
-        def eval(self, arg: Any) -> Any:  # type: ignore[override]
+        def eval(self, arg: Any) -> Any:
             names = casadi.nlpsol_out()
             self._record(
                 float(arg[names.index("f")]),

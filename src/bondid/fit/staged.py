@@ -183,7 +183,7 @@ def cost_at(
     problem = FrfProblem(doc, datasets, options)
     pmap = ParameterMap(doc, problem.affines[0], names)
     # ParameterModel declares `size` as a plain attribute; ParameterMap has a property
-    return problem.cost(pmap, np.asarray(x, dtype=float))  # type: ignore[arg-type]
+    return problem.cost(pmap, np.asarray(x, dtype=float))
 
 
 def staged_fit(

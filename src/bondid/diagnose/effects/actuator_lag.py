@@ -29,7 +29,7 @@ class ActuatorLag(Effect):
         p = NewParameter("T", T0, 1e-9, 5e-2, "s", scan=1.0)
         return per_joint_candidates(self, doc, p, SCAN, "lag on input(s)")
 
-    def modifier(self, candidate, values, freq_hz, outputs, inputs):  # type: ignore[no-untyped-def]
+    def modifier(self, candidate, values, freq_hz, outputs, inputs):
         T = float(values[0])
         jw = 2j * np.pi * np.asarray(freq_hz, float)
         g = 1.0 / (1.0 + jw * T)

@@ -35,7 +35,7 @@ class SensorDelay(Effect):
         p = NewParameter("tau", TAU0, 1e-9, 5e-3, "s", scan=1.0)
         return per_joint_candidates(self, doc, p, SCAN, "delay on output(s)")
 
-    def modifier(self, candidate, values, freq_hz, outputs, inputs):  # type: ignore[no-untyped-def]
+    def modifier(self, candidate, values, freq_hz, outputs, inputs):
         tau = float(values[0])
         w = 2 * np.pi * np.asarray(freq_hz, float)
         g = np.exp(-1j * w * tau)
