@@ -29,27 +29,11 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from ..atomic import write_text_atomic
+from ..jsonsafe import json_safe as _num
 from .gap import GapReport, gap_report
 from .pipeline import Diagnosis
 from .scoring import ABS_MARGIN_DB, REL_MARGIN, gap_closed
-
-
-def _num(v: Any) -> Any:
-    if isinstance(v, (float, np.floating)):
-        return float(v) if math.isfinite(float(v)) else None
-    if isinstance(v, (np.integer,)):
-        return int(v)
-    if isinstance(v, dict):
-        return {k: _num(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_num(x) for x in v]
-    if isinstance(v, np.ndarray):
-        return [_num(x) for x in v.tolist()]
-    return v
-
 
 #: how the gap figures are defined (written into diagnosis.json)
 DB_RMS_DEFINITION = (

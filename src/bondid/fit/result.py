@@ -18,12 +18,12 @@ reported as if the bound were absent).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from ..jsonsafe import number as _num
 from ..model.document import UrdfDocument
 
 
@@ -69,16 +69,6 @@ def parameter_statistics(
         corr[np.ix_(ok, ok)] = sub / np.outer(sd, sd)
     corr[ok, ok] = 1.0
     return std, corr
-
-
-def _num(v: float) -> float | None:
-    """JSON-safe float: NaN and ±inf (not valid JSON) become None."""
-    v = float(v)
-    if math.isnan(v):
-        return None
-    if math.isinf(v):
-        return None
-    return v
 
 
 @dataclass

@@ -9,7 +9,6 @@ median). At least :data:`MIN_MACHINES` values are needed for a parameter to have
 
 from __future__ import annotations
 
-import math
 from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -17,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from ..jsonsafe import number
 from .state import STATUS_OK
 
 ROBUST_Z, MAD_TO_STD, OWN_STD_Z = 3.5, 1.4826, 3.0
@@ -39,12 +39,6 @@ class FleetStats:
     effects: dict[str, Any] | None = None
 
 
-def _num(v: Any) -> float | None:
-    if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):
-        return float(v)
-    return None
-
-
 def fit_ok(status: Mapping[str, Any]) -> bool:
     """True when the machine's fit converged (its values enter the statistics)."""
     return status.get("fit_exit") == 0 and isinstance(status.get("fit"), Mapping)
@@ -60,7 +54,7 @@ def _rows(statuses: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
         if not params:
             rows.append({**base, "parameter": None, "value": None, "std": None})
         for p in params:
-            value, std = _num(p.get("fitted")), _num(p.get("std"))
+            value, std = number(p.get("fitted")), number(p.get("std"))
             rows.append({**base, "parameter": p.get("name"), "value": value, "std": std})
     return rows
 

@@ -12,174 +12,162 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from ..jsonsafe import number
 from .html import esc, fmt, generic_json, key_values, note, table
 
 FIT_SUMMARY_KEYS = ("status", "cost_name", "cost_initial", "cost_final", "iterations", "wall_s")
-
-
-def _num(v: Any) -> float | None:
-    return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else None
 
 
 def _records(v: Any) -> list[Mapping[str, Any]]:
     return [r for r in v if isinstance(r, Mapping)] if isinstance(v, list) else []
 
 
+def _value(record: Mapping[str, Any], key: str) -> float | None:
+    """The number under ``key``, else None (NaN and ±inf are kept: the report shows them)."""
+    return number(record.get(key), finite=False)
+
+
+def _percent(fraction: float | None, spec: str) -> str:
+    """``fraction`` as a percentage formatted with ``spec`` ("—" for None)."""
+    return "—" if fraction is None else f"{100 * fraction:{spec}} %"
+
+
 def fit_section(fit: Any) -> str:
     """Fit summary (status, costs) and the parameter table of ``fit.json``."""
     if not isinstance(fit, Mapping):
         return note("fit.json is not a JSON object; skipped")
+    params = _records(fit.get("parameters"))
+    table_html = _parameter_table(params) if params else note("fit.json has no parameter list")
+    return key_values(_fit_summary(fit)) + table_html
+
+
+def _fit_summary(fit: Mapping[str, Any]) -> dict[str, Any]:
+    """The summary keys first, the cost ratio, then every other scalar entry of fit.json."""
     summary = {k: fit.get(k) for k in FIT_SUMMARY_KEYS if k in fit}
-    c0, c1 = _num(fit.get("cost_initial")), _num(fit.get("cost_final"))
+    c0, c1 = _value(fit, "cost_initial"), _value(fit, "cost_final")
     if c0 and c1 is not None and c0 > 0:
         summary["cost_final / cost_initial"] = c1 / c0
     for k, v in fit.items():
         if k not in summary and k != "parameters" and not isinstance(v, (Mapping, list)):
             summary[k] = v
-    out = [key_values(summary)]
-    params = _records(fit.get("parameters"))
-    if params:
-        rows, flagged = [], []
-        for i, p in enumerate(params):
-            ini, fitted = _num(p.get("initial")), _num(p.get("fitted"))
-            lo, hi, std = _num(p.get("lower")), _num(p.get("upper")), _num(p.get("std"))
-            change = (fitted / ini - 1) if ini and fitted is not None else None
-            rel_std = abs(std / fitted) if std is not None and fitted else None
-            at_bound = fitted is not None and any(
-                b is not None and math.isfinite(b) and abs(fitted - b) <= 1e-6 * max(abs(b), 1e-12)
-                for b in (lo, hi)
-            )
-            if at_bound:
-                flagged.append(i)
-            rows.append(
-                [
-                    esc(p.get("name", "?")),
-                    fmt(ini),
-                    fmt(fitted),
-                    fmt(lo),
-                    fmt(hi),
-                    fmt(std),
-                    "—" if rel_std is None else f"{100 * rel_std:.3g} %",
-                    "—" if change is None else f"{100 * change:+.3g} %",
-                    "at bound" if at_bound else "",
-                ]
-            )
-        out.append("<h3>Parameters</h3>")
-        out.append(
-            table(
-                [
-                    "name",
-                    "initial",
-                    "fitted",
-                    "lower",
-                    "upper",
-                    "std",
-                    "std / fitted",
-                    "change",
-                    "",
-                ],
-                rows,
-                left=(0, 8),
-                flagged=flagged,
-            )
-        )
-        if flagged:
-            out.append(note(f"{len(flagged)} parameter(s) ended at a bound (highlighted)."))
-    else:
-        out.append(note("fit.json has no parameter list"))
-    return "".join(out)
+    return summary
+
+
+PARAMETER_HEADER = ("name", "initial", "fitted", "lower", "upper", "std", "std / fitted", "change")
+
+
+def _parameter_table(params: list[Mapping[str, Any]]) -> str:
+    """The parameter table; rows of parameters that ended at a bound are highlighted."""
+    rows, flagged = [], []
+    for i, p in enumerate(params):
+        row, at_bound = _parameter_row(p)
+        rows.append(row)
+        if at_bound:
+            flagged.append(i)
+    out = "<h3>Parameters</h3>"
+    out += table([*PARAMETER_HEADER, ""], rows, left=(0, 8), flagged=flagged)
+    if flagged:
+        out += note(f"{len(flagged)} parameter(s) ended at a bound (highlighted).")
+    return out
+
+
+def _parameter_row(p: Mapping[str, Any]) -> tuple[list[str], bool]:
+    """One parameter's table cells and whether it ended at a bound."""
+    ini, fitted = _value(p, "initial"), _value(p, "fitted")
+    lo, hi, std = _value(p, "lower"), _value(p, "upper"), _value(p, "std")
+    change = (fitted / ini - 1) if ini and fitted is not None else None
+    rel_std = abs(std / fitted) if std is not None and fitted else None
+    at_bound = fitted is not None and any(_at(fitted, b) for b in (lo, hi))
+    cells = [esc(p.get("name", "?")), *(fmt(v) for v in (ini, fitted, lo, hi, std))]
+    cells += [_percent(rel_std, ".3g"), _percent(change, "+.3g")]
+    return [*cells, "at bound" if at_bound else ""], at_bound
+
+
+def _at(value: float, bound: float | None) -> bool:
+    """True when ``value`` equals a finite ``bound`` to a relative 1e-6."""
+    if bound is None or not math.isfinite(bound):
+        return False
+    return abs(value - bound) <= 1e-6 * max(abs(bound), 1e-12)
 
 
 def diagnosis_section(diag: Any) -> str:
     """Verdict, gap tables (overall, by channel, by band, modes) and candidates."""
     if not isinstance(diag, Mapping):
         return note("diagnosis.json is not a JSON object; skipped")
-    out = []
-    verdict = diag.get("verdict")
+    verdict, gap = diag.get("verdict"), diag.get("gap")
     if isinstance(verdict, Mapping):
-        eff = verdict.get("effect", "?")
-        loc = verdict.get("location")
-        closed = _num(verdict.get("gap_closed"))
-        text = f"Verdict: <b>{esc(eff)}</b>"
-        if loc:
-            text += f" at <b>{esc(loc)}</b>"
-        if closed is not None:
-            text += f" — closes {100 * closed:.1f} % of the gap"
-        out.append(f'<p class="verdict">{text}</p>')
+        out = [_verdict_html(verdict)]
     else:
-        out.append(note("no verdict in diagnosis.json"))
-    gap = diag.get("gap")
+        out = [note("no verdict in diagnosis.json")]
     if isinstance(gap, Mapping):
-        db = _num(gap.get("db_rms"))
-        if db is not None:
-            out.append(f"<p>Model–measurement gap: <b>{db:.3g} dB rms</b> (all channels).</p>")
-        by_ch = gap.get("by_channel")
-        if isinstance(by_ch, Mapping) and by_ch:
-            out.append("<h3>Gap by channel</h3>")
-            out.append(table(["channel", "dB rms"], [[esc(k), fmt(v)] for k, v in by_ch.items()]))
-        bands = _records(gap.get("by_band"))
-        if bands:
-            out.append("<h3>Gap by band</h3>")
-            out.append(
-                table(
-                    ["f_lo [Hz]", "f_hi [Hz]", "dB rms"],
-                    [
-                        [fmt(b.get("f_lo_hz")), fmt(b.get("f_hi_hz")), fmt(b.get("db_rms"))]
-                        for b in bands
-                    ],
-                    left=(),
-                )
-            )
-        modes = _records(gap.get("modes"))
-        if modes:
-            out.append("<h3>Modes: measured vs model</h3>")
-            out.append(
-                table(
-                    ["measured [Hz]", "model [Hz]", "status"],
-                    [
-                        [
-                            fmt(m.get("f_measured_hz")),
-                            fmt(m.get("f_model_hz")),
-                            esc(m.get("status", "")),
-                        ]
-                        for m in modes
-                    ],
-                    left=(2,),
-                    flagged=[i for i, m in enumerate(modes) if m.get("status") != "paired"],
-                )
-            )
+        out.append(_gap_html(gap))
     cands = _records(diag.get("candidates"))
     if cands:
-        out.append("<h3>Candidates (best first)</h3>")
-        out.append(
-            table(
-                [
-                    "effect",
-                    "location",
-                    "parameters",
-                    "dB rms after",
-                    "gap closed",
-                    "held-out dB rms after",
-                    "score",
-                ],
-                [
-                    [
-                        esc(c.get("effect", "?")),
-                        fmt(c.get("location")),
-                        fmt(c.get("parameters")),
-                        fmt(c.get("db_rms_after")),
-                        "—"
-                        if _num(c.get("gap_closed")) is None
-                        else f"{100 * float(c['gap_closed']):.1f} %",
-                        fmt(c.get("heldout_db_rms_after")),
-                        fmt(c.get("score")),
-                    ]
-                    for c in cands
-                ],
-                left=(0, 1, 2),
-            )
-        )
+        out.append("<h3>Candidates (best first)</h3>" + _candidate_table(cands))
     return "".join(out)
+
+
+def _verdict_html(verdict: Mapping[str, Any]) -> str:
+    """The verdict line: effect, location and the share of the gap it closes."""
+    text = f"Verdict: <b>{esc(verdict.get('effect', '?'))}</b>"
+    loc = verdict.get("location")
+    if loc:
+        text += f" at <b>{esc(loc)}</b>"
+    closed = _value(verdict, "gap_closed")
+    if closed is not None:
+        text += f" — closes {100 * closed:.1f} % of the gap"
+    return f'<p class="verdict">{text}</p>'
+
+
+def _gap_html(gap: Mapping[str, Any]) -> str:
+    """The overall gap and its tables by channel, by band and by mode (those present)."""
+    out = []
+    db = _value(gap, "db_rms")
+    if db is not None:
+        out.append(f"<p>Model–measurement gap: <b>{db:.3g} dB rms</b> (all channels).</p>")
+    by_ch = gap.get("by_channel")
+    if isinstance(by_ch, Mapping) and by_ch:
+        out.append("<h3>Gap by channel</h3>")
+        out.append(table(["channel", "dB rms"], [[esc(k), fmt(v)] for k, v in by_ch.items()]))
+    bands = _records(gap.get("by_band"))
+    if bands:
+        rows = [[fmt(b.get(k)) for k in ("f_lo_hz", "f_hi_hz", "db_rms")] for b in bands]
+        out.append("<h3>Gap by band</h3>")
+        out.append(table(["f_lo [Hz]", "f_hi [Hz]", "dB rms"], rows, left=()))
+    modes = _records(gap.get("modes"))
+    if modes:
+        out.append("<h3>Modes: measured vs model</h3>" + _mode_pair_table(modes))
+    return "".join(out)
+
+
+def _mode_pair_table(modes: list[Mapping[str, Any]]) -> str:
+    """Measured vs model frequencies; modes not paired are highlighted."""
+    rows = [
+        [fmt(m.get("f_measured_hz")), fmt(m.get("f_model_hz")), esc(m.get("status", ""))]
+        for m in modes
+    ]
+    flagged = [i for i, m in enumerate(modes) if m.get("status") != "paired"]
+    return table(["measured [Hz]", "model [Hz]", "status"], rows, left=(2,), flagged=flagged)
+
+
+CANDIDATE_HEADER = (
+    "effect", "location", "parameters", "dB rms after", "gap closed", "held-out dB rms after",
+    "score",
+)  # fmt: skip
+
+
+def _candidate_table(cands: list[Mapping[str, Any]]) -> str:
+    """One row a candidate, in the order of diagnosis.json (best first)."""
+    rows = [
+        [
+            esc(c.get("effect", "?")),
+            *(fmt(c.get(k)) for k in ("location", "parameters", "db_rms_after")),
+            _percent(_value(c, "gap_closed"), ".1f"),
+            *(fmt(c.get(k)) for k in ("heldout_db_rms_after", "score")),
+        ]
+        for c in cands
+    ]
+    return table(list(CANDIDATE_HEADER), rows, left=(0, 1, 2))
 
 
 def fleet_section(fleet: Any) -> str:
@@ -195,8 +183,7 @@ def fleet_section(fleet: Any) -> str:
         out.append("<h3>Parameters over the fleet</h3>")
         rows = []
         for p in params:
-            rel = _num(p.get("robust_rel_spread"))
-            spread = "—" if rel is None else f"{100 * rel:.3g} %"
+            spread = _percent(_value(p, "robust_rel_spread"), ".3g")
             row = [esc(p.get("name", "?")), fmt(p.get("n")), fmt(p.get("median")), spread]
             rows.append([*row, fmt(p.get("min")), fmt(p.get("max"))])
         head = ["parameter", "machines", "median", "robust spread", "min", "max"]

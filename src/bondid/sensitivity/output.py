@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from ..atomic import write_text_atomic
+from ..jsonsafe import json_safe
 from .identifiability import Identifiability
 from .local import LocalSensitivity
 from .sweep import SweepResult
@@ -28,22 +29,6 @@ PNG_NAMES = {
 }
 #: Normalised sensitivities below this are drawn as this value on the log colour scale.
 MAP_FLOOR = 1e-3
-
-
-def _num(x: Any) -> Any:
-    """Arrays → nested lists; non-finite floats → None."""
-    if isinstance(x, np.ndarray):
-        return [_num(v) for v in x.tolist()] if x.ndim else _num(x.item())
-    if isinstance(x, list | tuple):
-        return [_num(v) for v in x]
-    if isinstance(x, dict):
-        return {k: _num(v) for k, v in x.items()}
-    if isinstance(x, float | np.floating):
-        v = float(x)
-        return v if np.isfinite(v) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    return x
 
 
 def _feature(f: Any) -> dict[str, Any]:
@@ -157,7 +142,7 @@ def result_dict(
             "wall_s": sweep.wall_s,
             "workers": sweep.workers,
         }
-    return _num(out)
+    return json_safe(out)
 
 
 def write_json(path: str | os.PathLike[str], content: dict[str, Any]) -> Path:
