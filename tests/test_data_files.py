@@ -163,6 +163,87 @@ def test_foreign_uff_needs_a_channel_map(tmp_path: Path) -> None:
     assert np.array_equal(r.channel("z.z"), (1 + 2j) * f)
 
 
+def _foreign_record(node: int, **fields: object) -> dict[str, object]:
+    """A type-58 FRF record (mobility, 5 points) from node 1 to ``node``, as vendors write."""
+    f = np.linspace(10.0, 100.0, 5)
+    rec: dict[str, object] = {
+        "type": 58, "binary": 1, "func_type": 4, "rsp_node": node, "rsp_dir": 1,
+        "ref_node": 1, "ref_dir": 1, "x": f, "data": (1 + 2j) * f,
+        "ordinate_spec_data_type": 11, "orddenom_spec_data_type": 13, "abscissa_spacing": 0,
+    }  # fmt: skip
+    rec.update(fields)
+    return rec
+
+
+def _write_foreign(path: Path, records: list[dict[str, object]]) -> Path:
+    import pyuff
+
+    pyuff.UFF(str(path)).write_sets(records, mode="add")
+    return path
+
+
+FOREIGN_MAP = {"a": (1, 1), "b": (2, 1)}
+
+
+def test_foreign_uff_mixed_quantities_are_converted_to_the_first(tmp_path: Path) -> None:
+    f = np.linspace(10.0, 100.0, 5)
+    acc = _foreign_record(2, ordinate_spec_data_type=12, data=(3 - 1j) * f)  # accelerance
+    path = _write_foreign(tmp_path / "mix.uff", [_foreign_record(1), acc])
+    r = read_uff58(path, channel_map=FOREIGN_MAP)
+    assert r.quantity == "mobility" and r.outputs == ("a", "b") and r.inputs == ("a",)
+    # mobility = accelerance / (j omega)
+    expected = (3 - 1j) * f / (2j * np.pi * f)
+    np.testing.assert_allclose(r.channel("b.a"), expected, rtol=1e-15, atol=0)
+
+
+def test_uff_nan_points_raise_or_are_dropped() -> None:
+    # pyuff writes NaN as 0, so the rule is checked on arrays as read from a file
+    from bondid.data.uff_format import _drop_nan_points
+
+    f = np.linspace(10.0, 100.0, 5)
+    H = np.full((2, 1, 5), np.nan + 0j)  # channel b.a absent (NaN everywhere)
+    H[0, 0] = (1 + 2j) * f
+    H[0, 0, 2] = np.nan
+    C = np.full(H.shape, 0.5)
+    with pytest.raises(DataError, match=r"m\.uff: NaN at point 3 \(55 Hz\).*--drop-nan"):
+        _drop_nan_points(Path("m.uff"), f, H, C, False)
+    freq, H2, C2 = _drop_nan_points(Path("m.uff"), f, H, C, True)
+    keep = [0, 1, 3, 4]
+    assert np.array_equal(freq, f[keep]) and np.array_equal(H2[0, 0], (1 + 2j) * f[keep])
+    assert C2 is not None and C2.shape == (2, 1, 4) and np.isnan(H2[1, 0]).all()
+    H[0, 0] = np.nan
+    H[0, 0, 0] = 1.0
+    H[1, 0, 1:] = 1.0
+    with pytest.raises(DataError, match="every frequency holds a NaN"):
+        _drop_nan_points(Path("m.uff"), f, H, None, True)
+
+
+@pytest.mark.parametrize(
+    ("second", "error", "pattern"),
+    [
+        ({}, ChannelError, r"record 2: channel a\.a already given by record 1"),
+        ({"rsp_node": 2, "x": np.linspace(10.0, 101.0, 5)}, DataError, "record 2: frequency grid"),
+        ({"rsp_node": 2, "ordinate_spec_data_type": 1}, DataError, "record 2: ordinate data"),
+        (
+            {"func_type": 6, "data": np.array([0.5, 0.9, 1.2, 0.3, 0.1])},
+            DataError,
+            r"record 2: point 3: coherence 1\.2 outside 0\.\.1",
+        ),
+        (
+            {"rsp_node": 2, "func_type": 6, "data": np.full(5, 0.5)},
+            DataError,
+            r"coherence without FRF for channels b\.a",
+        ),
+    ],
+)
+def test_bad_foreign_uff_records(
+    tmp_path: Path, second: dict[str, object], error: type, pattern: str
+) -> None:
+    path = _write_foreign(tmp_path / "bad.uff", [_foreign_record(1), _foreign_record(1, **second)])
+    with pytest.raises(error, match=pattern):
+        read_uff58(path, channel_map=FOREIGN_MAP)
+
+
 def test_quantity_conversion_round_trip(tmp_path: Path) -> None:
     d = _sample("receptance")
     mob = d.to_quantity("mobility")

@@ -16,7 +16,7 @@ back without a channel map. Values are taken to be in SI units.
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -25,27 +25,26 @@ import numpy as np
 
 from ..atomic import atomic_path
 from ..exceptions import ChannelError, DataError, DependencyError, ModelError
-from ..frf.quantity import QUANTITIES, convert_quantity
 from ._common import (
     FORMAT_VERSION,
-    check_frequencies,
     check_joint_name,
     format_operating_point,
     parse_operating_point,
     written_channels,
 )
 from .measurement import FrfData
-
-FUNC_FRF = 4
-FUNC_COHERENCE = 6
-_SPEC_OF_QUANTITY = {"receptance": 8, "mobility": 11, "accelerance": 12}
-_QUANTITY_OF_SPEC = {v: k for k, v in _SPEC_OF_QUANTITY.items()}
-_SPEC_FORCE = 13
-_SPEC_FREQUENCY = 18
-_OP_PREFIX = "operating_point:"
-_ID_WIDTH = 80
-
-ChannelMap = Mapping[str, tuple[int, int]]
+from .uff_records import (
+    FUNC_COHERENCE,
+    FUNC_FRF,
+    ID_WIDTH,
+    OP_PREFIX,
+    SPEC_FORCE,
+    SPEC_FREQUENCY,
+    SPEC_OF_QUANTITY,
+    ChannelMap,
+    RecordSet,
+    check_map,
+)
 
 
 def _pyuff() -> ModuleType:
@@ -97,42 +96,15 @@ def default_channel_map(
     return out
 
 
-def _check_map(channel_map: ChannelMap, where: str) -> dict[str, tuple[int, int]]:
-    cmap: dict[str, tuple[int, int]] = {}
-    seen: dict[tuple[int, int], str] = {}
-    for name, value in channel_map.items():
-        check_joint_name(name, f"{where}: channel map")
-        try:
-            node, direction = (int(v) for v in value)
-        except (TypeError, ValueError):
-            raise ChannelError(
-                f"{where}: channel map entry {name}={value!r}; expected (node, direction) integers"
-            ) from None
-        if node < 0 or not -6 <= direction <= 6:
-            raise ChannelError(
-                f"{where}: channel map entry {name}=({node}, {direction}); node must be >= 0 "
-                f"and direction in -6..6"
-            )
-        key = (node, abs(direction))
-        if key in seen:
-            raise ChannelError(
-                f"{where}: channel map gives {seen[key]!r} and {name!r} the same node {node} "
-                f"and axis {abs(direction)}; give each joint its own"
-            )
-        seen[key] = name
-        cmap[name] = (node, direction)
-    return cmap
-
-
 def _op_lines(data: FrfData, where: str) -> list[str]:
     """``operating_point: ...`` ID lines (at most three of 80 characters)."""
-    lines = [_OP_PREFIX]
+    lines = [OP_PREFIX]
     for token in format_operating_point(data.operating_point, where):
-        if len(lines[-1]) + 1 + len(token) <= _ID_WIDTH:
+        if len(lines[-1]) + 1 + len(token) <= ID_WIDTH:
             lines[-1] += " " + token
         else:
-            lines.append(f"{_OP_PREFIX} {token}")
-    if len(lines) > 3 or any(len(s) > _ID_WIDTH for s in lines):
+            lines.append(f"{OP_PREFIX} {token}")
+    if len(lines) > 3 or any(len(s) > ID_WIDTH for s in lines):
         raise DataError(
             f"{where}: the operating point does not fit in UFF ID lines 3-5 (3 x 80 characters); "
             f"write CSV instead"
@@ -163,20 +135,8 @@ def write_uff58(
     """
     where = str(path)
     chans = written_channels(data, where)
-    joints = list(dict.fromkeys((*data.outputs, *data.inputs)))
-    if channel_map is None:
-        cmap = {j: (k + 1, 0) for k, j in enumerate(joints)}
-    else:
-        cmap = _check_map(channel_map, where)
-        used = {data.outputs[a] for a, _, _ in chans} | {data.inputs[b] for _, b, _ in chans}
-        missing = [j for j in joints if j in used and j not in cmap]
-        if missing:
-            raise ChannelError(
-                f"{where}: channel map lacks joints {', '.join(missing)}; "
-                f"it maps {', '.join(cmap) or 'nothing'}"
-            )
+    cmap = _write_map(data, chans, channel_map, where)
     op = _op_lines(data, where)
-    freq = np.asarray(data.freq_hz, dtype=float)
     common: dict[str, Any] = {
         "type": 58,
         "binary": int(binary),
@@ -184,43 +144,16 @@ def write_uff58(
         "id4": op[1],
         "id5": op[2],
         "abscissa_spacing": 0,
-        "abscissa_spec_data_type": _SPEC_FREQUENCY,
+        "abscissa_spec_data_type": SPEC_FREQUENCY,
         "abscissa_axis_units_lab": "Hz",
-        "x": freq,
+        "x": np.asarray(data.freq_hz, dtype=float),
     }
-    dsets: list[dict[str, Any]] = []
-    for with_coh in (False, True):
-        for a, b, has_coh in chans:
-            if with_coh and not has_coh:
-                continue
-            out, inp = data.outputs[a], data.inputs[b]
-            id2 = f"channel: {out}.{inp}"
-            if len(id2) > _ID_WIDTH:
-                raise ChannelError(
-                    f"{where}: channel name {out}.{inp} is too long for a UFF ID line "
-                    f"(max {_ID_WIDTH - 9} characters)"
-                )
-            d = dict(common, id2=id2, ver_num=len(dsets) + 1)
-            d["rsp_node"], d["rsp_dir"] = cmap[out]
-            d["ref_node"], d["ref_dir"] = cmap[inp]
-            if with_coh:
-                assert data.coherence is not None
-                d.update(
-                    id1=f"bondid-frf: {FORMAT_VERSION} coherence",
-                    func_type=FUNC_COHERENCE,
-                    ordinate_spec_data_type=1,
-                    orddenom_spec_data_type=0,
-                    data=np.array(data.coherence[a, b], dtype=float),
-                )
-            else:
-                d.update(
-                    id1=f"bondid-frf: {FORMAT_VERSION} quantity: {data.quantity}",
-                    func_type=FUNC_FRF,
-                    ordinate_spec_data_type=_SPEC_OF_QUANTITY[data.quantity],
-                    orddenom_spec_data_type=_SPEC_FORCE,
-                    data=np.array(data.H[a, b], dtype=complex),
-                )
-            dsets.append(d)
+    # every FRF record first, then the coherence records of the channels that have one
+    records = [(a, b, False) for a, b, _ in chans] + [(a, b, True) for a, b, c in chans if c]
+    dsets = [
+        _record(data, a, b, coherence, cmap, where, dict(common, ver_num=k + 1))
+        for k, (a, b, coherence) in enumerate(records)
+    ]
     pyuff = _pyuff()
     with atomic_path(path) as tmp:
         # mode "add" on the fresh empty file: pyuff's "overwrite" truncates binary records.
@@ -228,58 +161,66 @@ def write_uff58(
     return Path(path)
 
 
-def _bondid_ids(rec: dict[str, Any]) -> tuple[str | None, str | None, list[str]]:
-    """``(quantity or "coherence" or None, "OUT.IN" or None, operating-point lines)``."""
-    id1 = str(rec.get("id1", "")).split()
-    kind = None
-    if len(id1) >= 2 and id1[0] == "bondid-frf:":
-        if len(id1) >= 4 and id1[2] == "quantity:":
-            kind = id1[3]
-        elif len(id1) >= 3 and id1[2] == "coherence":
-            kind = "coherence"
-    id2 = str(rec.get("id2", ""))
-    chan = id2[len("channel:") :].strip() if id2.startswith("channel:") else None
-    ops = [
-        str(rec.get(k, ""))[len(_OP_PREFIX) :]
-        for k in ("id3", "id4", "id5")
-        if str(rec.get(k, "")).startswith(_OP_PREFIX)
-    ]
-    return kind, chan, ops
-
-
-def _name_channel(
-    rec: dict[str, Any], where: str, inverse: dict[tuple[int, int], str] | None
-) -> tuple[str, str, float, int, int]:
-    """``(out, in, sign, out_node, in_node)`` of a record, via the channel map or ID lines."""
-    rn, rd = int(rec["rsp_node"]), int(rec["rsp_dir"])
-    fn, fd = int(rec["ref_node"]), int(rec["ref_dir"])
-    if inverse is not None:
-        names, sign = [], 1.0
-        for role, node, d in (("response", rn, rd), ("reference", fn, fd)):
-            if (node, d) in inverse:
-                names.append(inverse[(node, d)])
-            elif (node, -d) in inverse:
-                names.append(inverse[(node, -d)])
-                sign = -sign
-            else:
-                valid = ", ".join(f"{j}=({n}, {dd})" for (n, dd), j in inverse.items())
-                raise ChannelError(
-                    f"{where}: {role} node {node} direction {d} is not in the channel map; "
-                    f"valid: {valid}"
-                )
-        return names[0], names[1], sign, rn, fn
-    _, chan, _ = _bondid_ids(rec)
-    if chan is None:
-        raise DataError(
-            f"{where} has no bondid channel name (ID line 2 'channel: OUT.IN'); "
-            f"pass channel_map={{joint: (node, direction)}} to name its channels"
+def _write_map(
+    data: FrfData,
+    chans: list[tuple[int, int, bool]],
+    channel_map: ChannelMap | None,
+    where: str,
+) -> dict[str, tuple[int, int]]:
+    """The checked channel map for writing (default: node k = k-th joint, direction 0)."""
+    joints = list(dict.fromkeys((*data.outputs, *data.inputs)))
+    if channel_map is None:
+        return {j: (k + 1, 0) for k, j in enumerate(joints)}
+    cmap = check_map(channel_map, where)
+    used = {data.outputs[a] for a, _, _ in chans} | {data.inputs[b] for _, b, _ in chans}
+    missing = [j for j in joints if j in used and j not in cmap]
+    if missing:
+        raise ChannelError(
+            f"{where}: channel map lacks joints {', '.join(missing)}; "
+            f"it maps {', '.join(cmap) or 'nothing'}"
         )
-    out, dot, inp = chan.partition(".")
-    if not dot:
-        raise ChannelError(f"{where}: ID line 2 channel {chan!r} is not OUT.IN")
-    check_joint_name(out, where)
-    check_joint_name(inp, where)
-    return out, inp, 1.0, rn, fn
+    return cmap
+
+
+def _record(
+    data: FrfData,
+    a: int,
+    b: int,
+    coherence: bool,
+    cmap: dict[str, tuple[int, int]],
+    where: str,
+    d: dict[str, Any],
+) -> dict[str, Any]:
+    """Complete ``d`` (the fields all records share) into channel ``(a, b)``'s FRF record,
+    or its coherence record when ``coherence``."""
+    out, inp = data.outputs[a], data.inputs[b]
+    id2 = f"channel: {out}.{inp}"
+    if len(id2) > ID_WIDTH:
+        raise ChannelError(
+            f"{where}: channel name {out}.{inp} is too long for a UFF ID line "
+            f"(max {ID_WIDTH - 9} characters)"
+        )
+    d["id2"] = id2
+    d["rsp_node"], d["rsp_dir"] = cmap[out]
+    d["ref_node"], d["ref_dir"] = cmap[inp]
+    if coherence:
+        assert data.coherence is not None
+        d.update(
+            id1=f"bondid-frf: {FORMAT_VERSION} coherence",
+            func_type=FUNC_COHERENCE,
+            ordinate_spec_data_type=1,
+            orddenom_spec_data_type=0,
+            data=np.array(data.coherence[a, b], dtype=float),
+        )
+    else:
+        d.update(
+            id1=f"bondid-frf: {FORMAT_VERSION} quantity: {data.quantity}",
+            func_type=FUNC_FRF,
+            ordinate_spec_data_type=SPEC_OF_QUANTITY[data.quantity],
+            orddenom_spec_data_type=SPEC_FORCE,
+            data=np.array(data.H[a, b], dtype=complex),
+        )
+    return d
 
 
 def read_uff58(
@@ -307,6 +248,24 @@ def read_uff58(
         ChannelError: a record's node/direction is not in ``channel_map``, duplicate channels.
     """
     p = Path(path)
+    uff, types = _open(p)
+    inverse = None
+    if channel_map is not None:
+        inverse = {v: k for k, v in check_map(channel_map, str(p)).items()}
+    found = RecordSet()
+    for k, t in enumerate(types):
+        if t == 58:
+            found.add(_read_record(uff, k, p), f"{p}: record {k + 1}", k + 1, inverse)
+    if found.freq is None or found.quantity is None:
+        raise DataError(f"{p}: no type-58 FRF records (function type 4); nothing to read")
+    op = parse_operating_point(" ".join(found.op_text or []), f"{p}: ID lines 3-5")
+    outputs, inputs, H, C = found.arrays(p)
+    freq, H, C = _drop_nan_points(p, found.freq, H, C, drop_nan)
+    return FrfData(freq, tuple(outputs), tuple(inputs), H, found.quantity, op, C, str(p))
+
+
+def _open(p: Path) -> tuple[Any, list[int]]:
+    """The pyuff reader of file ``p`` and the type of each of its data sets."""
     if not p.is_file():
         raise DataError(f"{p}: no such file; check the path")
     if p.stat().st_size == 0:
@@ -317,112 +276,33 @@ def read_uff58(
         types = [int(t) for t in uff.get_set_types()]
     except Exception as exc:
         raise DataError(f"{p}: not a readable UFF file ({exc})") from None
-    inverse = None
-    if channel_map is not None:
-        inverse = {v: k for k, v in _check_map(channel_map, str(p)).items()}
+    return uff, types
 
-    frf: dict[tuple[str, str], np.ndarray] = {}
-    coh: dict[tuple[str, str], np.ndarray] = {}
-    origin: dict[tuple[str, str, bool], int] = {}
-    nodes: dict[str, int] = {}
-    quantity: str | None = None
-    op_text: list[str] | None = None
-    freq: np.ndarray | None = None
-    first = 0
-    for k, t in enumerate(types):
-        if t != 58:
-            continue
-        where = f"{p}: record {k + 1}"
-        try:
-            rec = uff.read_sets(k)
-        except Exception as exc:
-            raise DataError(f"{where}: cannot read the type-58 record ({exc})") from None
-        func = int(rec.get("func_type", 0))
-        if func not in (FUNC_FRF, FUNC_COHERENCE):
-            continue  # spectra, time data, ... are not FRFs
-        out, inp, sign, on, inn = _name_channel(rec, where, inverse)
-        nodes.setdefault(out, on)
-        nodes.setdefault(inp, inn)
-        key = (out, inp, func == FUNC_COHERENCE)
-        if key in origin:
-            raise ChannelError(
-                f"{where}: channel {out}.{inp} already given by record {origin[key]}; "
-                f"give each channel once"
-            )
-        origin[key] = k + 1
-        x = np.asarray(rec["x"], dtype=float)
-        if freq is None:
-            freq, first = x, k + 1
-            check_frequencies(freq, where)
-        elif x.shape != freq.shape or not np.array_equal(x, freq):
-            raise DataError(
-                f"{where}: frequency grid differs from record {first}; "
-                f"all records of a file must share one grid"
-            )
-        values = np.asarray(rec["data"])
-        kind, _, ops = _bondid_ids(rec)
-        if func == FUNC_COHERENCE:
-            if np.iscomplexobj(values):
-                raise DataError(f"{where}: coherence record holds complex values; expected real")
-            bad = np.flatnonzero((values < 0) | (values > 1))
-            if bad.size:
-                raise DataError(
-                    f"{where}: point {bad[0] + 1}: coherence {float(values[bad[0]])!r} outside 0..1"
-                )
-            coh[(out, inp)] = values.astype(float)
-            continue
-        if not np.iscomplexobj(values):
-            raise DataError(
-                f"{where}: FRF record holds real values (ordinate data type "
-                f"{rec.get('ord_data_type')}); expected complex (5 or 6)"
-            )
-        spec = int(rec.get("ordinate_spec_data_type", 0))
-        q = kind if kind in QUANTITIES else _QUANTITY_OF_SPEC.get(spec)
-        if q is None:
-            raise DataError(
-                f"{where}: ordinate data type {spec} is not displacement (8), velocity (11) or "
-                f"acceleration (12); cannot tell the quantity"
-            )
-        if quantity is None:
-            quantity = q
-            op_text = ops
-        elif ops != op_text:
-            raise DataError(
-                f"{where}: operating point differs from the first FRF record; "
-                f"one file holds one operating point"
-            )
-        values = sign * values
-        if q != quantity:
-            values = convert_quantity(values, freq, q, quantity)
-        frf[(out, inp)] = values.astype(complex)
 
-    if freq is None or quantity is None:
-        raise DataError(f"{p}: no type-58 FRF records (function type 4); nothing to read")
-    op = parse_operating_point(" ".join(op_text or []), f"{p}: ID lines 3-5")
-    orphans = [f"{o}.{i}" for (o, i) in coh if (o, i) not in frf]
-    if orphans:
-        raise DataError(f"{p}: coherence without FRF for channels {', '.join(orphans)}")
-    outputs = sorted({o for o, _ in frf}, key=lambda j: (nodes[j], j))
-    inputs = sorted({i for _, i in frf}, key=lambda j: (nodes[j], j))
-    H = np.full((len(outputs), len(inputs), freq.size), np.nan + 1j * np.nan)
-    C = np.full(H.shape, np.nan) if coh else None
-    for (o, i), v in frf.items():
-        H[outputs.index(o), inputs.index(i)] = v
-    for (o, i), c in coh.items():
-        assert C is not None
-        C[outputs.index(o), inputs.index(i)] = c
+def _read_record(uff: Any, k: int, p: Path) -> dict[str, Any]:
+    """Data set ``k`` (0-based) of the file, a type-58 record."""
+    try:
+        return dict(uff.read_sets(k))
+    except Exception as exc:
+        raise DataError(f"{p}: record {k + 1}: cannot read the type-58 record ({exc})") from None
+
+
+def _drop_nan_points(
+    p: Path, freq: np.ndarray, H: np.ndarray, C: np.ndarray | None, drop_nan: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Raise at the first frequency where a present channel holds NaN, or drop every such
+    frequency when ``drop_nan``."""
     present = np.isfinite(H).any(axis=2)
     nan = np.isnan(H[present]).any(axis=0)
-    if nan.any():
-        if not drop_nan:
-            j = int(np.flatnonzero(nan)[0])
-            raise DataError(
-                f"{p}: NaN at point {j + 1} ({float(freq[j]):.6g} Hz); give a number, or pass"
-                " --drop-nan (drop_nan=True in Python) to drop that point"
-            )
-        keep = ~nan
-        freq, H = freq[keep], H[:, :, keep]
-        C = None if C is None else C[:, :, keep]
-        if freq.size == 0:
-            raise DataError(f"{p}: every frequency holds a NaN; nothing left after dropping them")
-    return FrfData(freq, tuple(outputs), tuple(inputs), H, quantity, op, C, str(p))
+    if not nan.any():
+        return freq, H, C
+    if not drop_nan:
+        j = int(np.flatnonzero(nan)[0])
+        raise DataError(
+            f"{p}: NaN at point {j + 1} ({float(freq[j]):.6g} Hz); give a number, or pass"
+            " --drop-nan (drop_nan=True in Python) to drop that point"
+        )
+    keep = ~nan
+    if not keep.any():
+        raise DataError(f"{p}: every frequency holds a NaN; nothing left after dropping them")
+    return freq[keep], H[:, :, keep], None if C is None else C[:, :, keep]

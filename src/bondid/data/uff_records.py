@@ -1,0 +1,228 @@
+"""The UFF type-58 record layout bondid writes, and the reading of records into channels.
+
+Codes are those of UFF data set 58: function types (FRF 4, coherence 6) and the ordinate
+specific data types of the quantities (displacement 8, velocity 11, acceleration 12 over force
+13); frequency is abscissa type 18. The file-level reader and writer are in
+:mod:`bondid.data.uff_format`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..exceptions import ChannelError, DataError
+from ..frf.quantity import QUANTITIES, convert_quantity
+from ._common import check_frequencies, check_joint_name
+
+#: UFF 58 function types
+FUNC_FRF = 4
+FUNC_COHERENCE = 6
+#: ordinate specific data type of each quantity's numerator (displacement, velocity, acceleration)
+SPEC_OF_QUANTITY = {"receptance": 8, "mobility": 11, "accelerance": 12}
+QUANTITY_OF_SPEC = {v: k for k, v in SPEC_OF_QUANTITY.items()}
+SPEC_FORCE = 13  # the FRF's denominator: force
+SPEC_FREQUENCY = 18  # the abscissa: frequency
+OP_PREFIX = "operating_point:"  # starts the ID lines 3-5 that bondid writes
+ID_WIDTH = 80  # characters of one ID line
+
+ChannelMap = Mapping[str, tuple[int, int]]
+
+
+def check_map(channel_map: ChannelMap, where: str) -> dict[str, tuple[int, int]]:
+    """``channel_map`` with integer entries, checked: valid names, directions in -6..6, and
+    no two joints on the same node and axis."""
+    cmap: dict[str, tuple[int, int]] = {}
+    seen: dict[tuple[int, int], str] = {}
+    for name, value in channel_map.items():
+        check_joint_name(name, f"{where}: channel map")
+        try:
+            node, direction = (int(v) for v in value)
+        except (TypeError, ValueError):
+            raise ChannelError(
+                f"{where}: channel map entry {name}={value!r}; expected (node, direction) integers"
+            ) from None
+        if node < 0 or not -6 <= direction <= 6:
+            raise ChannelError(
+                f"{where}: channel map entry {name}=({node}, {direction}); node must be >= 0 "
+                f"and direction in -6..6"
+            )
+        key = (node, abs(direction))
+        if key in seen:
+            raise ChannelError(
+                f"{where}: channel map gives {seen[key]!r} and {name!r} the same node {node} "
+                f"and axis {abs(direction)}; give each joint its own"
+            )
+        seen[key] = name
+        cmap[name] = (node, direction)
+    return cmap
+
+
+def bondid_ids(rec: dict[str, Any]) -> tuple[str | None, str | None, list[str]]:
+    """``(quantity or "coherence" or None, "OUT.IN" or None, operating-point lines)``."""
+    id1 = str(rec.get("id1", "")).split()
+    kind = None
+    if len(id1) >= 2 and id1[0] == "bondid-frf:":
+        if len(id1) >= 4 and id1[2] == "quantity:":
+            kind = id1[3]
+        elif len(id1) >= 3 and id1[2] == "coherence":
+            kind = "coherence"
+    id2 = str(rec.get("id2", ""))
+    chan = id2[len("channel:") :].strip() if id2.startswith("channel:") else None
+    ops = [
+        str(rec.get(k, ""))[len(OP_PREFIX) :]
+        for k in ("id3", "id4", "id5")
+        if str(rec.get(k, "")).startswith(OP_PREFIX)
+    ]
+    return kind, chan, ops
+
+
+def name_channel(
+    rec: dict[str, Any], where: str, inverse: dict[tuple[int, int], str] | None
+) -> tuple[str, str, float, int, int]:
+    """``(out, in, sign, out_node, in_node)`` of a record, via the channel map or ID lines."""
+    rn, rd = int(rec["rsp_node"]), int(rec["rsp_dir"])
+    fn, fd = int(rec["ref_node"]), int(rec["ref_dir"])
+    if inverse is not None:
+        names, sign = [], 1.0
+        for role, node, d in (("response", rn, rd), ("reference", fn, fd)):
+            if (node, d) in inverse:
+                names.append(inverse[(node, d)])
+            elif (node, -d) in inverse:
+                names.append(inverse[(node, -d)])
+                sign = -sign
+            else:
+                valid = ", ".join(f"{j}=({n}, {dd})" for (n, dd), j in inverse.items())
+                raise ChannelError(
+                    f"{where}: {role} node {node} direction {d} is not in the channel map; "
+                    f"valid: {valid}"
+                )
+        return names[0], names[1], sign, rn, fn
+    _, chan, _ = bondid_ids(rec)
+    if chan is None:
+        raise DataError(
+            f"{where} has no bondid channel name (ID line 2 'channel: OUT.IN'); "
+            f"pass channel_map={{joint: (node, direction)}} to name its channels"
+        )
+    out, dot, inp = chan.partition(".")
+    if not dot:
+        raise ChannelError(f"{where}: ID line 2 channel {chan!r} is not OUT.IN")
+    check_joint_name(out, where)
+    check_joint_name(inp, where)
+    return out, inp, 1.0, rn, fn
+
+
+@dataclass
+class RecordSet:
+    """The FRF and coherence records of one file, checked against each other as they come."""
+
+    frf: dict[tuple[str, str], np.ndarray] = field(default_factory=dict)
+    coh: dict[tuple[str, str], np.ndarray] = field(default_factory=dict)
+    origin: dict[tuple[str, str, bool], int] = field(default_factory=dict)
+    nodes: dict[str, int] = field(default_factory=dict)
+    quantity: str | None = None
+    op_text: list[str] | None = None
+    freq: np.ndarray | None = None
+    first: int = 0
+
+    def add(
+        self,
+        rec: dict[str, Any],
+        where: str,
+        number: int,
+        inverse: dict[tuple[int, int], str] | None,
+    ) -> None:
+        """Take record ``number`` (1-based) if it is an FRF or coherence; skip other functions."""
+        func = int(rec.get("func_type", 0))
+        if func not in (FUNC_FRF, FUNC_COHERENCE):
+            return  # spectra, time data, ... are not FRFs
+        out, inp, sign, on, inn = name_channel(rec, where, inverse)
+        self.nodes.setdefault(out, on)
+        self.nodes.setdefault(inp, inn)
+        key = (out, inp, func == FUNC_COHERENCE)
+        if key in self.origin:
+            raise ChannelError(
+                f"{where}: channel {out}.{inp} already given by record {self.origin[key]}; "
+                f"give each channel once"
+            )
+        self.origin[key] = number
+        freq = self._grid(np.asarray(rec["x"], dtype=float), where, number)
+        values = np.asarray(rec["data"])
+        if func == FUNC_COHERENCE:
+            self.coh[(out, inp)] = _coherence_values(values, where)
+        else:
+            self.frf[(out, inp)] = self._frf_values(rec, sign * values, freq, where)
+
+    def _grid(self, x: np.ndarray, where: str, number: int) -> np.ndarray:
+        """The file's frequency grid (Hz): the first record's; later records must repeat it."""
+        if self.freq is None:
+            self.freq, self.first = x, number
+            check_frequencies(x, where)
+        elif x.shape != self.freq.shape or not np.array_equal(x, self.freq):
+            raise DataError(
+                f"{where}: frequency grid differs from record {self.first}; "
+                f"all records of a file must share one grid"
+            )
+        return self.freq
+
+    def _frf_values(
+        self, rec: dict[str, Any], values: np.ndarray, freq: np.ndarray, where: str
+    ) -> np.ndarray:
+        """An FRF record's values in the file's quantity (that of its first FRF record)."""
+        if not np.iscomplexobj(values):
+            raise DataError(
+                f"{where}: FRF record holds real values (ordinate data type "
+                f"{rec.get('ord_data_type')}); expected complex (5 or 6)"
+            )
+        kind, _, ops = bondid_ids(rec)
+        spec = int(rec.get("ordinate_spec_data_type", 0))
+        q = kind if kind in QUANTITIES else QUANTITY_OF_SPEC.get(spec)
+        if q is None:
+            raise DataError(
+                f"{where}: ordinate data type {spec} is not displacement (8), velocity (11) or "
+                f"acceleration (12); cannot tell the quantity"
+            )
+        if self.quantity is None:
+            self.quantity, self.op_text = q, ops
+        elif ops != self.op_text:
+            raise DataError(
+                f"{where}: operating point differs from the first FRF record; "
+                f"one file holds one operating point"
+            )
+        if q != self.quantity:
+            values = convert_quantity(values, freq, q, self.quantity)
+        return values.astype(complex)
+
+    def arrays(self, p: Path) -> tuple[list[str], list[str], np.ndarray, np.ndarray | None]:
+        """``(outputs, inputs, H, coherence)``: joints by node number, arrays
+        ``(n_out, n_in, n_freq)`` with NaN for absent channels (coherence None if none)."""
+        assert self.freq is not None
+        orphans = [f"{o}.{i}" for (o, i) in self.coh if (o, i) not in self.frf]
+        if orphans:
+            raise DataError(f"{p}: coherence without FRF for channels {', '.join(orphans)}")
+        outputs = sorted({o for o, _ in self.frf}, key=lambda j: (self.nodes[j], j))
+        inputs = sorted({i for _, i in self.frf}, key=lambda j: (self.nodes[j], j))
+        H = np.full((len(outputs), len(inputs), self.freq.size), np.nan + 1j * np.nan)
+        C = np.full(H.shape, np.nan) if self.coh else None
+        for (o, i), v in self.frf.items():
+            H[outputs.index(o), inputs.index(i)] = v
+        for (o, i), c in self.coh.items():
+            assert C is not None
+            C[outputs.index(o), inputs.index(i)] = c
+        return outputs, inputs, H, C
+
+
+def _coherence_values(values: np.ndarray, where: str) -> np.ndarray:
+    """A coherence record's values, checked real and within 0..1."""
+    if np.iscomplexobj(values):
+        raise DataError(f"{where}: coherence record holds complex values; expected real")
+    bad = np.flatnonzero((values < 0) | (values > 1))
+    if bad.size:
+        raise DataError(
+            f"{where}: point {bad[0] + 1}: coherence {float(values[bad[0]])!r} outside 0..1"
+        )
+    return values.astype(float)
