@@ -195,49 +195,77 @@ def read_csv(path: str | os.PathLike[str], *, drop_nan: bool = False) -> FrfData
     p = Path(path)
     lines = _decode(p).splitlines()
     meta, h = _read_metadata(p, lines)
+    quantity, op = _file_metadata(p, meta)
+    parsed = list(csv.reader(lines[h:]))
+    header = [c.strip() for c in parsed[0]]
+    columns, used_out, used_in = _parse_header(p, header, h + 1)
+    outputs = _joint_order(p, meta, "outputs", used_out)
+    inputs = _joint_order(p, meta, "inputs", used_in)
+    rows, linenos = _data_rows(p, parsed[1:], h + 2)
+    values = _parse_rows(p, rows, linenos, header)
+    values, linenos = _finite_rows(p, values, linenos, header, drop_nan)
+    freq = values[:, 0].copy()
+    check_frequencies(freq, str(p), [f"line {n}" for n in linenos])
+    H, coh = _channel_arrays(p, values, columns, (outputs, inputs), linenos, header)
+    if "quantities" in meta:
+        _convert_outputs(p, meta["quantities"], outputs, quantity, freq, H)
+    return FrfData(freq, tuple(outputs), tuple(inputs), H, quantity, op, coh, str(p))
+
+
+def _file_metadata(path: Path, meta: dict[str, tuple[str, int]]) -> tuple[str, dict[str, float]]:
+    """The file's quantity and operating point, after checking its format version."""
     if "bondid-frf" not in meta:
-        raise DataError(f"{p}: missing '# bondid-frf: {FORMAT_VERSION}' line before the header row")
+        raise DataError(
+            f"{path}: missing '# bondid-frf: {FORMAT_VERSION}' line before the header row"
+        )
     version, vline = meta["bondid-frf"]
     if version != FORMAT_VERSION:
         raise DataError(
-            f"{p}: line {vline}: unsupported format version {version!r}; valid: {FORMAT_VERSION}"
+            f"{path}: line {vline}: unsupported format version {version!r}; valid: {FORMAT_VERSION}"
         )
     quantity = "receptance"
     if "quantity" in meta:
         quantity, qline = meta["quantity"]
         if quantity not in QUANTITIES:
             raise DataError(
-                f"{p}: line {qline}: unknown quantity {quantity!r}; valid: {', '.join(QUANTITIES)}"
+                f"{path}: line {qline}: unknown quantity {quantity!r}; "
+                f"valid: {', '.join(QUANTITIES)}"
             )
     op: dict[str, float] = {}
     if "operating_point" in meta:
         text, oline = meta["operating_point"]
-        op = parse_operating_point(text, f"{p}: line {oline}")
+        op = parse_operating_point(text, f"{path}: line {oline}")
+    return quantity, op
 
-    parsed = list(csv.reader(lines[h:]))
-    header = [c.strip() for c in parsed[0]]
-    columns, used_out, used_in = _parse_header(p, header, h + 1)
-    outputs = _joint_order(p, meta, "outputs", used_out)
-    inputs = _joint_order(p, meta, "inputs", used_in)
+
+def _data_rows(
+    path: Path, parsed: list[list[str]], first_lineno: int
+) -> tuple[list[list[str]], list[int]]:
+    """The non-blank rows after the header and their line numbers (1-based)."""
     rows, linenos = [], []
-    for k, cells in enumerate(parsed[1:], start=h + 2):
+    for k, cells in enumerate(parsed, start=first_lineno):
         if cells and any(c.strip() for c in cells):
             rows.append(cells)
             linenos.append(k)
     if not rows:
-        raise DataError(f"{p}: no data rows after the header; expected one row per frequency")
-    values = _parse_rows(p, rows, linenos, header)
+        raise DataError(f"{path}: no data rows after the header; expected one row per frequency")
+    return rows, linenos
 
+
+def _finite_rows(
+    path: Path, values: np.ndarray, linenos: list[int], header: list[str], drop_nan: bool
+) -> tuple[np.ndarray, list[int]]:
+    """The rows without NaN (dropped if ``drop_nan``, else an error); infinities are errors."""
     nan = np.isnan(values)
     if drop_nan:
         keep = ~nan.any(axis=1)
         values, linenos = values[keep], [n for n, kp in zip(linenos, keep, strict=True) if kp]
         if not linenos:
-            raise DataError(f"{p}: every data row holds a NaN; nothing left after dropping them")
+            raise DataError(f"{path}: every data row holds a NaN; nothing left after dropping them")
     elif nan.any():
         k, j = np.argwhere(nan)[0]
         raise DataError(
-            f"{p}: line {linenos[k]} (data row {k + 1}), column {header[j]!r}: NaN or empty "
+            f"{path}: line {linenos[k]} (data row {k + 1}), column {header[j]!r}: NaN or empty "
             f"value; give a number, or pass --drop-nan (drop_nan=True in Python) to drop the"
             " rows that hold one"
         )
@@ -245,14 +273,24 @@ def read_csv(path: str | os.PathLike[str], *, drop_nan: bool = False) -> FrfData
     if inf.any():
         k, j = np.argwhere(inf)[0]
         raise DataError(
-            f"{p}: line {linenos[k]}, column {header[j]!r}: infinite value; "
+            f"{path}: line {linenos[k]}, column {header[j]!r}: infinite value; "
             f"expected a finite number"
         )
-    freq = values[:, 0].copy()
-    check_frequencies(freq, str(p), [f"line {n}" for n in linenos])
+    return values, linenos
 
-    n_f = freq.size
-    H = np.full((len(outputs), len(inputs), n_f), np.nan + 1j * np.nan)
+
+def _channel_arrays(
+    path: Path,
+    values: np.ndarray,
+    columns: list[tuple[str, str, str]],
+    joints: tuple[list[str], list[str]],
+    linenos: list[int],
+    header: list[str],
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """``H`` and coherence ``(n_out, n_in, n_freq)`` from the columns (NaN where absent;
+    coherence None when the file has none), coherence checked within 0..1."""
+    outputs, inputs = joints
+    H = np.full((len(outputs), len(inputs), values.shape[0]), np.nan + 1j * np.nan)
     has_coh = any(s == "coh" for _, _, s in columns)
     coh = np.full(H.shape, np.nan) if has_coh else None
     for j, (out, inp, suffix) in enumerate(columns, start=1):
@@ -267,14 +305,12 @@ def read_csv(path: str | os.PathLike[str], *, drop_nan: bool = False) -> FrfData
             if bad.size:
                 k = int(bad[0])
                 raise DataError(
-                    f"{p}: line {linenos[k]}, column {header[j]!r}: coherence {col[k]!r} "
+                    f"{path}: line {linenos[k]}, column {header[j]!r}: coherence {col[k]!r} "
                     f"outside 0..1"
                 )
             assert coh is not None
             coh[a, b] = col
-    if "quantities" in meta:
-        _convert_outputs(p, meta["quantities"], outputs, quantity, freq, H)
-    return FrfData(freq, tuple(outputs), tuple(inputs), H, quantity, op, coh, str(p))
+    return H, coh
 
 
 def _convert_outputs(
