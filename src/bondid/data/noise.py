@@ -94,6 +94,45 @@ def add_measurement_noise(
         equals ``H`` and the coherence is 1.
     """
     H, freq = frf_arrays(H, freq_hz, "add_measurement_noise")
+    fq = _check_options(rel, floor_db, floor_ref, quantity, floor_quantity)
+    gen = np.random.default_rng(rng)
+    absent = np.isnan(H)
+    if rel == 0 and (floor_db is None or floor_db == -math.inf):
+        return H.copy(), np.where(absent, np.nan, 1.0)
+    mag = np.where(absent, 0.0, np.abs(H))
+    sigma = _floor_sigma(mag, freq, floor_db, floor_ref, (quantity, fq))
+    e1 = _complex_normal(gen, H.shape)
+    e2 = _complex_normal(gen, H.shape)
+    H_noisy = H * (1.0 + rel * e1) + sigma * e2
+    H_noisy[absent] = np.nan + 1j * np.nan
+    coherence = snr_coherence(mag**2, rel, sigma)
+    coherence[absent] = np.nan
+    return H_noisy, coherence
+
+
+def _floor_sigma(
+    mag: np.ndarray,
+    freq: np.ndarray,
+    floor_db: float | None,
+    floor_ref: str,
+    quantities: tuple[str, str],
+) -> np.ndarray:
+    """The floor's standard deviation, broadcastable to ``mag`` ``(n_out, n_in, n_freq)``:
+    ``floor_db`` below the reference level taken in the floor's quantity (zero: no floor).
+
+    ``quantities`` is ``(quantity of mag, quantity in which the floor is flat)``.
+    """
+    if floor_db is None or floor_db == -math.inf:
+        return np.zeros((*mag.shape[:2], 1))
+    quantity, fq = quantities
+    gain = np.abs(quantity_factor(freq, fq) / quantity_factor(freq, quantity))
+    return _floor_level(mag * gain, freq, floor_ref) * 10.0 ** (floor_db / 20.0) / gain
+
+
+def _check_options(
+    rel: float, floor_db: float | None, floor_ref: str, quantity: str, floor_quantity: str | None
+) -> str:
+    """Raise :class:`ConfigError` on an invalid option; return the floor's quantity."""
     if not (math.isfinite(rel) and rel >= 0):
         raise ConfigError(f"noise: relative error {rel!r} is invalid; give a finite value >= 0")
     if floor_db is not None and (math.isnan(floor_db) or floor_db == math.inf):
@@ -106,30 +145,14 @@ def add_measurement_noise(
     for what, q in (("quantity", quantity), ("floor_quantity", fq)):
         if q not in QUANTITIES:
             raise ConfigError(f"noise: {what} {q!r} is invalid; valid: {', '.join(QUANTITIES)}")
-    gen = np.random.default_rng(rng)
-    absent = np.isnan(H)
-    no_floor = floor_db is None or floor_db == -math.inf
-    if rel == 0 and no_floor:
-        ones = np.ones(H.shape)
-        ones[absent] = np.nan
-        return H.copy(), ones
+    return fq
 
-    mag = np.where(absent, 0.0, np.abs(H))
-    if no_floor:
-        sigma = np.zeros((*H.shape[:2], 1))
-    else:
-        assert floor_db is not None
-        gain = np.abs(quantity_factor(freq, fq) / quantity_factor(freq, quantity))
-        sigma = _floor_level(mag * gain, freq, floor_ref) * 10.0 ** (floor_db / 20.0) / gain
-    e1 = _complex_normal(gen, H.shape)
-    e2 = _complex_normal(gen, H.shape)
-    H_noisy = H * (1.0 + rel * e1) + sigma * e2
-    S = mag**2
+
+def snr_coherence(S: np.ndarray, rel: float, sigma: np.ndarray) -> np.ndarray:
+    """The coherence ``S / (S + N)`` of signal power ``S = |H|^2`` under the noise model,
+    ``N = rel^2 S + sigma^2`` (0 where ``S + N`` is 0), in 0..1; shapes broadcast."""
     N = (rel**2) * S + sigma**2
     total = S + N
     with np.errstate(invalid="ignore", divide="ignore"):
         coherence = np.where(total > 0, S / np.where(total > 0, total, 1.0), 0.0)
-    coherence = np.clip(coherence, 0.0, 1.0)
-    coherence[absent] = np.nan
-    H_noisy[absent] = np.nan + 1j * np.nan
-    return H_noisy, coherence
+    return np.clip(coherence, 0.0, 1.0)
