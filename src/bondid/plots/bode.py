@@ -159,15 +159,47 @@ def build_bode(
     Each cell has two axes, magnitude above phase, so the figure holds ``2 × n_cells``
     axes in row-major cell order (magnitude, phase, magnitude, phase, ...).
     """
-    from matplotlib.lines import Line2D
-    from matplotlib.ticker import FixedLocator
-
     if quantity not in QUANTITIES:
         raise DataError(f"Bode plot: unknown quantity {quantity!r}; valid: {', '.join(QUANTITIES)}")
     if not curves:
         raise DataError("Bode plot: no curves given; pass at least one Curve")
+    data = _curve_arrays(freq_hz, curves, len(outputs), len(inputs))
+    styles = _curve_styles(curves)
+    nrows, ncols, cells = _grid(outputs, inputs, channels)
+    fig = new_figure(max(6.5, 5.3 * ncols), max(4.8, 4.1 * nrows + 0.9))
+    engine = fig.get_layout_engine()
+    if engine is not None:
+        engine.set(w_pad=0.06, h_pad=0.08, hspace=0.04, wspace=0.03)  # type: ignore[call-arg]
+    outer = fig.add_gridspec(nrows, ncols)
+    f_range = (min(float(np.nanmin(f)) for f, _ in data), max(float(np.nanmax(f)) for f, _ in data))
+    share = None
+    for k, cell in enumerate(cells):
+        r, col = divmod(k, ncols)
+        sub = outer[r, col].subgridspec(2, 1, height_ratios=[3, 2], hspace=0.0)
+        ax_m = fig.add_subplot(sub[0], sharex=share)
+        share = share or ax_m
+        ax_p = fig.add_subplot(sub[1], sharex=share)
+        assert cell is not None
+        a, b = cell
+        ax_m.set_title(f"{outputs[a]}.{inputs[b]}", fontsize=11, fontweight="bold", pad=4)
+        any_data = _draw_channel(ax_m, ax_p, cell, data, curves, styles)
+        unit = channel_unit(units, outputs[a], inputs[b], quantity)
+        _style_cell(ax_m, ax_p, f_range, f"dB re 1 {unit}" if unit else "|H| [dB]")
+        if r == nrows - 1 or k + ncols >= len(cells):
+            ax_p.set_xlabel("frequency [Hz]", fontsize=9.5)
+        if not any_data:
+            _mark_no_data(ax_m, ax_p)
+    _legend(fig, curves, styles)
+    if title:
+        fig.suptitle(title, fontsize=13)
+    return fig
+
+
+def _curve_arrays(
+    freq_hz: np.ndarray, curves: Sequence[Curve], n_out: int, n_in: int
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Each curve's ``(freq (n_freq,) Hz, H (n_out, n_in, n_freq))``, shapes checked."""
     f0 = np.asarray(freq_hz, dtype=float)
-    n_out, n_in = len(outputs), len(inputs)
     data: list[tuple[np.ndarray, np.ndarray]] = []
     for c in curves:
         f = f0 if c.freq_hz is None else np.asarray(c.freq_hz, dtype=float)
@@ -178,7 +210,11 @@ def build_bode(
                 f"(n_out, n_in, n_freq) = {(n_out, n_in, f.size)}"
             )
         data.append((f, H))
+    return data
 
+
+def _curve_styles(curves: Sequence[Curve]) -> list[dict[str, Any]]:
+    """Line styles: the kind's default, model curves coloured in turn, the curve's overrides."""
     styles: list[dict[str, Any]] = []
     n_model = 0
     for c in curves:
@@ -188,58 +224,65 @@ def build_bode(
             n_model += 1
         st.update(c.style)
         styles.append(st)
+    return styles
 
-    nrows, ncols, cells = _grid(outputs, inputs, channels)
-    fig = new_figure(max(6.5, 5.3 * ncols), max(4.8, 4.1 * nrows + 0.9))
-    engine = fig.get_layout_engine()
-    if engine is not None:
-        engine.set(w_pad=0.06, h_pad=0.08, hspace=0.04, wspace=0.03)  # type: ignore[call-arg]
-    outer = fig.add_gridspec(nrows, ncols)
-    fmin = min(float(np.nanmin(f)) for f, _ in data)
-    fmax = max(float(np.nanmax(f)) for f, _ in data)
-    share = None
-    for k, cell in enumerate(cells):
-        r, col = divmod(k, ncols)
-        sub = outer[r, col].subgridspec(2, 1, height_ratios=[3, 2], hspace=0.0)
-        ax_m = fig.add_subplot(sub[0], sharex=share)
-        share = share or ax_m
-        ax_p = fig.add_subplot(sub[1], sharex=share)
-        assert cell is not None
-        a, b = cell
-        name = f"{outputs[a]}.{inputs[b]}"
-        ax_m.set_title(name, fontsize=11, fontweight="bold", pad=4)
-        any_data = False
-        for (f, H), c, st in zip(data, curves, styles, strict=True):
-            h = H[a, b]
-            if not np.any(np.isfinite(h)):
-                continue
-            any_data = any_data or c.kind != "noise"
-            ax_m.plot(f, magnitude_db(h), label=c.label, **st)
-            if c.kind == "noise":
-                continue
-            fp, ph = _wrap_phase_deg(f, h)
-            ax_p.plot(fp, ph, label=c.label, **st)
-        ax_m.set_xscale("log")
-        ax_m.set_xlim(fmin, fmax)
-        ax_p.set_ylim(-195, 195)
-        ax_p.yaxis.set_major_locator(FixedLocator([-180, -90, 0, 90, 180]))
-        for ax in (ax_m, ax_p):
-            style_axes(ax)
-            ax.tick_params(labelsize=8.5)
-        ax_m.tick_params(labelbottom=False)
-        unit = channel_unit(units, outputs[a], inputs[b], quantity)
-        ax_m.set_ylabel(f"dB re 1 {unit}" if unit else "|H| [dB]", fontsize=9)
-        ax_p.set_ylabel("phase [°]", fontsize=9)
-        if r == nrows - 1 or k + ncols >= len(cells):
-            ax_p.set_xlabel("frequency [Hz]", fontsize=9.5)
-        if not any_data:
-            for ax in (ax_m, ax_p):
-                ax.set_facecolor("0.96")
-                ax.tick_params(labelleft=False)
-            ax_m.text(
-                0.5, 0.5, "no data", transform=ax_m.transAxes, ha="center", va="center",
-                fontsize=13, color="0.45", style="italic", gid="no-data",
-            )  # fmt: skip
+
+def _draw_channel(
+    ax_m: Any,
+    ax_p: Any,
+    cell: tuple[int, int],
+    data: list[tuple[np.ndarray, np.ndarray]],
+    curves: Sequence[Curve],
+    styles: list[dict[str, Any]],
+) -> bool:
+    """Draw channel ``cell = (i_out, i_in)`` of every curve that has data there (noise
+    curves: magnitude only); True when a curve other than a noise level had data."""
+    a, b = cell
+    any_data = False
+    for (f, H), c, st in zip(data, curves, styles, strict=True):
+        h = H[a, b]
+        if not np.any(np.isfinite(h)):
+            continue
+        any_data = any_data or c.kind != "noise"
+        ax_m.plot(f, magnitude_db(h), label=c.label, **st)
+        if c.kind == "noise":
+            continue
+        fp, ph = _wrap_phase_deg(f, h)
+        ax_p.plot(fp, ph, label=c.label, **st)
+    return any_data
+
+
+def _style_cell(ax_m: Any, ax_p: Any, f_range: tuple[float, float], mag_label: str) -> None:
+    """Log frequency axis over ``f_range`` (Hz), phase ticks every 90°, axis labels."""
+    from matplotlib.ticker import FixedLocator
+
+    ax_m.set_xscale("log")
+    ax_m.set_xlim(*f_range)
+    ax_p.set_ylim(-195, 195)
+    ax_p.yaxis.set_major_locator(FixedLocator([-180, -90, 0, 90, 180]))
+    for ax in (ax_m, ax_p):
+        style_axes(ax)
+        ax.tick_params(labelsize=8.5)
+    ax_m.tick_params(labelbottom=False)
+    ax_m.set_ylabel(mag_label, fontsize=9)
+    ax_p.set_ylabel("phase [°]", fontsize=9)
+
+
+def _mark_no_data(ax_m: Any, ax_p: Any) -> None:
+    """Shade a cell where no curve has data and write "no data" in it."""
+    for ax in (ax_m, ax_p):
+        ax.set_facecolor("0.96")
+        ax.tick_params(labelleft=False)
+    ax_m.text(
+        0.5, 0.5, "no data", transform=ax_m.transAxes, ha="center", va="center",
+        fontsize=13, color="0.45", style="italic", gid="no-data",
+    )  # fmt: skip
+
+
+def _legend(fig: Figure, curves: Sequence[Curve], styles: list[dict[str, Any]]) -> None:
+    """One legend below the grid, a line per curve."""
+    from matplotlib.lines import Line2D
+
     handles = [Line2D([], [], **st) for st in styles]
     fig.legend(
         handles,
@@ -249,9 +292,6 @@ def build_bode(
         fontsize=10,
         frameon=False,
     )
-    if title:
-        fig.suptitle(title, fontsize=13)
-    return fig
 
 
 def noise_curve(sigma: np.ndarray, label: str = "estimated noise") -> Curve:
