@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -64,17 +64,8 @@ def build_sweep(
     Highlighted lines carry the parameter name as their label (and ``gid``
     ``"top:<name>"``); grey lines have ``gid`` ``"rest:<name>"``.
     """
-    s = np.asarray(scales, dtype=float)
-    c = np.asarray(costs, dtype=float)
-    n_p = len(param_names)
-    if c.ndim == 2:
-        c = c[None]
-    if c.ndim != 3 or c.shape[1:] != (n_p, s.size) or s.ndim != 1:
-        raise DataError(
-            f"sweep plot: costs have shape {np.shape(costs)}, expected (n_params, n_scales) = "
-            f"{(n_p, s.size)} or (n_directions, n_params, n_scales)"
-        )
-    n_dir = c.shape[0]
+    s, c = _sweep_arrays(scales, costs, len(param_names))
+    n_p, n_dir = len(param_names), c.shape[0]
     if direction_names is None:
         direction_names = [f"direction {k + 1}" for k in range(n_dir)] if n_dir > 1 else [""]
     if len(direction_names) != n_dir:
@@ -84,28 +75,12 @@ def build_sweep(
     finite = c[np.isfinite(c)]
     if log is None:
         log = bool(finite.size and finite.min() > 0 and finite.max() / finite.min() > 30)
-
     k_top = max(0, min(top, n_p))
-    leg_fs = font_scale(k_top, full=10, small=30)
     fig = new_figure(11.5, max(4.8, 4.6 * n_dir))
-    colors = _colors(k_top)
     for d in range(n_dir):
         ax = fig.add_subplot(n_dir, 1, d + 1)
         ranked = rank_parameters(c[d], k_top)
-        top_set = set(ranked.tolist())
-        for p in range(n_p):
-            if p not in top_set:
-                ax.plot(
-                    s, c[d, p], color="0.72", linewidth=0.8, zorder=1,
-                    label="_nolegend_", gid=f"rest:{param_names[p]}",
-                )  # fmt: skip
-        for rank, p in reversed(list(enumerate(ranked))):  # best-ranked drawn on top
-            ax.plot(
-                s, c[d, p], color=colors[rank], linewidth=1.9, zorder=3 + k_top - rank,
-                linestyle="-" if rank < 9 else ("--" if rank < 18 else ":"),
-                marker="o" if s.size <= 15 else None, markersize=3.5,
-                label=param_names[p], gid=f"top:{param_names[p]}",
-            )  # fmt: skip
+        _draw_lines(ax, s, c[d], ranked, param_names)
         ax.axvline(1.0, color="0.3", linewidth=0.8, linestyle=":", zorder=0)
         if log:
             ax.set_yscale("log")
@@ -115,29 +90,70 @@ def build_sweep(
         ax.set_ylabel("cost", fontsize=11)
         if d == n_dir - 1:
             ax.set_xlabel("scale factor on the nominal value", fontsize=11)
-        head = direction_names[d]
-        rest = n_p - k_top
+        head, rest = direction_names[d], n_p - k_top
         sub = f"top {k_top} of {n_p} parameters by cost range" + (
             f" ({rest} others in grey)" if rest else ""
         )
         ax.set_title(f"{head}: {sub}" if head else sub, fontsize=11, loc="left")
         if k_top:
-            handles, labs = ax.get_legend_handles_labels()
-            order = [labs.index(param_names[p]) for p in ranked]
-            ax.legend(
-                [handles[i] for i in order],
-                [labs[i] for i in order],
-                loc="center left",
-                bbox_to_anchor=(1.01, 0.5),
-                fontsize=leg_fs,
-                frameon=False,
-                ncols=1 if k_top <= 22 else 2,
-                title="rank order",
-                title_fontsize=leg_fs,
-            )
+            _rank_legend(ax, [param_names[p] for p in ranked])
     if title:
         fig.suptitle(title, fontsize=13)
     return fig
+
+
+def _sweep_arrays(scales: np.ndarray, costs: np.ndarray, n_p: int) -> tuple[np.ndarray, np.ndarray]:
+    """``scales`` ``(n_scales,)`` and ``costs`` as ``(n_directions, n_params, n_scales)``."""
+    s = np.asarray(scales, dtype=float)
+    c = np.asarray(costs, dtype=float)
+    if c.ndim == 2:
+        c = c[None]
+    if c.ndim != 3 or c.shape[1:] != (n_p, s.size) or s.ndim != 1:
+        raise DataError(
+            f"sweep plot: costs have shape {np.shape(costs)}, expected (n_params, n_scales) = "
+            f"{(n_p, s.size)} or (n_directions, n_params, n_scales)"
+        )
+    return s, c
+
+
+def _draw_lines(
+    ax: Any, s: np.ndarray, c: np.ndarray, ranked: np.ndarray, param_names: Sequence[str]
+) -> None:
+    """One panel's lines: the ``ranked`` parameters coloured (best on top), the rest grey."""
+    k_top = len(ranked)
+    top_set = set(ranked.tolist())
+    for p in range(len(param_names)):
+        if p not in top_set:
+            ax.plot(
+                s, c[p], color="0.72", linewidth=0.8, zorder=1,
+                label="_nolegend_", gid=f"rest:{param_names[p]}",
+            )  # fmt: skip
+    colors = _colors(k_top)
+    for rank, p in reversed(list(enumerate(ranked))):  # best-ranked drawn on top
+        ax.plot(
+            s, c[p], color=colors[rank], linewidth=1.9, zorder=3 + k_top - rank,
+            linestyle="-" if rank < 9 else ("--" if rank < 18 else ":"),
+            marker="o" if s.size <= 15 else None, markersize=3.5,
+            label=param_names[p], gid=f"top:{param_names[p]}",
+        )  # fmt: skip
+
+
+def _rank_legend(ax: Any, names: list[str]) -> None:
+    """The legend right of the panel, listing ``names`` (the highlighted lines) in rank order."""
+    fs = font_scale(len(names), full=10, small=30)
+    handles, labs = ax.get_legend_handles_labels()
+    order = [labs.index(name) for name in names]
+    ax.legend(
+        [handles[i] for i in order],
+        [labs[i] for i in order],
+        loc="center left",
+        bbox_to_anchor=(1.01, 0.5),
+        fontsize=fs,
+        frameon=False,
+        ncols=1 if len(names) <= 22 else 2,
+        title="rank order",
+        title_fontsize=fs,
+    )
 
 
 def plot_sweep(
