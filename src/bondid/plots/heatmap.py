@@ -40,9 +40,6 @@ def build_heatmap(
     log: bool = False,
 ) -> Figure:
     """Build the heat-map figure (see :func:`plot_heatmap`) without saving it."""
-    from matplotlib import colormaps
-    from matplotlib.colors import LogNorm, Normalize
-
     v = np.asarray(values, dtype=float)
     n_rows, n_cols = len(row_labels), len(col_labels)
     if v.shape != (n_rows, n_cols):
@@ -50,6 +47,35 @@ def build_heatmap(
             f"heat map: values have shape {v.shape}, expected (n_rows, n_cols) = "
             f"{(n_rows, n_cols)} from the row and column labels"
         )
+    shown, norm, cmap = _colour_scale(v, log)
+    fs = font_scale(n_rows)
+    longest_row = max((len(s) for s in row_labels), default=1)
+    longest_col = max((len(s) for s in col_labels), default=1)
+    rotate = longest_col > 4 and n_cols > 3
+    width = 2.4 + 0.0095 * fs * longest_row + max(3.5, 0.62 * n_cols)
+    height = 1.3 + (0.012 * fs * longest_col if rotate else 0.3) + max(2.5, n_rows * fs * 0.024)
+    fig = new_figure(min(width, 22.0), min(height, 30.0))
+    ax = fig.add_subplot()
+    im = ax.imshow(
+        np.ma.masked_invalid(shown), cmap=cmap, norm=norm, aspect="auto", interpolation="nearest"
+    )
+    _label_cells(ax, row_labels, col_labels, fs, rotate)
+    if n_rows * n_cols <= ANNOTATE_MAX_CELLS:
+        _annotate(ax, v, cmap, norm, min(fs, 8.5), log)
+    cbar = fig.colorbar(im, ax=ax, pad=0.02, fraction=0.05, aspect=min(40, max(15, n_rows // 2)))
+    cbar.set_label(cbar_label, fontsize=10)
+    cbar.ax.tick_params(labelsize=9)
+    if title:
+        ax.set_title(title, fontsize=12)
+    return fig
+
+
+def _colour_scale(v: np.ndarray, log: bool) -> tuple[np.ndarray, Any, Any]:
+    """``(values to show, norm, colour map)``: log scale over the positive values; else a
+    diverging map centred on 0 for signed values, ``viridis`` otherwise; NaN drawn grey."""
+    from matplotlib import colormaps
+    from matplotlib.colors import LogNorm, Normalize
+
     finite = v[np.isfinite(v)]
     norm: Any
     if log:
@@ -70,19 +96,14 @@ def build_heatmap(
         else:
             norm = Normalize(lo, hi if hi > lo else lo + 1.0)
             cmap = colormaps["viridis"]
-    cmap = cmap.with_extremes(bad="0.85")
+    return shown, norm, cmap.with_extremes(bad="0.85")
 
-    fs = font_scale(n_rows)
-    longest_row = max((len(s) for s in row_labels), default=1)
-    longest_col = max((len(s) for s in col_labels), default=1)
-    rotate = longest_col > 4 and n_cols > 3
-    width = 2.4 + 0.0095 * fs * longest_row + max(3.5, 0.62 * n_cols)
-    height = 1.3 + (0.012 * fs * longest_col if rotate else 0.3) + max(2.5, n_rows * fs * 0.024)
-    fig = new_figure(min(width, 22.0), min(height, 30.0))
-    ax = fig.add_subplot()
-    im = ax.imshow(
-        np.ma.masked_invalid(shown), cmap=cmap, norm=norm, aspect="auto", interpolation="nearest"
-    )
+
+def _label_cells(
+    ax: Any, row_labels: Sequence[str], col_labels: Sequence[str], fs: float, rotate: bool
+) -> None:
+    """Row and column tick labels (columns slanted when ``rotate``), white cell borders."""
+    n_rows, n_cols = len(row_labels), len(col_labels)
     ax.set_yticks(np.arange(n_rows), list(row_labels), fontsize=fs)
     ax.set_xticks(np.arange(n_cols), list(col_labels), fontsize=min(fs + 0.5, 10))
     if rotate:
@@ -95,24 +116,21 @@ def build_heatmap(
     ax.grid(which="minor", color="white", linewidth=0.8 if n_rows < 40 else 0.4)
     ax.tick_params(which="minor", length=0)
     ax.tick_params(which="major", length=2)
-    if n_rows * n_cols <= ANNOTATE_MAX_CELLS:
-        for i in range(n_rows):
-            for j in range(n_cols):
-                val = v[i, j]
-                if not np.isfinite(val) or (log and val <= 0):
-                    continue
-                rgba = np.asarray(cmap(norm(val))).reshape(-1, 4)[0]  # 1 value: (1, 4)
-                lum = 0.299 * rgba[0] + 0.587 * rgba[1] + 0.114 * rgba[2]
-                ax.text(
-                    j, i, _format(float(val)), ha="center", va="center",
-                    fontsize=min(fs, 8.5), color="black" if lum > 0.5 else "white",
-                )  # fmt: skip
-    cbar = fig.colorbar(im, ax=ax, pad=0.02, fraction=0.05, aspect=min(40, max(15, n_rows // 2)))
-    cbar.set_label(cbar_label, fontsize=10)
-    cbar.ax.tick_params(labelsize=9)
-    if title:
-        ax.set_title(title, fontsize=12)
-    return fig
+
+
+def _annotate(ax: Any, v: np.ndarray, cmap: Any, norm: Any, fontsize: float, log: bool) -> None:
+    """Print each finite value (positive ones on a log scale) in its cell, in black or white
+    by the cell colour's luminance."""
+    for i, j in np.ndindex(v.shape):
+        val = v[i, j]
+        if not np.isfinite(val) or (log and val <= 0):
+            continue
+        rgba = np.asarray(cmap(norm(val))).reshape(-1, 4)[0]  # 1 value: (1, 4)
+        lum = 0.299 * rgba[0] + 0.587 * rgba[1] + 0.114 * rgba[2]
+        ax.text(
+            j, i, _format(float(val)), ha="center", va="center",
+            fontsize=fontsize, color="black" if lum > 0.5 else "white",
+        )  # fmt: skip
 
 
 def plot_heatmap(
