@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -53,10 +53,28 @@ def build_convergence(
     finals = np.array([r[np.isfinite(r)][-1] if np.any(np.isfinite(r)) else np.inf for r in runs])
     best = int(np.argmin(finals))
     positive = all(np.all(r[np.isfinite(r)] > 0) for r in runs)
-    many = len(runs) > LEGEND_MAX_RUNS
-
     fig = new_figure(8.0, 5.0)
     ax = fig.add_subplot()
+    _draw_runs(ax, runs, labels, best)
+    if positive:
+        ax.set_yscale("log")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set_xlim(0, max(r.size for r in runs) - 1 or 1)
+    style_axes(ax)
+    ax.set_xlabel("iteration", fontsize=11)
+    ax.set_ylabel("cost", fontsize=11)
+    ax.tick_params(labelsize=9.5)
+    _mark_final(ax, float(finals[best]), positive)
+    if len(runs) > 1 or labels is not None:
+        ax.legend(fontsize=9, loc="upper right", framealpha=0.9)
+    ax.set_title(title or "Convergence", fontsize=12)
+    return fig
+
+
+def _draw_runs(ax: Any, runs: list[np.ndarray], labels: Sequence[str] | None, best: int) -> None:
+    """One line per run, the ``best`` thick and on top; with more than
+    :data:`LEGEND_MAX_RUNS` runs the others are thin grey lines under one legend entry."""
+    many = len(runs) > LEGEND_MAX_RUNS
     for k, r in enumerate(runs):
         it = np.arange(r.size)
         name = labels[k] if labels is not None else (f"run {k + 1}" if len(runs) > 1 else "cost")
@@ -82,15 +100,10 @@ def build_convergence(
         )  # fmt: skip
     if many:
         ax.plot([], [], color="0.6", linewidth=0.9, label=f"other {len(runs) - 1} runs")
-    if positive:
-        ax.set_yscale("log")
-    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-    ax.set_xlim(0, max(r.size for r in runs) - 1 or 1)
-    style_axes(ax)
-    ax.set_xlabel("iteration", fontsize=11)
-    ax.set_ylabel("cost", fontsize=11)
-    ax.tick_params(labelsize=9.5)
-    fin = finals[best]
+
+
+def _mark_final(ax: Any, fin: float, positive: bool) -> None:
+    """A dotted line at the best final cost ``fin``, labelled at the left under the line."""
     ax.axhline(fin, color="0.3", linewidth=0.8, linestyle=":", zorder=1)
     # room under the best final value for its label, at the left where costs are still high
     lo, hi = ax.get_ylim()
@@ -103,10 +116,6 @@ def build_convergence(
         xytext=(6, -3), textcoords="offset points", ha="left", va="top", fontsize=9,
         color="0.2",
     )  # fmt: skip
-    if len(runs) > 1 or labels is not None:
-        ax.legend(fontsize=9, loc="upper right", framealpha=0.9)
-    ax.set_title(title or "Convergence", fontsize=12)
-    return fig
 
 
 def plot_convergence(

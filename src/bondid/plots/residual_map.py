@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -85,32 +85,46 @@ def build_residual_map(
     if n > 1:
         ax.hlines(np.arange(1, n), *ax.get_xlim(), colors="white", linewidth=0.6)
     if bands:
-        lo_f, hi_f = _log_edges(f)[[0, -1]]
-        edges = sorted({float(e) for band in bands for e in band})
-        inner = [e for e in edges if lo_f < e < hi_f]
-        ax.vlines(inner, 0, n, colors="black", linewidth=0.9, linestyles="--")
-        for k, (a, b) in enumerate(bands):
-            centre = float(np.sqrt(max(a, lo_f) * min(b, hi_f)))
-            ax.text(
-                centre, 1.004, f"B{k + 1}", transform=ax.get_xaxis_transform(),
-                ha="center", va="bottom", fontsize=8.5, color="0.2", clip_on=False,
-            )  # fmt: skip
-        ax.set_xlim(lo_f, hi_f)
-    for k in np.flatnonzero(~np.any(np.isfinite(r), axis=1)).tolist():
-        ax.text(
-            0.5, k + 0.5, "no data", transform=ax.get_yaxis_transform(),
-            ha="center", va="center", fontsize=fs, color="0.35", style="italic",
-        )  # fmt: skip
-    above = bool(np.nanmax(r, initial=-np.inf) > v)
-    below = bool(np.nanmin(r, initial=np.inf) < -v)
-    extend = {(True, True): "both", (True, False): "max", (False, True): "min"}.get(
-        (above, below), "neither"
-    )
-    cbar = fig.colorbar(mesh, ax=ax, extend=extend, pad=0.015, fraction=0.05, aspect=30)
+        _draw_bands(ax, f, bands, n)
+    _mark_empty_rows(ax, r, fs)
+    cbar = fig.colorbar(mesh, ax=ax, extend=_extend(r, v), pad=0.015, fraction=0.05, aspect=30)
     cbar.set_label(cbar_label, fontsize=10)
     cbar.ax.tick_params(labelsize=9)
     ax.set_title(title or "Residual per channel", fontsize=12, pad=16 if bands else 6)
     return fig
+
+
+def _draw_bands(ax: Any, f: np.ndarray, bands: Sequence[tuple[float, float]], n: int) -> None:
+    """Dashed lines at the band edges inside the map and tags ``B1``, ``B2``, ... above it."""
+    lo_f, hi_f = _log_edges(f)[[0, -1]]
+    edges = sorted({float(e) for band in bands for e in band})
+    inner = [e for e in edges if lo_f < e < hi_f]
+    ax.vlines(inner, 0, n, colors="black", linewidth=0.9, linestyles="--")
+    for k, (a, b) in enumerate(bands):
+        centre = float(np.sqrt(max(a, lo_f) * min(b, hi_f)))
+        ax.text(
+            centre, 1.004, f"B{k + 1}", transform=ax.get_xaxis_transform(),
+            ha="center", va="bottom", fontsize=8.5, color="0.2", clip_on=False,
+        )  # fmt: skip
+    ax.set_xlim(lo_f, hi_f)
+
+
+def _mark_empty_rows(ax: Any, r: np.ndarray, fontsize: float) -> None:
+    """Write "no data" across the rows (channels) without a finite residual."""
+    for k in np.flatnonzero(~np.any(np.isfinite(r), axis=1)).tolist():
+        ax.text(
+            0.5, k + 0.5, "no data", transform=ax.get_yaxis_transform(),
+            ha="center", va="center", fontsize=fontsize, color="0.35", style="italic",
+        )  # fmt: skip
+
+
+def _extend(r: np.ndarray, v: float) -> str:
+    """The colour bar's ``extend``: arrows on the sides where residuals pass ``±v``."""
+    above = bool(np.nanmax(r, initial=-np.inf) > v)
+    below = bool(np.nanmin(r, initial=np.inf) < -v)
+    return {(True, True): "both", (True, False): "max", (False, True): "min"}.get(
+        (above, below), "neither"
+    )
 
 
 def plot_residual_map(
