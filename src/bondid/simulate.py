@@ -7,6 +7,7 @@ with it), reproducible by seed, written as a spec CSV or UFF58 file.
 
 from __future__ import annotations
 
+import argparse
 import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -72,15 +73,9 @@ def simulate(
     H = am.linear_model().frf(f, quantity)
     if noise > 0:
         H, coh = add_measurement_noise(
-            H,
-            f,
-            rel=noise,
-            floor_db=floor_db,
-            rng=np.random.default_rng(seed),
-            floor_ref=floor_ref,
-            quantity=quantity,
-            floor_quantity=floor_quantity,
-        )
+            H, f, rel=noise, rng=np.random.default_rng(seed), quantity=quantity,
+            floor_db=floor_db, floor_ref=floor_ref, floor_quantity=floor_quantity,
+        )  # fmt: skip
     else:
         coh = np.ones(H.shape)
     return FrfData(
@@ -93,7 +88,7 @@ DATA_SUFFIXES = (*CSV_SUFFIXES, *UFF_SUFFIXES)
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
 
 
-def _check_options(args) -> None:
+def _check_options(args: argparse.Namespace) -> None:
     """Refuse impossible option values before any work."""
     import math
 
@@ -118,6 +113,13 @@ def _check_options(args) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    from . import cli
+
+    args = _parser().parse_args(argv)
+    return cli.run(lambda: _run(args))
+
+
+def _parser() -> argparse.ArgumentParser:
     from . import cli
 
     p = cli.make_parser("simulate", "Synthesise measured FRFs of a (true) machine model.")
@@ -153,76 +155,80 @@ def main(argv: Sequence[str] | None = None) -> int:
     cli.add_points_arg(p)
     cli.add_package_path_arg(p)
     cli.add_floating_base_arg(p)
-    args = p.parse_args(argv)
+    return p
 
-    def body() -> int:
-        from .data.for_model import model_channel_map
-        from .data.io import write_frf
-        from .linear.operating_point import parse_operating_point
-        from .results import open_results
-        from .validation import check_inputs, load_model
 
-        _check_options(args)
-        op = parse_operating_point(" ".join(args.q), "--q")
-        res = open_results(args.out, "simulate", [args.model], file=True)
-        plot_path = None
-        if args.plot is not None:
-            from .results import check_out
+def _run(args: argparse.Namespace) -> int:
+    """Simulate the model's measurement, write it (and ``--plot``) and print what was written."""
+    from . import cli
+    from .data.for_model import model_channel_map
+    from .data.io import write_frf
+    from .linear.operating_point import parse_operating_point
+    from .results import open_results
+    from .validation import check_inputs, load_model
 
-            check_out(args.plot, [args.model, args.out], file=True, option="--plot")
-            plot_path = res.stage_extra(args.plot)
-        doc, warnings = load_model(args.model, lambda d: cli.apply_model_options(d, args))
-        warnings += check_inputs(doc, operating_points={"--q": op})
-        data = simulate(
-            doc,
-            op,
-            log_grid(*args.freq),
-            noise=args.noise,
-            floor_db=args.floor_db,
-            seed=args.seed,
-            quantity=args.quantity,
-            floor_ref=args.floor_ref,
-            floor_quantity=args.floor_quantity,
-            coherence=not args.no_coherence,
-            outputs=args.outputs,
-        )
-        data.source = str(args.out)
-        is_uff = args.out.suffix.lower() in (".uff", ".unv", ".uff58")
-        staged = res.path(args.out.name)
-        write_frf(data, staged, channel_map=model_channel_map(doc) if is_uff else None)
-        if plot_path is not None:
-            from .data.weights import noise_estimate
-            from .plots import Curve, noise_curve, plot_bode
+    _check_options(args)
+    op = parse_operating_point(" ".join(args.q), "--q")
+    res = open_results(args.out, "simulate", [args.model], file=True)
+    plot_path = None
+    if args.plot is not None:
+        from .results import check_out
 
-            exact = simulate(
-                doc, op, data.freq_hz, noise=0.0, quantity=args.quantity, outputs=args.outputs
-            )
-            plot_bode(
-                data.freq_hz,
-                [
-                    Curve("simulated measurement", data.H, kind="measured"),
-                    Curve("model (exact)", exact.H, kind="model"),
-                    noise_curve(noise_estimate(data).sigma),
-                ],
-                outputs=data.outputs,
-                inputs=data.inputs,
-                path=plot_path,
-                title=f"{doc.name}: simulated FRF at {op or 'neutral'}",
-                quantity=args.quantity,
-            )
-        res.commit(warnings=warnings)
-        print(
-            f"wrote {args.out}: {len(data.channels)} channels × {data.freq_hz.size} frequencies"
-            f" ({data.freq_hz[0]:g}–{data.freq_hz[-1]:g} Hz), {args.quantity},"
-            f" noise {args.noise:g}, seed {args.seed}, operating point {op or 'neutral'}"
-        )
-        if args.plot is not None:
-            print(f"wrote {args.plot}")
-        for line in cli.warn_lines(warnings):
-            print(line)
-        return 0
+        check_out(args.plot, [args.model, args.out], file=True, option="--plot")
+        plot_path = res.stage_extra(args.plot)
+    doc, warnings = load_model(args.model, lambda d: cli.apply_model_options(d, args))
+    warnings += check_inputs(doc, operating_points={"--q": op})
+    data = simulate(
+        doc, op, log_grid(*args.freq), noise=args.noise, floor_db=args.floor_db,
+        seed=args.seed, quantity=args.quantity, floor_ref=args.floor_ref,
+        floor_quantity=args.floor_quantity, coherence=not args.no_coherence,
+        outputs=args.outputs,
+    )  # fmt: skip
+    data.source = str(args.out)
+    is_uff = args.out.suffix.lower() in (".uff", ".unv", ".uff58")
+    staged = res.path(args.out.name)
+    write_frf(data, staged, channel_map=model_channel_map(doc) if is_uff else None)
+    if plot_path is not None:
+        _plot(doc, op, data, args, plot_path)
+    res.commit(warnings=warnings)
+    print(
+        f"wrote {args.out}: {len(data.channels)} channels × {data.freq_hz.size} frequencies"
+        f" ({data.freq_hz[0]:g}–{data.freq_hz[-1]:g} Hz), {args.quantity},"
+        f" noise {args.noise:g}, seed {args.seed}, operating point {op or 'neutral'}"
+    )
+    if args.plot is not None:
+        print(f"wrote {args.plot}")
+    for line in cli.warn_lines(warnings):
+        print(line)
+    return 0
 
-    return cli.run(body)
+
+def _plot(
+    doc: UrdfDocument,
+    op: dict[str, float],
+    data: FrfData,
+    args: argparse.Namespace,
+    path: Path,
+) -> None:
+    """The Bode plot of ``--plot``: the simulated measurement over the exact model and the
+    noise level estimated from the measurement."""
+    from .data.weights import noise_estimate
+    from .plots import Curve, noise_curve, plot_bode
+
+    exact = simulate(doc, op, data.freq_hz, noise=0.0, quantity=args.quantity, outputs=args.outputs)
+    plot_bode(
+        data.freq_hz,
+        [
+            Curve("simulated measurement", data.H, kind="measured"),
+            Curve("model (exact)", exact.H, kind="model"),
+            noise_curve(noise_estimate(data).sigma),
+        ],
+        outputs=data.outputs,
+        inputs=data.inputs,
+        path=path,
+        title=f"{doc.name}: simulated FRF at {op or 'neutral'}",
+        quantity=args.quantity,
+    )
 
 
 if __name__ == "__main__":

@@ -8,15 +8,21 @@ and with ``--out DIR`` writes ``sensitivity.json`` and PNG maps there. Exit code
 
 from __future__ import annotations
 
+import argparse
 import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from ._common import Setup
+    from .identifiability import Identifiability
+    from .local import Linearisation, LocalSensitivity
+    from .sweep import SweepResult
 
 
 def _scales(text: str):
-    import argparse
-
     from .sweep import default_scales
 
     try:
@@ -29,6 +35,13 @@ def _scales(text: str):
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    from .. import cli
+
+    args = _parser().parse_args(argv)
+    return cli.run(lambda: _run(args))
+
+
+def _parser() -> argparse.ArgumentParser:
     from .. import cli
 
     p = cli.make_parser(
@@ -56,76 +69,89 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--scales", type=_scales, default=None, help="sweep LO:HI:STEP (0.5:1.5:0.1)")
     p.add_argument("--workers", type=int, default=2, help="processes for the sweep (default 2)")
     cli.add_drop_nan_arg(p)
-    args = p.parse_args(argv)
+    return p
 
-    def body() -> int:
-        from ..cost import CostOptions
-        from ..data.for_model import load_datasets
-        from ..results import open_results
-        from ..validation import check_inputs, load_model
-        from . import output
-        from ._common import make_setup
-        from .identifiability import analyse_identifiability
-        from .local import analyse_local, linearise_cost
-        from .sweep import run_sweep
 
-        t_start = time.perf_counter()
-        cli.check_workers(args.workers)
-        inputs = [args.model, *args.data]
+def _run(args: argparse.Namespace) -> int:
+    """Load the model and data, analyse, print the summary and write the results (``--out``)."""
+    from .. import cli
+    from ..cost import CostOptions
+    from ..data.for_model import load_datasets
+    from ..results import open_results
+    from ..validation import check_inputs, load_model
+    from . import output
+    from ._common import make_setup
+    from .local import linearise_cost
+
+    t_start = time.perf_counter()
+    cli.check_workers(args.workers)
+    res = None
+    if args.out is not None:
         names = [*output.PNG_NAMES.values(), "sensitivity.json"]
-        res = None
-        if args.out is not None:
-            res = open_results(args.out, "sensitivity", inputs, patterns=names)
-        doc, warnings = load_model(args.model, lambda d: cli.apply_model_options(d, args))
-        datasets = load_datasets(
-            doc, args.data, drop_nan=args.drop_nan, channel_map=cli.uff_channel_map(args)
-        )
-        warnings += check_inputs(doc, datasets, args.data)
-        channels = cli.split_names(args.channels) or None
-        options = CostOptions(kind=args.cost, bands=args.band, channels=channels)
-        setup = make_setup(doc, datasets, options, cli.split_names(args.free),
-                           cli.split_names(args.fixed))  # fmt: skip
-        lin = linearise_cost(setup)
-        t0 = time.perf_counter()
-        local = analyse_local(lin, args.band)
-        t1 = time.perf_counter()
-        ident = analyse_identifiability(lin, max_rel_std=args.max_rel_std, noise=args.noise)
-        t2 = time.perf_counter()
-        sweep = None
-        if not args.no_sweep:
-            prog = cli.Progress("sweep", setup.n_params, quiet=args.quiet)
-            sweep = run_sweep(setup, args.scales, workers=args.workers,
-                              progress=lambda n, name: prog.update(n, name))  # fmt: skip
-            prog.close(f"{setup.n_params} parameters")
+        res = open_results(args.out, "sensitivity", [args.model, *args.data], patterns=names)
+    doc, warnings = load_model(args.model, lambda d: cli.apply_model_options(d, args))
+    datasets = load_datasets(
+        doc, args.data, drop_nan=args.drop_nan, channel_map=cli.uff_channel_map(args)
+    )
+    warnings += check_inputs(doc, datasets, args.data)
+    channels = cli.split_names(args.channels) or None
+    options = CostOptions(kind=args.cost, bands=args.band, channels=channels)
+    setup = make_setup(doc, datasets, options, cli.split_names(args.free),
+                       cli.split_names(args.fixed))  # fmt: skip
+    lin = linearise_cost(setup)
+    local, ident, sweep, timing = _analyse(setup, lin, args)
+    print(
+        f"{doc.name}: {setup.n_params} parameters, {len(datasets)} data set(s), "
+        f"{setup.problem.n_residuals} residuals ({options.name})"
+    )
+    for line in output.summary_lines(local, ident, sweep, cost_kind=options.kind):
+        print(line)
+    for line in cli.warn_lines(warnings):
+        print(line)
+    if res is not None:
+        timing["total_s"] = time.perf_counter() - t_start
+        content = output.result_dict(
+            local, ident, sweep, model=str(args.model), data=[str(d) for d in args.data],
+            cost_name=options.name, n_residuals=setup.problem.n_residuals, timing=timing,
+        )  # fmt: skip
+        content["warnings"] = warnings
+        output.write_json(res.path("sensitivity.json"), content)
+        pngs = output.write_plots(res.tmp, local, sweep, title=doc.name)
+        res.commit(warnings=warnings, main="sensitivity.json")
         print(
-            f"{doc.name}: {setup.n_params} parameters, {len(datasets)} data set(s), "
-            f"{setup.problem.n_residuals} residuals ({options.name})"
+            f"wrote {Path(args.out) / 'sensitivity.json'} and {len(pngs)} PNG file(s) in {args.out}"
         )
-        for line in output.summary_lines(local, ident, sweep, cost_kind=options.kind):
-            print(line)
-        for line in cli.warn_lines(warnings):
-            print(line)
-        if res is not None:
-            timing: dict[str, float | None] = {
-                "jacobian_s": lin.wall_s,
-                "local_s": t1 - t0,
-                "identifiability_s": t2 - t1,
-                "sweep_s": None if sweep is None else sweep.wall_s,
-                "total_s": time.perf_counter() - t_start,
-            }
-            content = output.result_dict(
-                local, ident, sweep, model=str(args.model), data=[str(d) for d in args.data],
-                cost_name=options.name, n_residuals=setup.problem.n_residuals, timing=timing,
-            )  # fmt: skip
-            content["warnings"] = warnings
-            output.write_json(res.path("sensitivity.json"), content)
-            pngs = output.write_plots(res.tmp, local, sweep, title=doc.name)
-            res.commit(warnings=warnings, main="sensitivity.json")
-            path = Path(args.out) / "sensitivity.json"
-            print(f"wrote {path} and {len(pngs)} PNG file(s) in {args.out}")
-        return 0
+    return 0
 
-    return cli.run(body)
+
+def _analyse(
+    setup: Setup, lin: Linearisation, args: argparse.Namespace
+) -> tuple[LocalSensitivity, Identifiability, SweepResult | None, dict[str, float | None]]:
+    """``(local, identifiability, sweep or None, timing)``: the three analyses and their
+    wall times in s (``jacobian_s``, ``local_s``, ``identifiability_s``, ``sweep_s``)."""
+    from .. import cli
+    from .identifiability import analyse_identifiability
+    from .local import analyse_local
+    from .sweep import run_sweep
+
+    t0 = time.perf_counter()
+    local = analyse_local(lin, args.band)
+    t1 = time.perf_counter()
+    ident = analyse_identifiability(lin, max_rel_std=args.max_rel_std, noise=args.noise)
+    t2 = time.perf_counter()
+    sweep = None
+    if not args.no_sweep:
+        prog = cli.Progress("sweep", setup.n_params, quiet=args.quiet)
+        sweep = run_sweep(setup, args.scales, workers=args.workers,
+                          progress=lambda n, name: prog.update(n, name))  # fmt: skip
+        prog.close(f"{setup.n_params} parameters")
+    timing: dict[str, float | None] = {
+        "jacobian_s": lin.wall_s,
+        "local_s": t1 - t0,
+        "identifiability_s": t2 - t1,
+        "sweep_s": None if sweep is None else sweep.wall_s,
+    }
+    return local, ident, sweep, timing
 
 
 if __name__ == "__main__":

@@ -186,3 +186,10 @@ def make_setup(
         weight=entry_weights(problem),
         total_weight=sum(float(b.weight.sum()) for b in problem.blocks),
     )
+
+
+def label_masks(labels: np.ndarray) -> tuple[tuple[str, ...], np.ndarray]:
+    """The distinct ``labels`` of the residuals (in order of first use) and, for each, the
+    mask of its residuals, shape ``(n_labels, n_residuals)``."""
+    names = tuple(dict.fromkeys(str(x) for x in labels))
+    return names, np.array([labels == x for x in names]).reshape(len(names), -1)

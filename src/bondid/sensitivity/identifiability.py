@@ -155,13 +155,7 @@ def analyse_identifiability(
         raise ConfigError(f"max_rel_std {max_rel_std}: must be > 0")
     setup = lin.setup
     norm = 1.0 / np.sqrt(setup.total_weight)
-    if noise is None:
-        s = estimate_noise(setup, lin.residual)
-        estimated = True
-    else:
-        if not noise >= 0:
-            raise ConfigError(f"noise {noise}: must be ≥ 0")
-        s, estimated = float(noise) * norm, False
+    s, estimated = _noise_level(lin, noise, norm)
     import scipy.linalg
 
     J = lin.jacobian
@@ -182,15 +176,7 @@ def analyse_identifiability(
     colnorm = np.linalg.norm(Rt, axis=0)
     with np.errstate(divide="ignore"):
         std_alone = np.where(colnorm > 0, s / np.where(colnorm > 0, colnorm, 1.0), np.inf)
-    chosen: list[int] = []
-    diag = np.abs(np.diag(R))
-    for pos, c in enumerate(piv):
-        if diag[pos] <= rank_tol:
-            break  # the remaining columns are (numerically) dependent on the chosen ones
-        trial = [*chosen, int(c)]
-        if np.all(_subset_std(Rt, trial, s) <= max_rel_std):
-            chosen = trial
-    chosen_sorted = sorted(chosen)
+    chosen_sorted = sorted(_greedy_subset(Rt, np.abs(np.diag(R)), piv, rank_tol, s, max_rel_std))
     sub_std = _subset_std(Rt, chosen_sorted, s)
     return Identifiability(
         names=setup.names,
@@ -209,6 +195,37 @@ def analyse_identifiability(
         subset_std={setup.names[i]: float(v) for i, v in zip(chosen_sorted, sub_std, strict=True)},
         max_rel_std=float(max_rel_std),
     )
+
+
+def _noise_level(lin: Linearisation, noise: float | None, norm: float) -> tuple[float, bool]:
+    """``(noise std in normalised residual units, whether it was estimated)``; ``noise`` is
+    in residual units (None: estimate it from the nominal residual)."""
+    if noise is None:
+        return estimate_noise(lin.setup, lin.residual), True
+    if not noise >= 0:
+        raise ConfigError(f"noise {noise}: must be ≥ 0")
+    return float(noise) * norm, False
+
+
+def _greedy_subset(
+    Rt: np.ndarray,
+    diag: np.ndarray,
+    piv: np.ndarray,
+    rank_tol: float,
+    s: float,
+    max_rel_std: float,
+) -> list[int]:
+    """Columns taken in pivot order ``piv`` while each keeps every expected relative std of
+    the subset within ``max_rel_std``; stops at the first pivot whose ``|R_kk|`` (``diag``)
+    is at or below ``rank_tol``."""
+    chosen: list[int] = []
+    for pos, c in enumerate(piv):
+        if diag[pos] <= rank_tol:
+            break  # the remaining columns are (numerically) dependent on the chosen ones
+        trial = [*chosen, int(c)]
+        if np.all(_subset_std(Rt, trial, s) <= max_rel_std):
+            chosen = trial
+    return chosen
 
 
 def identifiability(

@@ -32,7 +32,7 @@ from ..cost import CostOptions
 from ..data.measurement import FrfData
 from ..exceptions import ComputationError
 from ..model.document import UrdfDocument
-from ._common import KIND_GROUPS, Setup, kind_group, make_setup
+from ._common import KIND_GROUPS, Setup, kind_group, label_masks, make_setup
 from .bands import (
     BAND_CLASSES,
     Band,
@@ -177,33 +177,16 @@ def analyse_local(
         blist = automatic_bands(feats, setup.freq_hz, min_halfwidth=min_halfwidth)
         masks = band_masks(blist, setup.freq_hz, exclusive=True)
     band_sens = _sens(setup, J2, masks)
-    channels = tuple(dict.fromkeys(str(c) for c in setup.channel))
-    ch_masks = np.array([setup.channel == c for c in channels]).reshape(len(channels), -1)
+    channels, ch_masks = label_masks(setup.channel)
     channel_sens = _sens(setup, J2, ch_masks)
-    directions = tuple(dict.fromkeys(str(d) for d in setup.direction))
-    d_masks = np.array([setup.direction == d for d in directions]).reshape(len(directions), -1)
+    directions, d_masks = label_masks(setup.direction)
     direction_sens = _sens(setup, J2, d_masks)
-
     classes = tuple(c for c in BAND_CLASSES if any(b.cls == c for b in blist))
     cls_masks = np.array(
         [np.any(masks[[b.cls == c for b in blist]], axis=0) for c in classes]
     ).reshape(len(classes), -1)
     class_sens = _sens(setup, J2, cls_masks)
     groups = tuple(kind_group(k) for k in setup.kinds)
-    agg = KindAggregate()
-    for j, c in enumerate(classes):
-        s = class_sens[:, j]
-        total = float(np.sum(s**2))
-        agg.share[c], agg.rms[c], agg.max[c], agg.top[c] = {}, {}, {}, {}
-        for g in KIND_GROUPS:
-            sel = np.array([x == g for x in groups], dtype=bool)
-            if not sel.any():
-                continue
-            sg = s[sel]
-            agg.share[c][g] = float(np.sum(sg**2) / total) if total > 0 else 0.0
-            agg.rms[c][g] = float(np.sqrt(np.mean(sg**2)))
-            agg.max[c][g] = float(sg.max())
-            agg.top[c][g] = setup.names[int(np.flatnonzero(sel)[int(np.argmax(sg))])]
     return LocalSensitivity(
         names=setup.names,
         kinds=groups,
@@ -222,10 +205,32 @@ def analyse_local(
         gradient=2.0 * lin.jacobian.T @ lin.residual,
         classes=classes,
         class_sens=class_sens,
-        by_kind=agg,
+        by_kind=_kind_aggregate(class_sens, classes, groups, setup.names),
         cost=lin.cost,
         jacobian_s=lin.wall_s,
     )
+
+
+def _kind_aggregate(
+    class_sens: np.ndarray, classes: tuple[str, ...], groups: tuple[str, ...], names: Sequence[str]
+) -> KindAggregate:
+    """Share, RMS, max and strongest parameter of each kind group in each band class, from
+    ``class_sens`` ``(n_params, n_classes)`` (see the module doc)."""
+    agg = KindAggregate()
+    for j, c in enumerate(classes):
+        s = class_sens[:, j]
+        total = float(np.sum(s**2))
+        agg.share[c], agg.rms[c], agg.max[c], agg.top[c] = {}, {}, {}, {}
+        for g in KIND_GROUPS:
+            sel = np.array([x == g for x in groups], dtype=bool)
+            if not sel.any():
+                continue
+            sg = s[sel]
+            agg.share[c][g] = float(np.sum(sg**2) / total) if total > 0 else 0.0
+            agg.rms[c][g] = float(np.sqrt(np.mean(sg**2)))
+            agg.max[c][g] = float(sg.max())
+            agg.top[c][g] = names[int(np.flatnonzero(sel)[int(np.argmax(sg))])]
+    return agg
 
 
 def local_sensitivity(

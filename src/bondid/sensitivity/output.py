@@ -35,6 +35,16 @@ def _feature(f: Any) -> dict[str, Any]:
     return {"f_hz": f.f_hz, "zeta": f.zeta, "kind": f.kind, "channel": f.channel}
 
 
+#: the ``units`` entry of sensitivity.json
+UNITS = {
+    "sensitivity": "RMS residual change per unit relative parameter change "
+    "(dB per 100 % for complex_log); parameters with nominal 0: per reference "
+    "magnitude `scale`",
+    "std": "expected standard deviation relative to `scale`",
+    "sweep": "cost = mean square residual (dB² for complex_log)",
+}
+
+
 def result_dict(
     local: LocalSensitivity,
     ident: Identifiability,
@@ -47,6 +57,33 @@ def result_dict(
     timing: dict[str, float | None],
 ) -> dict[str, Any]:
     """The content of ``sensitivity.json`` (plain Python types, JSON-ready)."""
+    out: dict[str, Any] = {
+        "model": model,
+        "data": list(data),
+        "cost_name": cost_name,
+        "cost_nominal": local.cost,
+        "n_residuals": n_residuals,
+        "units": UNITS,
+        "parameters": _parameters(local, ident),
+        "features": [_feature(f) for f in local.features],
+        "bands": _bands(local),
+        "band_sensitivity": {"values": local.band_sens, "normalised": local.band_norm},
+        "channels": list(local.channels),
+        "channel_sensitivity": {"values": local.channel_sens, "normalised": local.channel_norm},
+        "directions": list(local.directions),
+        "direction_sensitivity": local.direction_sens,
+        "classes": list(local.classes),
+        "by_kind": _by_kind(local),
+        "identifiability": _identifiability(ident),
+        "sweep": None if sweep is None else _sweep(sweep),
+        "timing": timing,
+    }
+    return json_safe(out)
+
+
+def _parameters(local: LocalSensitivity, ident: Identifiability) -> list[dict[str, Any]]:
+    """One entry a parameter: its local sensitivity and its expected std (None where the
+    identifiability analysis left it out)."""
     idx = {n: i for i, n in enumerate(ident.names)}
     params = []
     for i, n in enumerate(local.names):
@@ -64,7 +101,12 @@ def result_dict(
                 "recommended": n in ident.subset_std,
             }
         )
-    bands = [
+    return params
+
+
+def _bands(local: LocalSensitivity) -> list[dict[str, Any]]:
+    """One entry a frequency band: its range, class, features and five top parameters."""
+    return [
         {
             "label": b.label,
             "f_lo_hz": b.f_lo_hz,
@@ -76,73 +118,58 @@ def result_dict(
         }
         for k, b in enumerate(local.bands)
     ]
-    by_kind = {
+
+
+def _by_kind(local: LocalSensitivity) -> dict[str, Any]:
+    """``{band class: {parameter kind: {share, rms, max, top}}}``."""
+    kinds = local.by_kind
+    return {
         c: {
             g: {
-                "share": local.by_kind.share[c][g],
-                "rms": local.by_kind.rms[c][g],
-                "max": local.by_kind.max[c][g],
-                "top": local.by_kind.top[c][g],
+                "share": kinds.share[c][g],
+                "rms": kinds.rms[c][g],
+                "max": kinds.max[c][g],
+                "top": kinds.top[c][g],
             }
-            for g in local.by_kind.share[c]
+            for g in kinds.share[c]
         }
         for c in local.classes
     }
-    out: dict[str, Any] = {
-        "model": model,
-        "data": list(data),
-        "cost_name": cost_name,
-        "cost_nominal": local.cost,
-        "n_residuals": n_residuals,
-        "units": {
-            "sensitivity": "RMS residual change per unit relative parameter change "
-            "(dB per 100 % for complex_log); parameters with nominal 0: per reference "
-            "magnitude `scale`",
-            "std": "expected standard deviation relative to `scale`",
-            "sweep": "cost = mean square residual (dB² for complex_log)",
-        },
-        "parameters": params,
-        "features": [_feature(f) for f in local.features],
-        "bands": bands,
-        "band_sensitivity": {"values": local.band_sens, "normalised": local.band_norm},
-        "channels": list(local.channels),
-        "channel_sensitivity": {"values": local.channel_sens, "normalised": local.channel_norm},
-        "directions": list(local.directions),
-        "direction_sensitivity": local.direction_sens,
-        "classes": list(local.classes),
-        "by_kind": by_kind,
-        "identifiability": {
-            "noise": ident.noise_residual,
-            "noise_estimated": ident.noise_estimated,
-            "max_rel_std": ident.max_rel_std,
-            "singular_values": ident.singular_values,
-            "n_identifiable": ident.n_identifiable,
-            "n_parameters": len(ident.names),
-            "combinations": [
-                {"sigma": c.sigma, "std": c.std, "pinned": c.pinned, "terms": c.terms}
-                for c in ident.combinations
-            ],
-            "pivot_order": [ident.names[i] for i in ident.pivot_order],
-            "recommended": [{"name": n, "std": s} for n, s in ident.subset_std.items()],
-        },
-        "sweep": None,
-        "timing": timing,
+
+
+def _identifiability(ident: Identifiability) -> dict[str, Any]:
+    """The identifiability entry: noise, singular values, weak combinations, the subset."""
+    return {
+        "noise": ident.noise_residual,
+        "noise_estimated": ident.noise_estimated,
+        "max_rel_std": ident.max_rel_std,
+        "singular_values": ident.singular_values,
+        "n_identifiable": ident.n_identifiable,
+        "n_parameters": len(ident.names),
+        "combinations": [
+            {"sigma": c.sigma, "std": c.std, "pinned": c.pinned, "terms": c.terms}
+            for c in ident.combinations
+        ],
+        "pivot_order": [ident.names[i] for i in ident.pivot_order],
+        "recommended": [{"name": n, "std": s} for n, s in ident.subset_std.items()],
     }
-    if sweep is not None:
-        out["sweep"] = {
-            "parameters": list(sweep.names),
-            "scales": sweep.scales,
-            "values": sweep.values,
-            "costs": sweep.costs,
-            "directions": list(sweep.directions),
-            "direction_costs": sweep.direction_costs,
-            "cost_nominal": sweep.cost_nominal,
-            "direction_nominal": sweep.direction_nominal,
-            "zero_nominal": list(sweep.zero_nominal),
-            "wall_s": sweep.wall_s,
-            "workers": sweep.workers,
-        }
-    return json_safe(out)
+
+
+def _sweep(sweep: SweepResult) -> dict[str, Any]:
+    """The sweep entry: costs for each parameter and scale (and per direction)."""
+    return {
+        "parameters": list(sweep.names),
+        "scales": sweep.scales,
+        "values": sweep.values,
+        "costs": sweep.costs,
+        "directions": list(sweep.directions),
+        "direction_costs": sweep.direction_costs,
+        "cost_nominal": sweep.cost_nominal,
+        "direction_nominal": sweep.direction_nominal,
+        "zero_nominal": list(sweep.zero_nominal),
+        "wall_s": sweep.wall_s,
+        "workers": sweep.workers,
+    }
 
 
 def write_json(path: str | os.PathLike[str], content: dict[str, Any]) -> Path:

@@ -27,7 +27,7 @@ from ..data.measurement import FrfData
 from ..exceptions import ComputationError, ConfigError
 from ..interrupt import ignore_in_worker, terminate_on_interrupt
 from ..model.document import UrdfDocument
-from ._common import Setup, make_setup
+from ._common import Setup, label_masks, make_setup
 
 _NON_NEGATIVE = ("stiffness", "damping", "mass")
 
@@ -130,8 +130,7 @@ def run_sweep(
     s = default_scales() if scales is None else np.asarray(scales, dtype=float)
     t0 = time.perf_counter()
     vals = sweep_values(setup, s)
-    directions = tuple(dict.fromkeys(str(d) for d in setup.direction))
-    masks = np.array([setup.direction == d for d in directions]).reshape(len(directions), -1)
+    directions, masks = label_masks(setup.direction)
     n_p = setup.n_params
     costs = np.full((n_p, s.size), np.nan)
     dcosts = np.full((len(directions), n_p, s.size), np.nan)
@@ -152,26 +151,7 @@ def run_sweep(
             progress(1, setup.names[i])
 
     n_workers = max(1, min(int(workers), n_p))
-    if n_workers == 1:
-        _init(setup, masks)
-        try:
-            for i in range(n_p):
-                store(*_costs_for(i, todo[i]))
-        finally:
-            _STATE.clear()
-    else:
-        try:
-            with (
-                ProcessPoolExecutor(
-                    max_workers=n_workers, initializer=_init_worker, initargs=(setup, masks)
-                ) as pool,
-                terminate_on_interrupt(pool),
-            ):
-                futures = [pool.submit(_costs_for, i, todo[i]) for i in range(n_p)]
-                for fut in as_completed(futures):
-                    store(*fut.result())
-        except (OSError, RuntimeError) as exc:  # BrokenProcessPool is a RuntimeError
-            raise ComputationError(f"sensitivity sweep: worker processes failed ({exc})") from exc
+    _evaluate(setup, masks, todo, n_workers, store)
     return SweepResult(
         names=setup.names,
         scales=s,
@@ -185,6 +165,39 @@ def run_sweep(
         wall_s=time.perf_counter() - t0,
         workers=n_workers,
     )
+
+
+def _evaluate(
+    setup: Setup,
+    masks: np.ndarray,
+    todo: np.ndarray,
+    n_workers: int,
+    store: Callable[[int, np.ndarray, np.ndarray], None],
+) -> None:
+    """Evaluate the costs of every parameter's sweep values ``todo`` ``(n_p, n_scales)`` (NaN:
+    skip), in this process or in ``n_workers`` processes, handing each parameter's
+    ``(index, total costs, costs per direction mask)`` to ``store`` as it completes."""
+    n_p = setup.n_params
+    if n_workers == 1:
+        _init(setup, masks)
+        try:
+            for i in range(n_p):
+                store(*_costs_for(i, todo[i]))
+        finally:
+            _STATE.clear()
+        return
+    try:
+        with (
+            ProcessPoolExecutor(
+                max_workers=n_workers, initializer=_init_worker, initargs=(setup, masks)
+            ) as pool,
+            terminate_on_interrupt(pool),
+        ):
+            futures = [pool.submit(_costs_for, i, todo[i]) for i in range(n_p)]
+            for fut in as_completed(futures):
+                store(*fut.result())
+    except (OSError, RuntimeError) as exc:  # BrokenProcessPool is a RuntimeError
+        raise ComputationError(f"sensitivity sweep: worker processes failed ({exc})") from exc
 
 
 def sensitivity_sweep(
