@@ -12,6 +12,7 @@ so C keeps its placement and its parameters. Q gets a Gazebo spring and a damper
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -76,6 +77,65 @@ def insert_parasitic_joint(
         if parent is None or child is None:
             raise ModelError(f"{where}: insert {name!r}: give `after` or both `parent` and `child`")
         after = find_joint_between(doc, parent, child)
+    a, p = _check_parasitic(doc, name, axis, pivot, stiffness, damping)
+    host = doc.joint(after)
+    final_child = host.child
+    link_in = f"{name}_link"
+    host.child = link_in
+    doc.robot.links.append(yourdfpy.Link(name=link_in, inertial=None, visuals=[], collisions=[]))
+    lim = _DEFAULT_LIMIT[kind] if limit is None else float(limit)
+    has_pivot = bool(np.any(p != 0.0))
+    q_child = f"{name}_moving" if has_pivot else final_child
+    doc.robot.joints.append(_compliant_joint(name, kind, (link_in, q_child), a, p, damping, lim))
+    if has_pivot:
+        _offset_back(doc, name, q_child, final_child, p)
+    doc.set_stiffness(name, stiffness, reference=0.0)
+    return name
+
+
+def _compliant_joint(
+    name: str,
+    kind: str,
+    links: tuple[str, str],
+    axis: np.ndarray,
+    pivot: np.ndarray,
+    damping: float,
+    limit: float,
+) -> Any:
+    """The ``yourdfpy.Joint`` ``name`` from ``links = (parent, child)``, its origin at
+    ``pivot`` (m), unit ``axis``, ``damping`` and position limits ``±limit``."""
+    import yourdfpy
+
+    return yourdfpy.Joint(
+        name=name,
+        type=kind,
+        parent=links[0],
+        child=links[1],
+        origin=_translation(pivot),
+        axis=axis / np.linalg.norm(axis),
+        dynamics=yourdfpy.Dynamics(damping=float(damping), friction=None),
+        limit=yourdfpy.Limit(effort=1e6, velocity=1e3, lower=-limit, upper=limit),
+    )
+
+
+def _translation(p: np.ndarray) -> np.ndarray:
+    """The homogeneous transform ``(4, 4)`` of a pure translation by ``p`` (m)."""
+    T = np.eye(4)
+    T[:3, 3] = p
+    return T
+
+
+def _check_parasitic(
+    doc: UrdfDocument,
+    name: str,
+    axis: Sequence[float],
+    pivot: Sequence[float],
+    stiffness: float,
+    damping: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Check that a parasitic joint's names are free and its axis, pivot, stiffness and
+    damping valid; return ``(axis, pivot)`` as float arrays, shape (3,)."""
+    where = doc.source or "<URDF>"
     existing = set(doc.link_names) | set(doc.joint_names)
     new_names = {name, f"{name}_link", f"{name}_moving", f"{name}_offset"}
     clash = sorted(new_names & existing)
@@ -89,42 +149,26 @@ def insert_parasitic_joint(
         raise ModelError(f"{where}: parasitic joint {name!r}: pivot must be a finite 3-vector")
     if stiffness < 0 or damping < 0:
         raise ModelError(f"{where}: parasitic joint {name!r}: stiffness and damping must be ≥ 0")
+    return a, p
 
-    host = doc.joint(after)
-    final_child = host.child
-    link_in = f"{name}_link"
-    host.child = link_in
-    doc.robot.links.append(yourdfpy.Link(name=link_in, inertial=None, visuals=[], collisions=[]))
-    lim = _DEFAULT_LIMIT[kind] if limit is None else float(limit)
-    T = np.eye(4)
-    T[:3, 3] = p
-    has_pivot = bool(np.any(p != 0.0))
-    q_child = f"{name}_moving" if has_pivot else final_child
+
+def _offset_back(
+    doc: UrdfDocument, name: str, moving: str, final_child: str, pivot: np.ndarray
+) -> None:
+    """The massless link ``moving`` and the fixed joint ``name_offset`` that takes the frame
+    from the pivot back to the original child's origin."""
+    import yourdfpy
+
+    doc.robot.links.append(yourdfpy.Link(name=moving, inertial=None, visuals=[], collisions=[]))
     doc.robot.joints.append(
         yourdfpy.Joint(
-            name=name,
-            type=kind,
-            parent=link_in,
-            child=q_child,
-            origin=T,
-            axis=a / np.linalg.norm(a),
-            dynamics=yourdfpy.Dynamics(damping=float(damping), friction=None),
-            limit=yourdfpy.Limit(effort=1e6, velocity=1e3, lower=-lim, upper=lim),
+            name=f"{name}_offset",
+            type="fixed",
+            parent=moving,
+            child=final_child,
+            origin=_translation(-pivot),
         )
     )
-    if has_pivot:
-        doc.robot.links.append(
-            yourdfpy.Link(name=q_child, inertial=None, visuals=[], collisions=[])
-        )
-        back = np.eye(4)
-        back[:3, 3] = -p
-        doc.robot.joints.append(
-            yourdfpy.Joint(
-                name=f"{name}_offset", type="fixed", parent=q_child, child=final_child, origin=back
-            )
-        )
-    doc.set_stiffness(name, stiffness, reference=0.0)
-    return name
 
 
 def add_floating_base(
