@@ -261,8 +261,6 @@ def build_affine_model(
             frame, a gain on an unknown channel.
         OperatingPointError: the operating point names a joint the model lacks.
     """
-    import pinocchio as pin
-
     where = doc.source or "<URDF>"
     couplings = mimic_couplings(doc, where)
     model = doc.build_pinocchio_model()
@@ -272,48 +270,15 @@ def build_affine_model(
     dofs = _dof_names(model, where)
     if any("[" in d for d in dofs):  # a free-free structure on soft supports: they carry
         model.gravity.linear = np.zeros(3)  # its weight
-
-    def v_index(joint: str, role: str) -> int:
-        if joint not in dofs:
-            raise ModelError(
-                f"{where}: {role} joint {joint!r} is not a movable joint;"
-                f" movable: {', '.join(dofs)}"
-            )
-        return dofs.index(joint)
-
     B, C, inputs, outs = io_matrices(doc, model, q0, dofs, outputs)
-
-    stiffness = np.zeros(nv)
-    damping = np.zeros(nv)
-    for j in doc.movable_joint_names:
-        stiffness[v_index(j, "spring")] = doc.stiffness(j)
-        damping[v_index(j, "damper")] = doc.damping(j)
-
+    stiffness, damping = _springs_and_dampers(doc, dofs, where)
     grounded = doc.grounded_links()
     bodies = [
         lk.name for lk in doc.robot.links if lk.inertial is not None and lk.name not in grounded
     ]
     placements = _link_placements(model, bodies, where)
     pi = np.array([pi_from_urdf(*link_inertial(doc, b)) for b in bodies]).reshape(-1, 10)
-
-    data = model.createData()
-    Mj, Gj = _joint_bases(model, data, q0)
-    nb = len(bodies)
-    M_basis = np.zeros((nb, 10, nv, nv))
-    G_basis = np.zeros((nb, 10, nv, nv))
-    for b, name in enumerate(bodies):
-        jid, placement = placements[name]
-        if jid == 0:
-            continue
-        T = _transport_matrix(placement)
-        M_basis[b] = np.einsum("mk,mij->kij", T, Mj[jid])
-        G_basis[b] = np.einsum("mk,mij->kij", T, Gj[jid])
-
-    M_full = pin.crba(model, data, q0)
-    M_full = np.triu(M_full) + np.triu(M_full, 1).T
-    G_full = pin.computeGeneralizedGravityDerivatives(model, data, q0).copy()
-    M_rest = M_full - np.einsum("bk,bkij->ij", pi, M_basis)
-    G_rest = G_full - np.einsum("bk,bkij->ij", pi, G_basis)
+    M_basis, G_basis, M_rest, G_rest = _inertia_bases(model, q0, placements, bodies, pi)
     full = AffineModel(
         dofs=tuple(dofs),
         bodies=tuple(bodies),
@@ -334,6 +299,59 @@ def build_affine_model(
     )
     am = _reduce_mimic(full, couplings) if couplings else full
     return am.with_gains(*channel_gains(doc, inputs, outs))
+
+
+def _springs_and_dampers(
+    doc: UrdfDocument, dofs: list[str], where: str
+) -> tuple[np.ndarray, np.ndarray]:
+    """Stiffness and damping per velocity DOF ``(nv,)`` from the URDF's springs and dampers."""
+    stiffness = np.zeros(len(dofs))
+    damping = np.zeros(len(dofs))
+
+    def v_index(joint: str, role: str) -> int:
+        if joint not in dofs:
+            raise ModelError(
+                f"{where}: {role} joint {joint!r} is not a movable joint;"
+                f" movable: {', '.join(dofs)}"
+            )
+        return dofs.index(joint)
+
+    for j in doc.movable_joint_names:
+        stiffness[v_index(j, "spring")] = doc.stiffness(j)
+        damping[v_index(j, "damper")] = doc.damping(j)
+    return stiffness, damping
+
+
+def _inertia_bases(
+    model,  # pinocchio.Model
+    q0: np.ndarray,
+    placements: dict[str, tuple[int, object]],
+    bodies: list[str],
+    pi: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(M_basis, G_basis, M_rest, G_rest)``: the mass matrix and gravity stiffness at
+    ``q0`` per inertial parameter of each body, ``(n_bodies, 10, nv, nv)``, and what is left
+    of the full matrices ``(nv, nv)`` at the bodies' parameters ``pi`` ``(n_bodies, 10)``."""
+    import pinocchio as pin
+
+    nv = model.nv
+    data = model.createData()
+    Mj, Gj = _joint_bases(model, data, q0)
+    M_basis = np.zeros((len(bodies), 10, nv, nv))
+    G_basis = np.zeros((len(bodies), 10, nv, nv))
+    for b, name in enumerate(bodies):
+        jid, placement = placements[name]
+        if jid == 0:
+            continue
+        T = _transport_matrix(placement)
+        M_basis[b] = np.einsum("mk,mij->kij", T, Mj[jid])
+        G_basis[b] = np.einsum("mk,mij->kij", T, Gj[jid])
+    M_full = pin.crba(model, data, q0)
+    M_full = np.triu(M_full) + np.triu(M_full, 1).T
+    G_full = pin.computeGeneralizedGravityDerivatives(model, data, q0).copy()
+    M_rest = M_full - np.einsum("bk,bkij->ij", pi, M_basis)
+    G_rest = G_full - np.einsum("bk,bkij->ij", pi, G_basis)
+    return M_basis, G_basis, M_rest, G_rest
 
 
 def _reduce_mimic(am: AffineModel, couplings: Mapping[str, Coupling]) -> AffineModel:
