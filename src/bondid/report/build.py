@@ -11,6 +11,7 @@ from __future__ import annotations
 import datetime as dt
 import json
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -88,6 +89,21 @@ def _load(path: Path) -> tuple[Any, str | None]:
         return None, f"could not read {path.name}: {exc}"
 
 
+# (section key and title, its result file, its renderer, what to run when it is missing);
+# the key also names the section's figure group
+_SECTIONS: tuple[tuple[str, str, str, Callable[[Any], str], str], ...] = (
+    ("fit", "Fit", "fit.json", sections.fit_section, "run python -m bondid.fit"),
+    (
+        "sensitivity", "Sensitivity", "sensitivity.json", sections.sensitivity_section,
+        "run python -m bondid.sensitivity",
+    ),
+    (
+        "diagnosis", "Diagnosis", "diagnosis.json", sections.diagnosis_section,
+        "run python -m bondid.diagnose",
+    ),
+)  # fmt: skip
+
+
 def build_report_html(results: Path, out_dir: Path) -> tuple[str, Found]:
     """The report page for ``results`` (links relative to ``out_dir``) and what was found.
 
@@ -100,84 +116,79 @@ def build_report_html(results: Path, out_dir: Path) -> tuple[str, Found]:
         raise ConfigError(
             f"{results}: no result files ({', '.join(RESULT_FILES)}) or PNG plots found"
         )
-    parts: list[str] = []
-    nav: list[str] = []
-
-    fleet_page = "fleet.json" in found.json_paths
-
-    def section(key: str, title: str, body: str) -> None:
-        if fleet_page and key in _SINGLE and _SINGLE[key] not in found.json_paths:
-            return  # a fleet's page: no "not found" notes for single-machine results
-        nav.append(f'<a href="#{key}">{esc(title)}</a>')
-        parts.append(f'<section id="{key}"><h2>{esc(title)}</h2>{body}</section>')
-
-    def figures(group: str, rel: Path) -> str:
-        return "".join(
-            png_figure(p, p.relative_to(rel).as_posix()) for p in found.figures.get(group, [])
-        )
-
-    def json_part(name: str, render, hint: str) -> str:
-        path = found.json_paths.get(name)
-        if path is None:
-            return note(f"{name} not found — {hint}")
-        data, err = _load(path)
-        if err is not None:
-            print(f"warning: {err}", file=sys.stderr)
-            return f'<p class="warn">{esc(err)}</p>'
-        return f'<p class="note">from {esc(path.relative_to(results).as_posix())}</p>' + render(
-            data
-        )
-
+    pg = _Page(results, found)
     if "fleet.json" in found.json_paths:
-        section(
-            "fleet",
-            "Fleet",
-            json_part("fleet.json", sections.fleet_section, "run python -m bondid.fleet")
-            + figures("fleet", results),
-        )
-    section(
-        "fit",
-        "Fit",
-        json_part("fit.json", sections.fit_section, "run python -m bondid.fit")
-        + figures("fit", results),
-    )
-    section(
-        "sensitivity",
-        "Sensitivity",
-        json_part(
-            "sensitivity.json", sections.sensitivity_section, "run python -m bondid.sensitivity"
-        )
-        + figures("sensitivity", results),
-    )
-    section(
-        "diagnosis",
-        "Diagnosis",
-        json_part("diagnosis.json", sections.diagnosis_section, "run python -m bondid.diagnose")
-        + figures("diagnosis", results),
-    )
+        hint = "run python -m bondid.fleet"
+        body = pg.json_part("fleet.json", sections.fleet_section, hint) + pg.figures("fleet")
+        pg.section("fleet", "Fleet", body)
+    for key, title, name, render, hint in _SECTIONS:
+        pg.section(key, title, pg.json_part(name, render, hint) + pg.figures(key))
     modes_path = found.json_paths.get("modes.json")
     modes_dir = modes_path.parent if modes_path is not None else results
-    section(
+    pg.section(
         "modes",
         "Modes",
-        json_part(
+        pg.json_part(
             "modes.json",
             lambda d: sections.modes_section(d, modes_dir, out_dir),
             "run python -m bondid.modes --out DIR",
         ),
     )
     if found.figures.get("other"):
-        section("plots", "Other plots", figures("other", results))
+        pg.section("plots", "Other plots", pg.figures("other"))
+    return page(f"bondid report — {results.resolve().name}", pg.html()), found
 
-    now = dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z")
-    listed = ", ".join(esc(p.relative_to(results).as_posix()) for p in found.json_paths.values())
-    head = (
-        f"<h1>bondid report — {esc(results.resolve().name)}</h1>"
-        f"<p>Results folder <code>{esc(results)}</code>, report made {esc(now)}."
-        f" Result files: {listed or 'none (plots only)'}.</p>"
-        f"<nav>{''.join(nav)}</nav>"
-    )
-    return page(f"bondid report — {results.resolve().name}", head + "".join(parts)), found
+
+@dataclass
+class _Page:
+    """The report page being assembled: its sections and the navigation bar linking them."""
+
+    results: Path
+    found: Found
+    parts: list[str] = field(default_factory=list)
+    nav: list[str] = field(default_factory=list)
+
+    def section(self, key: str, title: str, body: str) -> None:
+        """Add a section (on a fleet's page, only those whose result file is there)."""
+        fleet_page = "fleet.json" in self.found.json_paths
+        if fleet_page and key in _SINGLE and _SINGLE[key] not in self.found.json_paths:
+            return  # a fleet's page: no "not found" notes for single-machine results
+        self.nav.append(f'<a href="#{key}">{esc(title)}</a>')
+        self.parts.append(f'<section id="{key}"><h2>{esc(title)}</h2>{body}</section>')
+
+    def figures(self, group: str) -> str:
+        """The PNGs of figure group ``group``, embedded."""
+        return "".join(
+            png_figure(p, p.relative_to(self.results).as_posix())
+            for p in self.found.figures.get(group, [])
+        )
+
+    def json_part(self, name: str, render: Callable[[Any], str], hint: str) -> str:
+        """Result file ``name`` rendered, or a note that it is missing or unreadable."""
+        path = self.found.json_paths.get(name)
+        if path is None:
+            return note(f"{name} not found — {hint}")
+        data, err = _load(path)
+        if err is not None:
+            print(f"warning: {err}", file=sys.stderr)
+            return f'<p class="warn">{esc(err)}</p>'
+        source = esc(path.relative_to(self.results).as_posix())
+        return f'<p class="note">from {source}</p>' + render(data)
+
+    def html(self) -> str:
+        """The page body: heading, navigation bar, then the sections."""
+        now = dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z")
+        results = self.results
+        listed = ", ".join(
+            esc(p.relative_to(results).as_posix()) for p in self.found.json_paths.values()
+        )
+        head = (
+            f"<h1>bondid report — {esc(results.resolve().name)}</h1>"
+            f"<p>Results folder <code>{esc(results)}</code>, report made {esc(now)}."
+            f" Result files: {listed or 'none (plots only)'}.</p>"
+            f"<nav>{''.join(self.nav)}</nav>"
+        )
+        return head + "".join(self.parts)
 
 
 def build_report(results: str | Path, out_dir: str | Path | None = None) -> Path:
