@@ -289,7 +289,7 @@ def _rows(old: str, new: str) -> str:
         (_rows("3.0,", "1.5,"), DataError, "line 7: unsorted"),
         (_rows("2.0,", "1.0,"), DataError, "line 6: duplicate"),
         (_rows("1.0,", "0.0,"), DataError, "line 5: .*not positive"),
-        (_rows("0.8", "1.2"), DataError, "line 6, column 'x.x.coh'.*0..1"),
+        (_rows("0.8", "1.2"), DataError, r"line 6, column 'x\.x\.coh': coherence 1\.2 outside"),
         (GOOD + HEADER, DataError, "no data rows"),
     ],
 )  # fmt: skip

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -101,6 +102,18 @@ def check_frequencies(freq_hz: np.ndarray, where: str, labels: list[str] | None 
             f"{where}: {label(k)}: {kind} frequency {float(freq_hz[k])!r} Hz after "
             f"{float(freq_hz[k - 1])!r} Hz; frequencies must be strictly increasing"
         )
+
+
+def check_coherence(
+    values: np.ndarray, where: str, label: Callable[[int], str] | None = None
+) -> None:
+    """Raise :class:`DataError` at the first coherence value (real, ``(n_freq,)``) outside
+    0..1; ``label(k)`` names point ``k`` in the message (default ``"point k"``, 1-based)."""
+    bad = np.flatnonzero((values < 0) | (values > 1))
+    if bad.size:
+        k = int(bad[0])
+        at = label(k) if label is not None else f"point {k + 1}"
+        raise DataError(f"{where}: {at}: coherence {float(values[k])!r} outside 0..1")
 
 
 def written_channels(data: FrfData, where: str) -> list[tuple[int, int, bool]]:

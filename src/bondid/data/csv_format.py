@@ -29,6 +29,7 @@ from ..exceptions import ChannelError, DataError
 from ..frf.quantity import QUANTITIES, convert_quantity
 from ._common import (
     FORMAT_VERSION,
+    check_coherence,
     check_frequencies,
     check_joint_name,
     format_operating_point,
@@ -301,13 +302,8 @@ def _channel_arrays(
         elif suffix == "im":
             H[a, b].imag = col
         else:
-            bad = np.flatnonzero((col < 0) | (col > 1))
-            if bad.size:
-                k = int(bad[0])
-                raise DataError(
-                    f"{path}: line {linenos[k]}, column {header[j]!r}: coherence {col[k]!r} "
-                    f"outside 0..1"
-                )
+            column = f"column {header[j]!r}"
+            check_coherence(col, str(path), lambda k, c=column: f"line {linenos[k]}, {c}")
             assert coh is not None
             coh[a, b] = col
     return H, coh

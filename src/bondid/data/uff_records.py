@@ -17,7 +17,7 @@ import numpy as np
 
 from ..exceptions import ChannelError, DataError
 from ..frf.quantity import QUANTITIES, convert_quantity
-from ._common import check_frequencies, check_joint_name
+from ._common import check_coherence, check_frequencies, check_joint_name
 
 #: UFF 58 function types
 FUNC_FRF = 4
@@ -220,9 +220,5 @@ def _coherence_values(values: np.ndarray, where: str) -> np.ndarray:
     """A coherence record's values, checked real and within 0..1."""
     if np.iscomplexobj(values):
         raise DataError(f"{where}: coherence record holds complex values; expected real")
-    bad = np.flatnonzero((values < 0) | (values > 1))
-    if bad.size:
-        raise DataError(
-            f"{where}: point {bad[0] + 1}: coherence {float(values[bad[0]])!r} outside 0..1"
-        )
+    check_coherence(values, where)
     return values.astype(float)
