@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -104,15 +103,13 @@ def check_frequencies(freq_hz: np.ndarray, where: str, labels: list[str] | None 
         )
 
 
-def check_coherence(
-    values: np.ndarray, where: str, label: Callable[[int], str] | None = None
-) -> None:
+def check_coherence(values: np.ndarray, where: str, labels: list[str] | None = None) -> None:
     """Raise :class:`DataError` at the first coherence value (real, ``(n_freq,)``) outside
-    0..1; ``label(k)`` names point ``k`` in the message (default ``"point k"``, 1-based)."""
+    0..1; ``labels[k]`` names point ``k`` in the message (default ``"point k"``, 1-based)."""
     bad = np.flatnonzero((values < 0) | (values > 1))
     if bad.size:
         k = int(bad[0])
-        at = label(k) if label is not None else f"point {k + 1}"
+        at = labels[k] if labels is not None else f"point {k + 1}"
         raise DataError(f"{where}: {at}: coherence {float(values[k])!r} outside 0..1")
 
 

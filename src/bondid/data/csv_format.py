@@ -302,8 +302,8 @@ def _channel_arrays(
         elif suffix == "im":
             H[a, b].imag = col
         else:
-            column = f"column {header[j]!r}"
-            check_coherence(col, str(path), lambda k, c=column: f"line {linenos[k]}, {c}")
+            labels = [f"line {n}, column {header[j]!r}" for n in linenos]
+            check_coherence(col, str(path), labels)
             assert coh is not None
             coh[a, b] = col
     return H, coh
