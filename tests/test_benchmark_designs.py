@@ -46,11 +46,11 @@ def _modes_hz(doc: UrdfDocument) -> np.ndarray:
 
 
 @pytest.fixture(scope="module", params=list(DESIGNS))
-def design(request: pytest.FixtureRequest):  # type: ignore[no-untyped-def]
+def design(request: pytest.FixtureRequest):
     return DESIGNS[request.param]
 
 
-def test_design_loads_and_linearises(design) -> None:  # type: ignore[no-untyped-def]
+def test_design_loads_and_linearises(design) -> None:
     import pinocchio as pin
 
     model = pin.buildModelFromUrdf(str(design.path))
@@ -63,7 +63,7 @@ def test_design_loads_and_linearises(design) -> None:  # type: ignore[no-untyped
     assert len(f) >= 7
 
 
-def test_design_bodies_are_physical(design) -> None:  # type: ignore[no-untyped-def]
+def test_design_bodies_are_physical(design) -> None:
     from scipy.spatial import ConvexHull
 
     from bondid.consistency.hull import link_hull
@@ -134,7 +134,7 @@ def test_regime_files_read_back(regime: str, tmp_path: Path) -> None:
     truth = truth_model(UrdfDocument.load(d.path), eff, seed=3)
     f = np.geomspace(1.0, 4000.0, 60)
 
-    def factor(ff, o, i):  # type: ignore[no-untyped-def]
+    def factor(ff, o, i):
         return signal_factor(eff, ff, o, i)
 
     paths, exact = measure(truth, d.operating_points, f, regime, factor, tmp_path, seed=3)

@@ -25,7 +25,7 @@ def doc() -> UrdfDocument:
     return UrdfDocument.load(MODEL)
 
 
-def _with_values(effect, doc, cand, scale=1.0):  # type: ignore[no-untyped-def]
+def _with_values(effect, doc, cand, scale=1.0):
     aug = effect.augment(doc, cand)
     for p in cand.parameters:
         for m, fac in p.members:
@@ -113,7 +113,7 @@ def test_refit_jacobian_matches_finite_differences(doc):
         assert np.max(np.abs(J[:, k] - fd)) <= 1e-3 * max(np.max(np.abs(fd)), 1e-9), k
 
 
-def _settings(**kw):  # type: ignore[no-untyped-def]
+def _settings(**kw):
     from bondid.diagnose.pipeline import Settings
 
     base = dict(n_points=150, workers=1, use_ipopt=False, modes=False, n_starts=2)

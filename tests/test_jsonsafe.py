@@ -67,3 +67,10 @@ def test_json_safe_leaves_its_input_alone() -> None:
     data = {"x": arr, "y": [np.nan]}
     json_safe(data)
     assert data["x"] is arr and np.isnan(arr[0]) and math.isnan(data["y"][0])
+
+
+def test_json_safe_takes_any_mapping() -> None:
+    from types import MappingProxyType
+
+    safe = json_safe(MappingProxyType({"a": (np.nan, 1), "b": MappingProxyType({"c": np.inf})}))
+    assert safe == {"a": [None, 1], "b": {"c": None}} and type(safe["b"]) is dict

@@ -41,7 +41,7 @@ def bonder() -> UrdfDocument:
     return UrdfDocument.load(URDF)
 
 
-def _truth(data, exact):  # type: ignore[no-untyped-def]
+def _truth(data, exact):
     """True noise std and SNR [dB] from the simulator's coherence γ² = S/(S+N)."""
     S = np.abs(exact.H) ** 2
     coh = data.coherence
@@ -50,7 +50,7 @@ def _truth(data, exact):  # type: ignore[no-untyped-def]
         return np.sqrt(N), 10.0 * np.log10(S / N)
 
 
-def _check(bonder, f, regime, seed):  # type: ignore[no-untyped-def]
+def _check(bonder, f, regime, seed):
     floor_db, ref, fq = REGIMES[regime]
     data = simulate(
         bonder, None, f, noise=REL, floor_db=floor_db, seed=seed, floor_ref=ref,

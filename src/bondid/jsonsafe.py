@@ -8,6 +8,7 @@ through :func:`number` before arithmetic.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -32,7 +33,8 @@ def number(value: Any, *, finite: bool = True) -> float | None:
 def json_safe(value: Any) -> Any:
     """``value`` with every part made valid for ``json.dump``, structure kept.
 
-    Arrays (any shape) and tuples become (nested) lists, dicts are rebuilt with the same keys,
+    Arrays (any shape) and tuples become (nested) lists, mappings become dicts with the same
+    keys,
     floats (Python or NumPy) that are NaN or ±inf become None, NumPy integers become ``int``
     and ``numpy.bool_`` becomes ``bool``; everything else (str, int, bool, None, ...) is
     returned as it is.
@@ -41,7 +43,7 @@ def json_safe(value: Any) -> Any:
         return json_safe(value.tolist())
     if isinstance(value, list | tuple):
         return [json_safe(v) for v in value]
-    if isinstance(value, dict):
+    if isinstance(value, Mapping):
         return {k: json_safe(v) for k, v in value.items()}
     if isinstance(value, float | np.floating):
         return number(value)

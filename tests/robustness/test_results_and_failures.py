@@ -101,7 +101,7 @@ def test_failed_ipopt_still_writes_fit_json(inputs, run, tmp_path, monkeypatch):
 
     real = nlp.FitNlp.solve
 
-    def failing(self, *a, **kw):  # type: ignore[no-untyped-def]
+    def failing(self, *a, **kw):
         out = real(self, *a, **kw)
         out.status, out.success = "Diverging_Iterates", False
         return out
@@ -126,7 +126,7 @@ def test_fit_without_any_iterate_still_says_why(inputs, run, tmp_path, monkeypat
     from bondid.exceptions import SolverError
     from bondid.fit import multistart
 
-    def fail(*a, **kw):  # type: ignore[no-untyped-def]
+    def fail(*a, **kw):
         raise SolverError(
             "all 1 fit run(s) failed; start 0: Restoration_Failed", "Restoration_Failed"
         )

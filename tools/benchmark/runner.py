@@ -69,7 +69,7 @@ def run_case(case: Case, s: Settings) -> dict[str, Any]:
     truth = truth_model(nominal, case.effects, case.seed)
     f = np.logspace(0.0, np.log10(4000.0), s.freq)
 
-    def factor(ff, outs, ins):  # type: ignore[no-untyped-def]
+    def factor(ff, outs, ins):
         return signal_factor(case.effects, ff, outs, ins)
 
     row: dict[str, Any] = {"case": case.name, "design": case.design, "regime": case.regime,

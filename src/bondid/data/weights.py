@@ -16,12 +16,12 @@ The estimate is computed once per :class:`FrfData` (on its full grid) and cached
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
 
 from ..exceptions import ConfigError
+from ..jsonsafe import json_safe
 from .measurement import FrfData
 from .noise_estimate import INFORMATIVE_DB, NoiseEstimate, estimate_noise
 
@@ -126,7 +126,7 @@ def weighting_summary(datasets: list[FrfData], weighting: str) -> dict[str, Any]
             wc = w[ds.outputs.index(o), ds.inputs.index(i)]
             row = c.as_dict()
             row["informative_share_weights"] = float(np.mean(wc >= _INFORMATIVE_W))
-            rows.append({k: _finite(v) for k, v in row.items()})
+            rows.append(json_safe(row))
         out.append({"file": ds.source, "has_coherence": ds.coherence is not None, "channels": rows})
     return {
         "weighting": weighting,
@@ -134,10 +134,3 @@ def weighting_summary(datasets: list[FrfData], weighting: str) -> dict[str, Any]
         "informative_snr_db": INFORMATIVE_DB,
         "datasets": out,
     }
-
-
-def _finite(v: Any) -> Any:
-    """JSON-safe: non-finite floats become None."""
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    return v

@@ -11,22 +11,12 @@ from pathlib import Path
 from typing import Any
 
 from ..atomic import write_text_atomic
+from ..jsonsafe import json_safe
 from .aggregate import RULE, FleetStats, fit_ok
 from .plot import STRIP_PNG, plot_strip
 
 FLEET_JSON, FLEET_CSV = "fleet.json", "fleet.csv"
 CSV_COLUMNS = ("machine", "parameter", "value", "std", "status", "outlier", "reason")
-
-
-def _clean(v: Any) -> Any:
-    """JSON-safe: NaN/inf become None (JSON has no NaN)."""
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    if isinstance(v, Mapping):
-        return {str(k): _clean(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_clean(x) for x in v]
-    return v
 
 
 def machine_summary(st: Mapping[str, Any]) -> dict[str, Any]:
@@ -62,7 +52,7 @@ def fleet_document(
     }
     if stats.effects is not None:
         doc["effects"] = stats.effects
-    return _clean(doc)
+    return json_safe(doc)
 
 
 def _csv_text(rows: Sequence[Mapping[str, Any]]) -> str:
