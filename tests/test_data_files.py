@@ -385,6 +385,19 @@ def test_noise_levels_and_coherence() -> None:
     assert coh[0, 0, i_res] > 0.999 and coh[0, 0, i_anti] < 0.5
 
 
+def test_noise_coherence_is_signal_over_signal_plus_noise() -> None:
+    # known answers of gamma^2 = S / (S + rel^2 S + sigma^2), 0 where there is no power
+    from bondid.data.noise import _snr_coherence
+
+    S = np.array([1.0, 4.0, 0.0, 0.0, 1e-300])
+    sigma = np.array([0.0, 1.0, 0.0, 2.0, 0.0])
+    got = _snr_coherence(S, 0.1, sigma)
+    expected = [1 / 1.01, 4 / (4 * 1.01 + 1), 0.0, 0.0, 1 / 1.01]
+    np.testing.assert_allclose(got, expected, rtol=1e-14, atol=0)
+    # with rel = 0 and no floor the coherence of any power is exactly 1
+    assert np.array_equal(_snr_coherence(S[:2], 0.0, np.zeros(2)), [1.0, 1.0])
+
+
 def test_noise_floor_per_output_and_absent_channels() -> None:
     f = np.geomspace(10, 1000, 50)
     H1 = _two_dof_drive_point(f)[0, 0]

@@ -105,7 +105,7 @@ def add_measurement_noise(
     e2 = _complex_normal(gen, H.shape)
     H_noisy = H * (1.0 + rel * e1) + sigma * e2
     H_noisy[absent] = np.nan + 1j * np.nan
-    coherence = snr_coherence(mag**2, rel, sigma)
+    coherence = _snr_coherence(mag**2, rel, sigma)
     coherence[absent] = np.nan
     return H_noisy, coherence
 
@@ -148,7 +148,7 @@ def _check_options(
     return fq
 
 
-def snr_coherence(S: np.ndarray, rel: float, sigma: np.ndarray) -> np.ndarray:
+def _snr_coherence(S: np.ndarray, rel: float, sigma: np.ndarray) -> np.ndarray:
     """The coherence ``S / (S + N)`` of signal power ``S = |H|^2`` under the noise model,
     ``N = rel^2 S + sigma^2`` (0 where ``S + N`` is 0), in 0..1; shapes broadcast."""
     N = (rel**2) * S + sigma**2

@@ -16,6 +16,7 @@ import os
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -167,20 +168,18 @@ class UrdfDocument:
         return [j.name for j in self.robot.joints if j.type in MOVABLE_TYPES]
 
     def link(self, name: str):  # -> yourdfpy.Link
-        for lk in self.robot.links:
-            if lk.name == name:
-                return lk
-        raise ModelError(
-            f"{self.source or '<URDF>'}: no link {name!r}; links: {', '.join(self.link_names)}"
-        )
+        return self._named(self.robot.links, "link", name)
 
     def joint(self, name: str):  # -> yourdfpy.Joint
-        for j in self.robot.joints:
-            if j.name == name:
-                return j
-        raise ModelError(
-            f"{self.source or '<URDF>'}: no joint {name!r}; joints: {', '.join(self.joint_names)}"
-        )
+        return self._named(self.robot.joints, "joint", name)
+
+    def _named(self, items: list[Any], what: str, name: str) -> Any:
+        """The element called ``name`` of ``items`` (links or joints, ``what``)."""
+        for item in items:
+            if item.name == name:
+                return item
+        valid = ", ".join(item.name for item in items)
+        raise ModelError(f"{self.source or '<URDF>'}: no {what} {name!r}; {what}s: {valid}")
 
     def root_link(self) -> str:
         children = {j.child for j in self.robot.joints}
