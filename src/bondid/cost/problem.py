@@ -40,12 +40,29 @@ from .residuals import (
 
 
 class ParameterModel(Protocol):
+    """What :class:`FrfProblem` evaluates the model at: a map from a parameter vector ``x``
+    ``(size,)`` to the values of every linearisation's affine model, with exact derivatives.
+
+    Implemented by :class:`bondid.linear.parameter_map.ParameterMap` (named URDF parameters),
+    :class:`bondid.optim.layout.Layout` (the fit's decision vector) and
+    :class:`bondid.optim.tied.TiedParameters` (named parameters with ties). A model may also
+    have transducer gains: ``gain_values(x) -> {name: g}`` and ``gain_jacobian(x) -> {name:
+    dg/dx (size,)}`` (optional; without them the gains stay the model's).
+    """
+
     @property
-    def size(self) -> int: ...
+    def size(self) -> int:
+        """Length of the parameter vector ``x``."""
+        ...
 
-    def values(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
+    def values(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(π (nb, 10), stiffness (nv,), damping (nv,))`` at ``x`` (SI units; π in
+        Pinocchio's order ``m, m·c, I_o``)."""
+        ...
 
-    def jacobian(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
+    def jacobian(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(dπ/dx (nb, 10, size), dk/dx (nv, size), dd/dx (nv, size))`` at ``x``."""
+        ...
 
 
 @dataclass
@@ -89,18 +106,48 @@ class CostOptions:
 
 
 @dataclass
-class _Block:
+class DataSelection:
+    """The points of one data set a :class:`FrfProblem` uses (its public layout).
+
+    ``n_sel`` selected points (channels × used frequencies with finite data), listed output
+    channel, then input, then frequency; the model FRF ``H`` of this data set is
+    ``(n_out, n_in_model, n_fu)`` on ``freq_hz`` and ``H[rows, cols, fidx]`` are the modelled
+    values of the selected points.
+
+    Attributes:
+        data: the measured data set.
+        affine: its linearisation (at ``data.operating_point``).
+        freq_hz: the frequencies used ``(n_fu,)`` (Hz).
+        rows: ``(n_sel,)`` output index into the data's and the model's outputs.
+        cols: ``(n_sel,)`` input index into the model's inputs.
+        fidx: ``(n_sel,)`` index into ``freq_hz``.
+        flat: ``(n_sel,)`` index into the model FRF flattened ``(o, i, f)``; None = all.
+        Hm: ``(n_sel,)`` measured values.
+        weight: ``(n_sel,)`` point weights (unnormalised, 0…1 times channel weights).
+        scale: ``(n_sel,)`` channel RMS magnitude (for ``linear_magnitude``).
+        channel: ``(n_sel,)`` channel name ``OUT.IN`` per point.
+    """
+
     data: FrfData
     affine: AffineModel
-    freq_hz: np.ndarray  # frequencies used (n_fu,)
-    rows: np.ndarray  # (n_sel,) output index into data/model outputs
-    cols: np.ndarray  # (n_sel,) input index into the model inputs
-    fidx: np.ndarray  # (n_sel,) index into freq_hz
-    flat: np.ndarray | None  # (n_sel,) index into the model FRF's flattened (o, i, f); None = all
-    Hm: np.ndarray  # (n_sel,) measured
-    weight: np.ndarray  # (n_sel,) weights (unnormalised)
-    scale: np.ndarray  # (n_sel,) channel scale for linear_magnitude
-    channel: np.ndarray  # (n_sel,) channel name per point
+    freq_hz: np.ndarray
+    rows: np.ndarray
+    cols: np.ndarray
+    fidx: np.ndarray
+    flat: np.ndarray | None
+    Hm: np.ndarray
+    weight: np.ndarray
+    scale: np.ndarray
+    channel: np.ndarray
+
+    @property
+    def point_freq_hz(self) -> np.ndarray:
+        """Frequency (Hz) of each selected point ``(n_sel,)``."""
+        return self.freq_hz[self.fidx]
+
+
+#: the former private name of :class:`DataSelection` (read by bondid.diagnose)
+_Block = DataSelection
 
 
 _Values = tuple[np.ndarray, np.ndarray, np.ndarray]
@@ -125,12 +172,12 @@ def _gain_arrays(affine: AffineModel, gains: _Gains) -> tuple[np.ndarray, np.nda
     return gi, go
 
 
-def _block_affine(b: _Block, values: _Values, gains: _Gains) -> AffineModel:
+def _block_affine(b: DataSelection, values: _Values, gains: _Gains) -> AffineModel:
     affine = b.affine.with_values(*values)
     return affine.with_gains(*_gain_arrays(affine, gains)) if gains else affine
 
 
-def _block_frf(b: _Block, values: _Values, gains: _Gains | None = None) -> np.ndarray:
+def _block_frf(b: DataSelection, values: _Values, gains: _Gains | None = None) -> np.ndarray:
     """Model FRF ``(n_out, n_in_model, n_fu)`` of a data set at parameter ``values``."""
     return _block_affine(b, values, gains or {}).linear_model().frf(b.freq_hz)
 
@@ -152,10 +199,27 @@ def _gain_columns(
 
 
 class FrfProblem:
-    """Residuals of a model against measured FRFs (one linearisation per data set)."""
+    """Residuals of a model against measured FRFs (one linearisation per data set).
+
+    Args:
+        doc: the model (its channels and, unless ``affines`` is given, its linearisations).
+        datasets: measured FRFs (receptance), each at its operating point.
+        options: cost options (default :class:`CostOptions`).
+        affines: the linearisations, one per data set (default: built from ``doc``).
+
+    The residual (``(n_residuals,)``, ``cost = ‖r‖²``) holds ``parts(kind)`` real entries per
+    selected point, data set after data set, each block ``(part, point)``-ordered; the points
+    are described by :attr:`blocks` (:class:`DataSelection`), :meth:`residual_labels` and
+    :meth:`entry_weights`.
+    """
 
     def __init__(
-        self, doc: UrdfDocument, datasets: Sequence[FrfData], options: CostOptions | None = None
+        self,
+        doc: UrdfDocument,
+        datasets: Sequence[FrfData],
+        options: CostOptions | None = None,
+        *,
+        affines: Sequence[AffineModel] | None = None,
     ):
         self.doc = doc
         self.options = options or CostOptions()
@@ -163,23 +227,65 @@ class FrfProblem:
         check_weighting(self.options.weighting, "cost weighting")
         if not datasets:
             raise ConfigError("no measured data given")
-        inputs, outputs = model_inputs(doc), model_outputs(doc)
-        movable = doc.movable_joint_names
-        self.blocks: list[_Block] = []
-        for ds in datasets:
-            check_against_model(ds, inputs=inputs, outputs=outputs, joints=movable)
-            affine = build_affine_model(doc, ds.operating_point, outputs=ds.outputs)
-            self.blocks.append(self._block(ds, affine))
+        if affines is None:
+            inputs, outputs = model_inputs(doc), model_outputs(doc)
+            movable = doc.movable_joint_names
+            for ds in datasets:
+                check_against_model(ds, inputs=inputs, outputs=outputs, joints=movable)
+            affines = [
+                build_affine_model(doc, ds.operating_point, outputs=ds.outputs) for ds in datasets
+            ]
+        self.blocks: list[DataSelection] = [
+            self._block(ds, a) for ds, a in zip(datasets, affines, strict=True)
+        ]
         total = sum(float(b.weight.sum()) for b in self.blocks)
         if total <= 0:
             raise ConfigError("the selected channels and bands leave no data to fit")
         self._norm = 1.0 / np.sqrt(total)
 
+    # -- the same linearisations, other selections or values ---------------------------------
+    @property
+    def datasets(self) -> list[FrfData]:
+        """The measured data sets, one per linearisation (in order)."""
+        return [b.data for b in self.blocks]
+
+    def with_options(self, options: CostOptions) -> FrfProblem:
+        """The same data and linearisations compared with other ``options`` (other bands,
+        channels, residual kind or norm); nothing is linearised again."""
+        return FrfProblem(self.doc, self.datasets, options, affines=self.affines)
+
+    def moved(self, pmodel: ParameterModel, x: np.ndarray, doc: UrdfDocument) -> FrfProblem:
+        """The same problem with every linearisation's parameter values set to ``pmodel``'s
+        values at ``x`` (``doc``: the model document holding those values). The affine bases
+        are shared: nothing is linearised again."""
+        values, gains = pmodel.values(x), _free_gains(pmodel, x)
+        affines = [_block_affine(b, values, gains) for b in self.blocks]
+        return FrfProblem(doc, self.datasets, self.options, affines=affines)
+
     @property
     def affines(self) -> list[AffineModel]:
+        """The linearisations, one per data set."""
         return [b.affine for b in self.blocks]
 
-    def _block(self, ds: FrfData, affine: AffineModel) -> _Block:
+    @property
+    def total_weight(self) -> float:
+        """Sum of the point weights of every selected point (the cost's normaliser)."""
+        return float(sum(float(b.weight.sum()) for b in self.blocks))
+
+    @property
+    def freq_range_hz(self) -> tuple[float, float]:
+        """Lowest and highest frequency used (Hz)."""
+        return (
+            min(float(b.freq_hz.min()) for b in self.blocks),
+            max(float(b.freq_hz.max()) for b in self.blocks),
+        )
+
+    def entry_weights(self) -> np.ndarray:
+        """Per residual entry: its point's weight over :attr:`total_weight`, ``(n_r,)``."""
+        k = parts(self.options.kind)
+        return np.concatenate([np.tile(b.weight, k) for b in self.blocks]) / self.total_weight
+
+    def _block(self, ds: FrfData, affine: AffineModel) -> DataSelection:
         opt = self.options
         where = ds.source or "<data>"
         col_of = [affine.inputs.index(i) for i in ds.inputs]
@@ -217,7 +323,7 @@ class FrfProblem:
         n_o, n_i, n_f = len(affine.outputs), len(affine.inputs), used.size
         flat = (a * n_i + cols) * n_f + fidx
         whole = flat.size == n_o * n_i * n_f and np.array_equal(flat, np.arange(flat.size))
-        return _Block(
+        return DataSelection(
             ds, affine, ds.freq_hz[used], a, cols, fidx, None if whole else flat, Hm, w, scale,
             names,
         )  # fmt: skip
@@ -250,7 +356,7 @@ class FrfProblem:
         """Scaled residual vector ``(n_residuals,)``; ``cost = ‖r‖²``."""
         values, gains = pmodel.values(x), _free_gains(pmodel, x)
 
-        def one(b: _Block) -> np.ndarray:
+        def one(b: DataSelection) -> np.ndarray:
             Hs = _block_frf(b, values, gains)[b.rows, b.cols, b.fidx]
             return self._weighted(b, residual(self.options.kind, Hs, b.Hm, b.scale))[0]
 
@@ -296,7 +402,7 @@ class FrfProblem:
 
     def _grid_rows(
         self,
-        b: _Block,
+        b: DataSelection,
         affine: AffineModel,
         derivatives: tuple[np.ndarray, np.ndarray, np.ndarray],
         r: np.ndarray,
@@ -320,7 +426,7 @@ class FrfProblem:
                 out=Jg[:, :, :, sl],
             )  # fmt: skip
 
-    def _weighted(self, b: _Block, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _weighted(self, b: DataSelection, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Weighted residuals ``(parts·n_sel,)`` (norm mapping, √weight, normalisation) and
         the factor ``(parts, n_sel)`` their derivatives take."""
         sw = np.sqrt(b.weight) * self._norm

@@ -65,12 +65,15 @@ import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..cost.residuals import NORMS, RESIDUAL_KINDS
 from ..data.weights import WEIGHTINGS
 from ..exceptions import ConfigError
 from ..model.points import Point
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from ..modes.bands import Span as Band
 
 #: Parameter kinds a bound key may name (besides names and globs).
 KINDS = ("mass", "com", "inertia", "stiffness", "damping", "gain")
@@ -96,8 +99,6 @@ _SECTION_KEYS = {
     ),
 }
 
-Band = tuple[float, float]
-
 
 @dataclass
 class StudySettings:
@@ -121,7 +122,7 @@ class StudySettings:
         staged: fit by bands first (stiffness, damping, inertia), then everything.
         stage_bands: stage -> bands (Hz); a missing stage takes bands from the modes.
         continuation: number of bands of a band continuation (growing band from the lowest
-            frequencies, :mod:`bondid.fit.continuation`); 0 = off. Not with ``staged``.
+            frequencies, :mod:`bondid.optim.schedules`); 0 = off. Not with ``staged``.
         max_iter: IPOPT iteration limit per fit.
         presolve: IPOPT iterations on the normalised complex error before a log-cost fit
             (:data:`bondid.fit.solver.PRESOLVE_ITER`; 0 = none).

@@ -97,8 +97,10 @@ class JointVar:
     kind: str  # stiffness / damping
     dof: int  # index into the affine model's velocity coordinates
     index: int  # index in z
-    name_index: int  # index in names
+    name_index: int  # index in names (-1: a tied member, not a free name)
     scale: float
+    factor: float = 1.0  # a tied member: value = factor · its leader's value
+    leader: int = -1  # a tied member: its leader's position in Layout.joints
 
 
 @dataclass
@@ -128,6 +130,8 @@ class Layout:
         affine: any :class:`AffineModel` of ``doc`` (gives body and DOF indices, base values).
         infos: the free parameters, in order (length ``n``).
         hulls: link hull per fitted body (None = no CoM constraint).
+        ties: ``{leader: [(member, factor), ...]}``: joint parameters set to ``factor ·
+            leader`` (:mod:`bondid.optim.tied`); they share the leader's entry of ``z``.
     """
 
     def __init__(
@@ -136,7 +140,9 @@ class Layout:
         affine: AffineModel,
         infos: Sequence[ParameterInfo],
         hulls: dict[str, Hull | None],
+        ties: dict[str, list[tuple[str, float]]] | None = None,
     ):
+        """Body blocks first (10 entries each), then gains and joint parameters."""
         self.infos = list(infos)
         self.base_pi = affine.pi.copy()
         self.base_k = affine.stiffness.copy()
@@ -194,6 +200,18 @@ class Layout:
             self.joints.append(JointVar(info.name, info.kind, dof, offset, j, 1.0))
             offset += 1
         self.size = offset
+        self._tie_members(affine, ties or {})
+
+    def _tie_members(self, affine: AffineModel, ties: dict[str, list[tuple[str, float]]]) -> None:
+        """A :class:`JointVar` per tied member, on its leader's entry of ``z``."""
+        leaders = {jv.name: k for k, jv in enumerate(self.joints)}
+        for lead, members in ties.items():
+            k = leaders[lead]
+            for member, factor in members:
+                joint, _, kind = member.rpartition(".")
+                dof = affine.dofs.index(joint)
+                index = self.joints[k].index
+                self.joints.append(JointVar(member, kind, dof, index, -1, 1.0, factor, k))
 
     # -- start point -----------------------------------------------------------------------
     def start(
@@ -237,6 +255,9 @@ class Layout:
             if not any(k.startswith("inertia.") for k in blk.free):
                 blk.fixed_v = z[blk.offset + 1 : blk.offset + 7].copy()
         for jv in self.joints:
+            if jv.leader >= 0:
+                jv.scale = jv.factor * self.joints[jv.leader].scale
+                continue
             v = float(p0[jv.name_index])
             # a start at 0 keeps the SI unit as its scale: IPOPT pushes a start off its bound
             # by ~1e-2 scaled units, which, scaled by the (finite, far) upper bound, would be a
@@ -301,7 +322,8 @@ class Layout:
             for comp, j in blk.free.items():
                 out[j] = vals[comp]
         for jv in self.joints:
-            out[jv.name_index] = jv.scale * z[jv.index]
+            if jv.name_index >= 0:
+                out[jv.name_index] = jv.scale * z[jv.index]
         for gv in self.gains:
             out[gv.name_index] = gv.g0 * float(np.exp(z[gv.index]))
         return out
@@ -338,7 +360,7 @@ class Layout:
             if blk.fixed_v is not None:
                 sl = slice(blk.offset + 1, blk.offset + 7)
                 lbz[sl] = ubz[sl] = blk.fixed_v
-        for jv in self.joints:
+        for jv in (j for j in self.joints if j.name_index >= 0):
             lbz[jv.index] = lower[jv.name_index] / jv.scale
             ubz[jv.index] = upper[jv.name_index] / jv.scale
             labels.append((jv.name, jv.index))
