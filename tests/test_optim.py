@@ -113,8 +113,8 @@ def test_tied_parameters_jacobian_and_round_trip(bonder: UrdfDocument) -> None:
     tp = TiedParameters(bonder, problem.frf.affines[0], names, ties)
     x = np.array([k0[0], 0.8])
     _, dk, _ = tp.jacobian(x)
-    h = 1e-3 * k0[0]
-    fd = (tp.values(x + [h, 0])[1] - tp.values(x - [h, 0])[1]) / (2 * h)
+    step = np.array([1e-3 * k0[0], 0.0])
+    fd = (tp.values(x + step)[1] - tp.values(x - step)[1]) / (2 * step[0])
     np.testing.assert_allclose(dk[:, 0], fd, rtol=1e-9, atol=1e-12)
     assert np.count_nonzero(dk[:, 0]) == 2  # the leader's and the member's spring
     res = run_search(problem, direct(0)).result
