@@ -160,6 +160,12 @@ def _free_gains(pmodel: ParameterModel, x: np.ndarray) -> _Gains:
     return dict(fn(x)) if fn is not None else {}
 
 
+def _free_gain_jacobian(pmodel: ParameterModel, x: np.ndarray) -> dict[str, np.ndarray]:
+    """d g / d x ``(size,)`` of every free gain of a parameter model (``gain_jacobian``)."""
+    fn = getattr(pmodel, "gain_jacobian", None)
+    return dict(fn(x)) if fn is not None else {}
+
+
 def _gain_arrays(affine: AffineModel, gains: _Gains) -> tuple[np.ndarray, np.ndarray]:
     """``(gain_in (n_in,), gain_out (n_out,))`` of ``affine`` with the free ``gains`` set."""
     assert affine.gain_in is not None and affine.gain_out is not None
@@ -371,7 +377,7 @@ class FrfProblem:
         its rows of the result.
         """
         values, gains = pmodel.values(x), _free_gains(pmodel, x)
-        dgains = pmodel.gain_jacobian(x) if gains else {}  # type: ignore[attr-defined]
+        dgains = _free_gain_jacobian(pmodel, x) if gains else {}
         dpi, dk, dd = pmodel.jacobian(x)
         n_p, k = dpi.shape[2], parts(self.options.kind)
         sizes = [k * b.Hm.size for b in self.blocks]

@@ -71,7 +71,7 @@ def resolve_names(
     free = list(s.free)
     if "auto" in free:
         try:
-            from ..sensitivity import recommend_subset  # type: ignore[attr-defined]
+            from ..sensitivity import recommend_subset
         except ImportError:
             raise DependencyError(
                 "--free auto needs bondid.sensitivity.recommend_subset, which this installation"

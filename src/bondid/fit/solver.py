@@ -81,23 +81,16 @@ def fit(
         doc: the model; not modified.
         datasets: measured FRFs, each at its own operating point (one linearisation each).
         names: free parameters (URDF form, e.g. ``x_stage.mass``, ``x_guide_rx.stiffness``);
-            use :func:`bondid.model.select_parameters` to expand groups and globs.
+            :func:`bondid.model.select_parameters` expands groups and globs.
         options: cost options (default: complex-log L2, all channels and frequencies).
-        lower, upper: bounds ``(n,)`` in SI units (default :func:`default_bounds`; ±inf allowed).
-        start: starting values ``(n,)`` (default: the model's values); clipped to the bounds,
-            and each fitted body is projected into the feasible set (consistent, CoM inside its
-            hull) with a note in ``FitResult.notes`` when it was not.
-        max_iter, tol: IPOPT's iteration limit and convergence tolerance.
-        progress: ``progress(iteration, cost)`` called at every IPOPT iteration.
-        use_hull: constrain each fitted body's CoM to the convex hull of its collision geometry.
-        constraint_hessian: ``"convexified"`` (default), ``"exact"`` or ``"none"`` (see
-            :mod:`bondid.optim.ipopt`).
-        ipopt_options: extra IPOPT options (e.g. ``{"max_wall_time": 60}``).
-        presolve_iter: for a log cost (``complex_log``, ``log_magnitude``), a second fit runs
-            from a start presolved with this many IPOPT iterations on the normalised complex
-            error, and the fit with the lower final cost is kept (see :data:`PRESOLVE_ITER`),
-            unless the direct fit succeeded without phase walls (:data:`WALL_SHARE`);
-            0 = the direct fit only.
+        lower, upper, start, use_hull: see :class:`bondid.optim.FitProblem` (bounds ``(n,)``
+            SI, default :func:`default_bounds`; start ``(n,)``, default the model's values,
+            clipped and projected into the feasible set with a note).
+        max_iter, tol, progress, constraint_hessian, ipopt_options: see
+            :func:`bondid.optim.ipopt.solve` (``progress(iteration, cost)``).
+        presolve_iter: for a log cost, the IPOPT iterations of the presolve on the normalised
+            complex error from which a second fit runs when the direct one did not succeed
+            without phase walls (:data:`PRESOLVE_ITER`, :data:`WALL_SHARE`); 0 = none.
 
     Returns:
         :class:`FitResult`. IPOPT's iteration/time limits and similar stops that leave a usable
@@ -107,8 +100,7 @@ def fit(
     Raises:
         ParameterError: an unknown name or a link that does not move.
         ConfigError: a repeated name, a kinematic placement, bad bounds or start.
-        SolverError: IPOPT failed without reaching a feasible point; ``status`` keeps IPOPT's
-            ``return_status``.
+        SolverError: IPOPT failed without reaching a feasible point (``status`` keeps IPOPT's).
     """
     from ..optim.problem import FitProblem
     from ..optim.schedules import direct

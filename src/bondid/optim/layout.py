@@ -122,6 +122,21 @@ def named_from_pi(pi: np.ndarray) -> dict[str, float]:
     return out
 
 
+def _new_block(doc: UrdfDocument, affine: AffineModel, link: str, hull: Hull | None) -> BodyBlock:
+    """A body's block with its length scale ``L``: half the hull's bounding-box diagonal, else
+    the radius of gyration, else 0.1 m (the δ shift and σ scale are set by ``start``)."""
+    m, _, I_c = link_inertial(doc, link)
+    if hull is not None:
+        length = 0.5 * hull.size
+    elif m > 0:
+        length = float(np.sqrt(max(np.trace(I_c), 0.0) / m)) or 0.1
+    else:
+        length = 0.1
+    scale = np.ones(10)
+    scale[7:] = length
+    return BodyBlock(link, affine.bodies.index(link), 0, np.zeros(10), scale, length, 1.0, hull)
+
+
 class Layout:
     """Decision vector of the fit (see the module docstring) and its maps.
 
@@ -147,60 +162,42 @@ class Layout:
         self.base_pi = affine.pi.copy()
         self.base_k = affine.stiffness.copy()
         self.base_d = affine.damping.copy()
-        self.blocks: list[BodyBlock] = []
+        self.blocks = self._body_blocks(doc, affine, hulls)
         self.joints: list[JointVar] = []
+        self.gains: list[GainVar] = []
         self.notes: list[str] = []
-        by_link: dict[str, BodyBlock] = {}
-        offset = 0
+        offset = 10 * len(self.blocks)
+        for j, info in enumerate(self.infos):
+            if info.kind == "gain":
+                self.gains.append(GainVar(info.name, offset, j))
+            elif not info.is_inertial:
+                dof = affine.dofs.index(info.owner)
+                self.joints.append(JointVar(info.name, info.kind, dof, offset, j, 1.0))
+            else:
+                continue
+            offset += 1
+        self.size = offset
+        self._tie_members(affine, ties or {})
+
+    def _body_blocks(
+        self, doc: UrdfDocument, affine: AffineModel, hulls: dict[str, Hull | None]
+    ) -> list[BodyBlock]:
+        """One :class:`BodyBlock` per link with a free inertial parameter, in order."""
+        blocks: dict[str, BodyBlock] = {}
         for j, info in enumerate(self.infos):
             if not info.is_inertial:
                 continue
-            blk = by_link.get(info.owner)
-            if blk is None:
-                m, _, I_c = link_inertial(doc, info.owner)
-                hull = hulls.get(info.owner)
-                if hull is not None:
-                    length = 0.5 * hull.size
-                elif m > 0:
-                    length = float(np.sqrt(max(np.trace(I_c), 0.0) / m)) or 0.1
-                else:
-                    length = 0.1
-                shift = np.zeros(10)  # δ shift and σ scale are set by start()
-                scale = np.ones(10)
-                scale[7:] = length
-                blk = BodyBlock(
-                    info.owner,
-                    affine.bodies.index(info.owner),
-                    offset,
-                    shift,
-                    scale,
-                    length,
-                    1.0,
-                    hull,
-                )
-                by_link[info.owner] = blk
-                self.blocks.append(blk)
-                offset += 10
-            blk.free[_component(info)] = j
-        for blk in self.blocks:
+            if info.owner not in blocks:
+                blocks[info.owner] = _new_block(doc, affine, info.owner, hulls.get(info.owner))
+                blocks[info.owner].offset = 10 * (len(blocks) - 1)
+            blocks[info.owner].free[_component(info)] = j
+        for blk in blocks.values():
             m, c, I_c = link_inertial(doc, blk.link)
             urdf = {"mass": m}
             urdf.update({f"com.{a}": float(c[k]) for k, a in enumerate(COM_AXES)})
             urdf.update({f"inertia.{n}": float(I_c[_IJ[n]]) for n in INERTIA_COMPONENTS})
             blk.fixed = {k: v for k, v in urdf.items() if k not in blk.free}
-        self.gains: list[GainVar] = []
-        for j, info in enumerate(self.infos):
-            if info.kind == "gain":
-                self.gains.append(GainVar(info.name, offset, j))
-                offset += 1
-                continue
-            if info.is_inertial:
-                continue
-            dof = affine.dofs.index(info.owner)
-            self.joints.append(JointVar(info.name, info.kind, dof, offset, j, 1.0))
-            offset += 1
-        self.size = offset
-        self._tie_members(affine, ties or {})
+        return list(blocks.values())
 
     def _tie_members(self, affine: AffineModel, ties: dict[str, list[tuple[str, float]]]) -> None:
         """A :class:`JointVar` per tied member, on its leader's entry of ``z``."""
@@ -374,7 +371,7 @@ class Layout:
     # -- CasADi constraints ----------------------------------------------------------------
     def constraints(
         self, zsym: Any, lower: np.ndarray, upper: np.ndarray
-    ) -> tuple[Any, np.ndarray, np.ndarray, list[str], list[str]]:
+    ) -> tuple[Any, np.ndarray, np.ndarray, list[str]]:
         """Constraint expressions ``g(z)`` (CasADi column) with bounds and labels.
 
         Rows, each scaled to O(1): fixed inertia components ``(I_c,k(θ) − v)/s_I = 0``; bounded
@@ -382,54 +379,51 @@ class Layout:
         ``(A t − b)/L ≤ 0`` (one row per facet, only for bodies with a free CoM component).
 
         Returns:
-            ``(g, lbg, ubg, labels, groups)``: labels name each row; groups give the readable
-            constraint each row belongs to (e.g. ``"x_stage com in hull"``).
+            ``(g, lbg, ubg, labels)``: a readable label per row (``"x_stage.inertia.ixx"``,
+            ``"x_stage.inertia.iyy fixed"``, ``"x_stage com in hull"``).
         """
         import casadi
 
-        rows: list[Any] = []
-        lbg: list[float] = []
-        ubg: list[float] = []
-        labels: list[str] = []
-        groups: list[str] = []
+        rows: list[tuple[Any, float, float, str]] = []
         for blk in self.blocks:
             zb = zsym[blk.offset : blk.offset + 10]
-            ze = casadi.DM(blk.shift) + casadi.DM(blk.scale) * zb
-            V: Any = casadi.SX.zeros(3, 3) if isinstance(zsym, casadi.SX) else casadi.MX.zeros(3, 3)
-            for k in range(3):
-                V[k, k] = casadi.exp(ze[_DIAG[k]])
-            for idx, r, c in _OFF:
-                V[r, c] = ze[idx]
-            S = V @ V.T  # second moment about the CoM
-            I_c = casadi.trace(S) * casadi.DM.eye(3) - S
-            s_i = blk.inertia_scale
             if blk.fixed_v is None:
-                for comp in INERTIA_COMPONENTS:
-                    r, c = _IJ[comp]
-                    expr = I_c[r, c] / s_i
-                    key = f"inertia.{comp}"
-                    if key in blk.fixed:
-                        rows.append(expr)
-                        lbg.append(blk.fixed[key] / s_i)
-                        ubg.append(blk.fixed[key] / s_i)
-                        labels.append(f"{blk.link}.{key} fixed")
-                        groups.append(f"{blk.link}.{key} fixed")
-                        continue
-                    j = blk.free[key]
-                    lo, hi = float(lower[j]), float(upper[j])
-                    if np.isfinite(lo) or np.isfinite(hi):
-                        rows.append(expr)
-                        lbg.append(lo / s_i)
-                        ubg.append(hi / s_i)
-                        labels.append(self.infos[j].name)
-                        groups.append(self.infos[j].name)
+                rows += self._inertia_rows(blk, zb, lower, upper)
             if blk.hull is not None and any(k.startswith("com.") for k in blk.free):
                 t = blk.scale[_T] * zb[_T : _T + 3]  # shift of t is 0
                 for A_row, b_row in zip(blk.hull.A, blk.hull.b, strict=True):
-                    rows.append((casadi.dot(casadi.DM(A_row), t) - b_row) / blk.length)
-                    lbg.append(-np.inf)
-                    ubg.append(0.0)
-                    labels.append(f"{blk.link} com in hull")
-                    groups.append(f"{blk.link} com in hull")
-        g = casadi.vertcat(*rows) if rows else casadi.SX(0, 1)
-        return g, np.array(lbg), np.array(ubg), labels, groups
+                    expr = (casadi.dot(casadi.DM(A_row), t) - b_row) / blk.length
+                    rows.append((expr, -np.inf, 0.0, f"{blk.link} com in hull"))
+        g = casadi.vertcat(*(r[0] for r in rows)) if rows else casadi.SX(0, 1)
+        lbg = np.array([r[1] for r in rows])
+        ubg = np.array([r[2] for r in rows])
+        return g, lbg, ubg, [r[3] for r in rows]
+
+    def _inertia_rows(
+        self, blk: BodyBlock, zb: Any, lower: np.ndarray, upper: np.ndarray
+    ) -> list[tuple[Any, float, float, str]]:
+        """``(I_c,k(θ)/s_I, lower, upper, label)`` of a body's fixed and bounded components."""
+        import casadi
+
+        ze = casadi.DM(blk.shift) + casadi.DM(blk.scale) * zb
+        V: Any = casadi.SX.zeros(3, 3) if isinstance(zb, casadi.SX) else casadi.MX.zeros(3, 3)
+        for k in range(3):
+            V[k, k] = casadi.exp(ze[_DIAG[k]])
+        for idx, r, c in _OFF:
+            V[r, c] = ze[idx]
+        S = V @ V.T  # second moment about the CoM
+        I_c = casadi.trace(S) * casadi.DM.eye(3) - S
+        s_i = blk.inertia_scale
+        rows = []
+        for comp in INERTIA_COMPONENTS:
+            r, c = _IJ[comp]
+            key = f"inertia.{comp}"
+            if key in blk.fixed:
+                v = blk.fixed[key] / s_i
+                rows.append((I_c[r, c] / s_i, v, v, f"{blk.link}.{key} fixed"))
+                continue
+            j = blk.free[key]
+            lo, hi = float(lower[j]), float(upper[j])
+            if np.isfinite(lo) or np.isfinite(hi):
+                rows.append((I_c[r, c] / s_i, lo / s_i, hi / s_i, self.infos[j].name))
+        return rows

@@ -255,7 +255,7 @@ class FitProblem:
             import casadi
 
             zsym = casadi.SX.sym("z", self.size)
-            g, lbg, ubg, labels, _ = self.layout.constraints(zsym, self.lower, self.upper)
+            g, lbg, ubg, labels = self.layout.constraints(zsym, self.lower, self.upper)
             self._constraints = Constraints(zsym, g, lbg, ubg, tuple(labels))
         return self._constraints
 
