@@ -246,28 +246,26 @@ class Resonance:
 def model_resonances(
     doc: UrdfDocument, operating_point: Mapping[str, float] | None = None
 ) -> list[Resonance]:
-    """The underdamped modes of ``doc`` at ``operating_point``, lowest first.
+    """The vibration modes of ``doc`` at ``operating_point``, lowest first.
 
-    Eigenvalues of the state matrix ``A`` (2nv × 2nv) of the linear model; rigid-body and
-    overdamped (real) eigenvalues are left out. The strain energy of a mode shape ``φ`` in a
-    joint spring is ``k_j |φ_j|²``.
+    The modes of :func:`bondid.modes.analysis.modal_analysis` (rigid-body and real
+    eigenvalues left out); the strain energy of a mode shape ``φ`` in a joint spring is
+    ``k_j |φ_j|²``.
     """
     from ..linear.affine import build_affine_model
+    from .analysis import modal_analysis
 
     am = build_affine_model(doc, operating_point)
-    lm = am.linear_model()
-    lam, vec = np.linalg.eig(lm.state_space()[0])
     driven = {t.joint for t in doc.transmissions}
     k = np.asarray(am.stiffness, dtype=float)
     para = np.array([d not in driven for d in am.dofs])
     out: list[Resonance] = []
-    for i in np.flatnonzero(is_oscillatory(lam)):
-        e = k * np.abs(vec[: lm.nv, i]) ** 2  # strain energy per joint spring
+    for mode in modal_analysis(am.linear_model()).vibration_modes():
+        e = k * np.abs(mode.shape) ** 2  # strain energy per joint spring
         total = float(e.sum())
-        w = float(abs(lam[i]))
         parasitic = bool(total > 0 and e[para].sum() > 0.5 * total)
-        out.append(Resonance(w / (2 * np.pi), float(-lam[i].real / w), parasitic))
-    return sorted(out, key=lambda m: m.f_hz)
+        out.append(Resonance(mode.f_hz, float(mode.zeta or 0.0), parasitic))
+    return out
 
 
 def merge_spans(spans: Sequence[Span]) -> list[Span]:
