@@ -293,26 +293,8 @@ class FrfProblem:
 
     def _block(self, ds: FrfData, affine: AffineModel) -> DataSelection:
         opt = self.options
-        where = ds.source or "<data>"
         col_of = [affine.inputs.index(i) for i in ds.inputs]
-        chosen = np.array(ds.present)
-        if opt.channels is not None:
-            wanted = set(opt.channels)
-            unknown = wanted - {f"{o}.{i}" for o in ds.outputs for i in ds.inputs}
-            if unknown:
-                raise ChannelError(
-                    f"{where}: --channels names {', '.join(sorted(unknown))}, not in the data;"
-                    f" valid: {', '.join(ds.channels)}"
-                )
-            for ka, o in enumerate(ds.outputs):
-                for kb, i in enumerate(ds.inputs):
-                    chosen[ka, kb] &= f"{o}.{i}" in wanted
-        fmask = np.ones(ds.freq_hz.size, bool)
-        if opt.bands:
-            fmask = np.zeros(ds.freq_hz.size, bool)
-            for lo, hi in opt.bands:
-                fmask |= (ds.freq_hz >= lo) & (ds.freq_hz <= hi)
-        sel = chosen[:, :, None] & fmask[None, None, :] & np.isfinite(ds.H)
+        sel = used_points(ds, opt)
         a, b, f = np.nonzero(sel)
         used = np.unique(f)
         fidx = np.searchsorted(used, f)
@@ -339,8 +321,9 @@ class FrfProblem:
     def n_residuals(self) -> int:
         return parts(self.options.kind) * sum(b.Hm.size for b in self.blocks)
 
-    def model_frf(self, pmodel: ParameterModel, x: np.ndarray) -> list[np.ndarray]:
-        """Model FRF at each data set's used frequencies, ``(n_out, n_in_model, n_fu)`` each."""
+    def used_frf(self, pmodel: ParameterModel, x: np.ndarray) -> list[np.ndarray]:
+        """Model FRF at each data set's used frequencies, ``(n_out, n_in_model, n_fu)`` each
+        (receptance; :func:`bondid.frf.aligned.model_frf` gives it in a data set's layout)."""
         values, gains = pmodel.values(x), _free_gains(pmodel, x)
         return thread_map(lambda b: _block_frf(b, values, gains), self.blocks)
 
@@ -351,7 +334,7 @@ class FrfProblem:
         measured one by more than ``limit_rad`` — where a log cost sits on the far side of a
         sign change (a wall a local method cannot cross). 0 … 1."""
         total = bad = 0.0
-        for b, H in zip(self.blocks, self.model_frf(pmodel, x), strict=True):
+        for b, H in zip(self.blocks, self.used_frf(pmodel, x), strict=True):
             Hs = H[b.rows, b.cols, b.fidx]
             dphi = np.abs(np.angle(Hs * np.conj(b.Hm)))
             total += float(b.weight.sum())
@@ -453,6 +436,33 @@ class FrfProblem:
             ch.append(np.tile(b.channel, k))
             fr.append(np.tile(b.freq_hz[b.fidx], k))
         return np.concatenate(ds_i), np.concatenate(ch), np.concatenate(fr)
+
+
+def used_points(ds: FrfData, options: CostOptions) -> np.ndarray:
+    """Boolean ``(n_out, n_in, n_freq)``: the points of ``ds`` a fit with ``options`` uses
+    (present channels among ``options.channels``, frequencies in ``options.bands``, finite).
+
+    Raises:
+        ChannelError: ``options.channels`` names a channel the data lack.
+    """
+    chosen = np.array(ds.present)
+    if options.channels is not None:
+        wanted = set(options.channels)
+        unknown = wanted - {f"{o}.{i}" for o in ds.outputs for i in ds.inputs}
+        if unknown:
+            raise ChannelError(
+                f"{ds.source or '<data>'}: --channels names {', '.join(sorted(unknown))}, not"
+                f" in the data; valid: {', '.join(ds.channels)}"
+            )
+        for ka, o in enumerate(ds.outputs):
+            for kb, i in enumerate(ds.inputs):
+                chosen[ka, kb] &= f"{o}.{i}" in wanted
+    fmask = np.ones(ds.freq_hz.size, bool)
+    if options.bands:
+        fmask = np.zeros(ds.freq_hz.size, bool)
+        for lo, hi in options.bands:
+            fmask |= (ds.freq_hz >= lo) & (ds.freq_hz <= hi)
+    return chosen[:, :, None] & fmask[None, None, :] & np.isfinite(ds.H)
 
 
 def db_rms(Hs: np.ndarray, Hm: np.ndarray) -> float:
