@@ -2,12 +2,10 @@
 
 :class:`FrfProblem` ties a model, one or more measured data sets (each at its own operating
 point, so one linearisation per pose) and the cost options together. Its decision vector ``x``
-is whatever a *parameter model* maps onto the physical values (and, when it has
-``gain_values(x) -> {name: g}`` and ``gain_jacobian(x) -> {name: dg/dx (n,)}``, onto free
-transducer gains ``gain.in.X`` / ``gain.out.Y``: ``H = g_out · H_model · g_in``); two exist:
-:class:`bondid.linear.parameter_map.ParameterMap` (named URDF parameters) and the fit's
-log-Cholesky map. A parameter model has ``size``, ``values(x) -> (π (nb,10), k (nv,), d (nv,))``
-and ``jacobian(x) -> (dπ (nb,10,n), dk (nv,n), dd (nv,n))``.
+is whatever a *parameter model* (:class:`ParameterModel`) maps onto the physical values ``(π
+(nb,10), k (nv,), d (nv,))`` with exact derivatives, and optionally onto free transducer gains
+``gain.in.X`` / ``gain.out.Y`` (``H = g_out · H_model · g_in``). Which points are used is
+decided by :mod:`bondid.cost.selection`.
 
 The residual vector is scaled so that ``cost = ‖r‖²`` is the weighted mean square over the
 selected complex points (for ``complex_log`` that is ``db_rms²``).
@@ -16,15 +14,14 @@ selected complex points (for ``complex_log`` that is ``db_rms²``).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
 
 from ..data.io import check_against_model
 from ..data.measurement import FrfData
-from ..data.weights import check_weighting, information_weights
-from ..exceptions import ChannelError, ConfigError
+from ..data.weights import check_weighting
+from ..exceptions import ConfigError
 from ..frf.jacobian import frf_and_jacobian, jacobian_blocks
 from ..linear.affine import AffineModel, build_affine_model, model_inputs, model_outputs
 from ..model.document import UrdfDocument
@@ -37,6 +34,12 @@ from .residuals import (
     residual_jacobian_parts,
     robust,
 )
+from .selection import CostOptions, DataSelection, select_points, used_points
+
+#: the former private name of :class:`DataSelection` (read by bondid.diagnose)
+_Block = DataSelection
+
+__all__ = ["CostOptions", "DataSelection", "FrfProblem", "ParameterModel", "db_rms", "used_points"]
 
 
 class ParameterModel(Protocol):
@@ -63,91 +66,6 @@ class ParameterModel(Protocol):
     def jacobian(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(dπ/dx (nb, 10, size), dk/dx (nv, size), dd/dx (nv, size))`` at ``x``."""
         ...
-
-
-@dataclass
-class CostOptions:
-    """How model and measurement are compared.
-
-    Attributes:
-        kind: residual kind (see :mod:`bondid.cost.residuals`), default ``complex_log``.
-        norm: ``l2`` or ``l1`` (smooth pseudo-Huber, ``l1_delta`` in residual units).
-        bands: frequency bands (Hz) to use; None = all.
-        channels: ``OUT.IN`` names to use; None = every channel in the data.
-        channel_weights: extra weight per channel (default 1: the log residuals already
-            balance channels whose levels differ by 50 dB).
-        use_coherence: False ignores the file's coherence column (``auto`` then weighs by
-            the estimated noise alone, ``coherence`` becomes ``none``).
-        weighting: the point weights (:mod:`bondid.data.weights`): ``auto`` (default: the
-            coherence combined with the noise estimated from the data where the file has a
-            coherence, the estimate alone otherwise), ``coherence``, ``estimated`` or
-            ``none``. Weights are ``w = Ŝ/(Ŝ + N̂)`` in 0..1, the coherence analogue.
-    """
-
-    kind: str = "complex_log"
-    norm: str = "l2"
-    l1_delta: float = 1.0
-    bands: Sequence[tuple[float, float]] | None = None
-    channels: Sequence[str] | None = None
-    channel_weights: dict[str, float] = field(default_factory=dict)
-    use_coherence: bool = True
-    weighting: str = "auto"
-
-    @property
-    def name(self) -> str:
-        return f"{self.kind}_{self.norm}"
-
-    @property
-    def effective_weighting(self) -> str:
-        """The weighting applied, after ``use_coherence`` (see the class docstring)."""
-        if self.use_coherence:
-            return self.weighting
-        return {"auto": "estimated", "coherence": "none"}.get(self.weighting, self.weighting)
-
-
-@dataclass
-class DataSelection:
-    """The points of one data set a :class:`FrfProblem` uses (its public layout).
-
-    ``n_sel`` selected points (channels × used frequencies with finite data), listed output
-    channel, then input, then frequency; the model FRF ``H`` of this data set is
-    ``(n_out, n_in_model, n_fu)`` on ``freq_hz`` and ``H[rows, cols, fidx]`` are the modelled
-    values of the selected points.
-
-    Attributes:
-        data: the measured data set.
-        affine: its linearisation (at ``data.operating_point``).
-        freq_hz: the frequencies used ``(n_fu,)`` (Hz).
-        rows: ``(n_sel,)`` output index into the data's and the model's outputs.
-        cols: ``(n_sel,)`` input index into the model's inputs.
-        fidx: ``(n_sel,)`` index into ``freq_hz``.
-        flat: ``(n_sel,)`` index into the model FRF flattened ``(o, i, f)``; None = all.
-        Hm: ``(n_sel,)`` measured values.
-        weight: ``(n_sel,)`` point weights (unnormalised, 0…1 times channel weights).
-        scale: ``(n_sel,)`` channel RMS magnitude (for ``linear_magnitude``).
-        channel: ``(n_sel,)`` channel name ``OUT.IN`` per point.
-    """
-
-    data: FrfData
-    affine: AffineModel
-    freq_hz: np.ndarray
-    rows: np.ndarray
-    cols: np.ndarray
-    fidx: np.ndarray
-    flat: np.ndarray | None
-    Hm: np.ndarray
-    weight: np.ndarray
-    scale: np.ndarray
-    channel: np.ndarray
-
-    @property
-    def point_freq_hz(self) -> np.ndarray:
-        """Frequency (Hz) of each selected point ``(n_sel,)``."""
-        return self.freq_hz[self.fidx]
-
-
-#: the former private name of :class:`DataSelection` (read by bondid.diagnose)
-_Block = DataSelection
 
 
 _Values = tuple[np.ndarray, np.ndarray, np.ndarray]
@@ -242,7 +160,7 @@ class FrfProblem:
                 build_affine_model(doc, ds.operating_point, outputs=ds.outputs) for ds in datasets
             ]
         self.blocks: list[DataSelection] = [
-            self._block(ds, a) for ds, a in zip(datasets, affines, strict=True)
+            select_points(ds, a, self.options) for ds, a in zip(datasets, affines, strict=True)
         ]
         total = sum(float(b.weight.sum()) for b in self.blocks)
         if total <= 0:
@@ -290,31 +208,6 @@ class FrfProblem:
         """Per residual entry: its point's weight over :attr:`total_weight`, ``(n_r,)``."""
         k = parts(self.options.kind)
         return np.concatenate([np.tile(b.weight, k) for b in self.blocks]) / self.total_weight
-
-    def _block(self, ds: FrfData, affine: AffineModel) -> DataSelection:
-        opt = self.options
-        col_of = [affine.inputs.index(i) for i in ds.inputs]
-        sel = used_points(ds, opt)
-        a, b, f = np.nonzero(sel)
-        used = np.unique(f)
-        fidx = np.searchsorted(used, f)
-        Hm = ds.H[a, b, f]
-        w = information_weights(ds, opt.effective_weighting)[a, b, f]
-        names = np.array([f"{ds.outputs[i]}.{ds.inputs[j]}" for i, j in zip(a, b, strict=True)])
-        for ch, cw in opt.channel_weights.items():
-            w = np.where(names == ch, w * float(cw), w)
-        scale = np.ones(a.size)
-        for ch in np.unique(names):
-            m = names == ch
-            scale[m] = np.sqrt(np.mean(np.abs(Hm[m]) ** 2))
-        cols = np.array(col_of, dtype=int)[b]
-        n_o, n_i, n_f = len(affine.outputs), len(affine.inputs), used.size
-        flat = (a * n_i + cols) * n_f + fidx
-        whole = flat.size == n_o * n_i * n_f and np.array_equal(flat, np.arange(flat.size))
-        return DataSelection(
-            ds, affine, ds.freq_hz[used], a, cols, fidx, None if whole else flat, Hm, w, scale,
-            names,
-        )  # fmt: skip
 
     # -- evaluation -----------------------------------------------------------------------
     @property
@@ -436,33 +329,6 @@ class FrfProblem:
             ch.append(np.tile(b.channel, k))
             fr.append(np.tile(b.freq_hz[b.fidx], k))
         return np.concatenate(ds_i), np.concatenate(ch), np.concatenate(fr)
-
-
-def used_points(ds: FrfData, options: CostOptions) -> np.ndarray:
-    """Boolean ``(n_out, n_in, n_freq)``: the points of ``ds`` a fit with ``options`` uses
-    (present channels among ``options.channels``, frequencies in ``options.bands``, finite).
-
-    Raises:
-        ChannelError: ``options.channels`` names a channel the data lack.
-    """
-    chosen = np.array(ds.present)
-    if options.channels is not None:
-        wanted = set(options.channels)
-        unknown = wanted - {f"{o}.{i}" for o in ds.outputs for i in ds.inputs}
-        if unknown:
-            raise ChannelError(
-                f"{ds.source or '<data>'}: --channels names {', '.join(sorted(unknown))}, not"
-                f" in the data; valid: {', '.join(ds.channels)}"
-            )
-        for ka, o in enumerate(ds.outputs):
-            for kb, i in enumerate(ds.inputs):
-                chosen[ka, kb] &= f"{o}.{i}" in wanted
-    fmask = np.ones(ds.freq_hz.size, bool)
-    if options.bands:
-        fmask = np.zeros(ds.freq_hz.size, bool)
-        for lo, hi in options.bands:
-            fmask |= (ds.freq_hz >= lo) & (ds.freq_hz <= hi)
-    return chosen[:, :, None] & fmask[None, None, :] & np.isfinite(ds.H)
 
 
 def db_rms(Hs: np.ndarray, Hm: np.ndarray) -> float:

@@ -32,6 +32,7 @@ from ..data.measurement import FrfData
 from ..exceptions import ConfigError, ParameterError
 from ..model.document import UrdfDocument
 from ..model.parameters import ParameterInfo, get_parameters, set_parameter
+from .constraints import layout_constraints
 from .evaluator import Evaluator
 from .layout import Layout
 from .tied import TiedParameters, check_ties, fitted_document
@@ -255,7 +256,7 @@ class FitProblem:
             import casadi
 
             zsym = casadi.SX.sym("z", self.size)
-            g, lbg, ubg, labels = self.layout.constraints(zsym, self.lower, self.upper)
+            g, lbg, ubg, labels = layout_constraints(self.layout, zsym, self.lower, self.upper)
             self._constraints = Constraints(zsym, g, lbg, ubg, tuple(labels))
         return self._constraints
 
