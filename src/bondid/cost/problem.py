@@ -13,6 +13,8 @@ selected complex points (for ``complex_log`` that is ``db_rms²``).
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 from collections.abc import Sequence
 from typing import Protocol
 
@@ -181,10 +183,14 @@ class FrfProblem:
     def moved(self, pmodel: ParameterModel, x: np.ndarray, doc: UrdfDocument) -> FrfProblem:
         """The same problem with every linearisation's parameter values set to ``pmodel``'s
         values at ``x`` (``doc``: the model document holding those values). The affine bases
-        are shared: nothing is linearised again."""
+        and the data selections are shared: nothing is linearised or selected again."""
         values, gains = pmodel.values(x), _free_gains(pmodel, x)
-        affines = [_block_affine(b, values, gains) for b in self.blocks]
-        return FrfProblem(doc, self.datasets, self.options, affines=affines)
+        out = copy.copy(self)
+        out.doc = doc
+        out.blocks = [
+            dataclasses.replace(b, affine=_block_affine(b, values, gains)) for b in self.blocks
+        ]
+        return out
 
     @property
     def affines(self) -> list[AffineModel]:

@@ -237,6 +237,12 @@ class FitProblem:
     def n_residuals(self) -> int:
         return self.frf.n_residuals
 
+    @property
+    def data_span_hz(self) -> tuple[float, float]:
+        """Lowest and highest frequency of the data sets (Hz), whatever the bands."""
+        freqs = [d.freq_hz for d in self.frf.datasets]
+        return min(float(f.min()) for f in freqs), max(float(f.max()) for f in freqs)
+
     # -- evaluation (decision vector) -----------------------------------------------------
     def residual(self, z: np.ndarray) -> np.ndarray:
         """Scaled residual ``(n_residuals,)`` at ``z`` (NaN where the model is invalid)."""

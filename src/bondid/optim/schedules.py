@@ -77,11 +77,6 @@ def direct(presolve_iter: int = PRESOLVE_ITER) -> list[Step]:
     return [Step("all", presolve=presolve_iter)]
 
 
-def _data_span(problem: FitProblem) -> Span:
-    freqs = [d.freq_hz for d in problem.frf.datasets]
-    return min(float(f.min()) for f in freqs), max(float(f.max()) for f in freqs)
-
-
 def staged(
     problem: FitProblem,
     stage_bands_hz: Mapping[str, Sequence[Span]] | None = None,
@@ -105,7 +100,7 @@ def staged(
     for key in user:
         if key not in STAGES:
             raise ConfigError(f"staged fit: unknown stage {key!r}; valid: {', '.join(STAGES)}")
-    f_min, f_max = _data_span(problem)
+    f_min, f_max = problem.data_span_hz
     auto: dict[str, list[Span]] = {}
     if any(s not in user for s in STAGES):
         op = problem.frf.datasets[0].operating_point
@@ -157,7 +152,7 @@ def continuation(
             f"band continuation: {n_bands} band(s) of {band_iter} iteration(s); valid: at "
             "least 2 bands (the last is the full fit) and at least 1 iteration"
         )
-    f_min, f_max = _data_span(problem)
+    f_min, f_max = problem.data_span_hz
     user = problem.options.bands
     if user:
         f_min = max(f_min, min(b[0] for b in user))

@@ -267,8 +267,7 @@ def _bands_of(problem: FitProblem, step: Step) -> list[Band]:
     bands = problem.options.bands if step.bands is KEEP else step.bands
     if bands:
         return [(float(a), float(b)) for a, b in bands]
-    freqs = [d.freq_hz for d in problem.frf.datasets]
-    return [(min(float(f.min()) for f in freqs), max(float(f.max()) for f in freqs))]
+    return [problem.data_span_hz]
 
 
 def _restricted(problem: FitProblem, step: Step, x: np.ndarray, names: list[str]) -> FitProblem:
