@@ -361,9 +361,7 @@ def solve(
         return _failed(problem, z_start, rec, "exception", why, time.perf_counter() - t0)
     interrupt.check()  # a Ctrl-C during the solve stopped IPOPT: stop the run too
     wall = time.perf_counter() - t0
-    stats = solver.stats()
-    status = str(stats.get("return_status", "unknown"))
-    iterations = int(stats.get("iter_count", max(len(rec.history) - 1, 0)))
+    status, iterations = _stats(solver, len(rec.history))
     if status not in SUCCESS_STATUSES | SOFT_STATUSES:
         why = (
             f"IPOPT stopped with {status} after {iterations} iterations "
@@ -378,6 +376,14 @@ def solve(
         history=rec.history, g=_column(sol["g"]), lam_x=_column(sol["lam_x"]),
         lam_g=_column(sol["lam_g"]),
     )  # fmt: skip
+
+
+def _stats(solver: Any, n_recorded: int) -> tuple[str, int]:
+    """IPOPT's ``(return_status, iterations)`` after a solve."""
+    stats = solver.stats()
+    return str(stats.get("return_status", "unknown")), int(
+        stats.get("iter_count", max(n_recorded - 1, 0))
+    )
 
 
 def _column(v: Any) -> np.ndarray:
