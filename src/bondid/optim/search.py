@@ -180,15 +180,15 @@ def run_search(
     iterations = 0
     final: _Solved | None = None
     for k, step in enumerate(steps):
-        done = _step(problem, step, x, run, records, k == len(steps) - 1)
+        last = k == len(steps) - 1
+        done = _step(problem, step, x, run, records, last)
         if done is not None:
             iterations += done.iterations
             idx = [problem.names.index(n) for n in done.problem.names]
             x[idx] = done.problem.values(done.solution.z)
-            final = done
-    if final is None or final.problem.names != problem.names:
-        why = records[-1].skipped or "the last step failed"
-        final = _Solved(problem, _unsolved(problem, why))
+            final = done if last else None
+    if final is None:  # the last step was skipped: nothing solved over every name
+        final = _Solved(problem, _unsolved(problem, records[-1].skipped or "skipped"))
     sub = final.problem
     notes = list(problem.notes) + [n for n in sub.notes if n not in problem.notes]
     result = fit_result(
