@@ -28,6 +28,7 @@ from ..frf.jacobian import frf_and_jacobian, jacobian_blocks
 from ..linear.affine import AffineModel, build_affine_model, model_inputs, model_outputs
 from ..model.document import UrdfDocument
 from ..threads import thread_map
+from .modifier import FrfModifier
 from .residuals import (
     check_kind,
     parts,
@@ -132,6 +133,9 @@ class FrfProblem:
         datasets: measured FRFs (receptance), each at its operating point.
         options: cost options (default :class:`CostOptions`).
         affines: the linearisations, one per data set (default: built from ``doc``).
+        modifier: an FRF modifier ``H ← G(ω; θ) ⊙ H`` (:mod:`bondid.cost.modifier`); θ comes
+            from a parameter model with ``modifier_values(x)`` / ``modifier_jacobian(x)``
+            (``(n_θ,)``, ``(n_θ, size)``), else it is held at :attr:`modifier_theta`.
 
     The residual (``(n_residuals,)``, ``cost = ‖r‖²``) holds ``parts(kind)`` real entries per
     selected point, data set after data set, each block ``(part, point)``-ordered; the points
@@ -146,8 +150,12 @@ class FrfProblem:
         options: CostOptions | None = None,
         *,
         affines: Sequence[AffineModel] | None = None,
+        modifier: FrfModifier | None = None,
     ):
         self.doc = doc
+        self.modifier = modifier
+        #: the modifier's parameters used when the parameter model has none (``(n_θ,)``)
+        self.modifier_theta = None if modifier is None else np.array(modifier.start, float)
         self.options = options or CostOptions()
         check_kind(self.options.kind, self.options.norm)
         check_weighting(self.options.weighting, "cost weighting")
@@ -178,7 +186,11 @@ class FrfProblem:
     def with_options(self, options: CostOptions) -> FrfProblem:
         """The same data and linearisations compared with other ``options`` (other bands,
         channels, residual kind or norm); nothing is linearised again."""
-        return FrfProblem(self.doc, self.datasets, options, affines=self.affines)
+        out = FrfProblem(
+            self.doc, self.datasets, options, affines=self.affines, modifier=self.modifier
+        )
+        out.modifier_theta = self.modifier_theta
+        return out
 
     def moved(self, pmodel: ParameterModel, x: np.ndarray, doc: UrdfDocument) -> FrfProblem:
         """The same problem with every linearisation's parameter values set to ``pmodel``'s
@@ -187,6 +199,7 @@ class FrfProblem:
         values, gains = pmodel.values(x), _free_gains(pmodel, x)
         out = copy.copy(self)
         out.doc = doc
+        out.modifier_theta = self._theta(pmodel, x)[0]
         out.blocks = [
             dataclasses.replace(b, affine=_block_affine(b, values, gains)) for b in self.blocks
         ]
@@ -224,7 +237,30 @@ class FrfProblem:
         """Model FRF at each data set's used frequencies, ``(n_out, n_in_model, n_fu)`` each
         (receptance; :func:`bondid.frf.aligned.model_frf` gives it in a data set's layout)."""
         values, gains = pmodel.values(x), _free_gains(pmodel, x)
-        return thread_map(lambda b: _block_frf(b, values, gains), self.blocks)
+        theta = self._theta(pmodel, x)[0]
+
+        def one(b: DataSelection) -> np.ndarray:
+            H = _block_frf(b, values, gains)
+            return H if theta is None else H * self._modifier_at(b, theta)[0]
+
+        return thread_map(one, self.blocks)
+
+    def _theta(
+        self, pmodel: ParameterModel, x: np.ndarray
+    ) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """The modifier's ``θ`` ``(n_θ,)`` and ``∂θ/∂x`` ``(n_θ, size)`` (None: no modifier;
+        no derivative when θ is held)."""
+        if self.modifier is None:
+            return None, None
+        values = getattr(pmodel, "modifier_values", None)
+        jacobian = getattr(pmodel, "modifier_jacobian", None)
+        if values is None or jacobian is None:
+            return self.modifier_theta, None
+        return np.asarray(values(x), float), np.asarray(jacobian(x), float)
+
+    def _modifier_at(self, b: DataSelection, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        assert self.modifier is not None
+        return self.modifier.at(theta, b.freq_hz, b.affine.outputs, b.affine.inputs)
 
     def phase_wall_fraction(
         self, pmodel: ParameterModel, x: np.ndarray, limit_rad: float = np.pi / 2
@@ -244,8 +280,13 @@ class FrfProblem:
         """Scaled residual vector ``(n_residuals,)``; ``cost = ‖r‖²``."""
         values, gains = pmodel.values(x), _free_gains(pmodel, x)
 
+        theta = self._theta(pmodel, x)[0]
+
         def one(b: DataSelection) -> np.ndarray:
-            Hs = _block_frf(b, values, gains)[b.rows, b.cols, b.fidx]
+            H = _block_frf(b, values, gains)
+            if theta is not None:
+                H = H * self._modifier_at(b, theta)[0]
+            Hs = H[b.rows, b.cols, b.fidx]
             return self._weighted(b, residual(self.options.kind, Hs, b.Hm, b.scale))[0]
 
         return np.concatenate(thread_map(one, self.blocks))
@@ -261,6 +302,7 @@ class FrfProblem:
         values, gains = pmodel.values(x), _free_gains(pmodel, x)
         dgains = _free_gain_jacobian(pmodel, x) if gains else {}
         dpi, dk, dd = pmodel.jacobian(x)
+        theta, dtheta = self._theta(pmodel, x)
         n_p, k = dpi.shape[2], parts(self.options.kind)
         sizes = [k * b.Hm.size for b in self.blocks]
         start = np.concatenate([[0], np.cumsum(sizes)])
@@ -272,21 +314,40 @@ class FrfProblem:
             rb = r[start[i] : start[i + 1]]
             Jb = J[start[i] : start[i + 1]].reshape(k, b.Hm.size, n_p)
             affine = _block_affine(b, values, gains)
-            if b.flat is None and not gains:
+            if b.flat is None and not gains and theta is None:
                 self._grid_rows(b, affine, (dpi, dk, dd), rb, Jb)
                 return
             H, dH = frf_and_jacobian(affine, b.freq_hz, dpi, dk, dd)
             Hs = H[b.rows, b.cols, b.fidx]
-            res = residual(self.options.kind, Hs, b.Hm, b.scale)
-            rb[:], weight = self._weighted(b, res)
             flat = np.arange(Hs.size) if b.flat is None else b.flat
             dHs = dH.reshape(-1, n_p)[flat]
             if gains:
                 dHs = dHs + _gain_columns(affine, gains, dgains, b.rows, b.cols, Hs)
+            if theta is not None:
+                Hs, dHs = self._modified(b, theta, dtheta, Hs, dHs)
+            res = residual(self.options.kind, Hs, b.Hm, b.scale)
+            rb[:], weight = self._weighted(b, res)
             residual_jacobian(self.options.kind, Hs, b.Hm, dHs, b.scale, weight, out=Jb)
 
         thread_map(one, range(len(self.blocks)))
         return r, J
+
+    def _modified(
+        self,
+        b: DataSelection,
+        theta: np.ndarray,
+        dtheta: np.ndarray | None,
+        Hs: np.ndarray,
+        dHs: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """``G ⊙ Hs`` ``(n_sel,)`` and its derivative ``G ∂Hs/∂x + Hs ∂G/∂θ ∂θ/∂x``
+        ``(n_sel, size)`` (module :mod:`bondid.cost.modifier`)."""
+        G, dG = self._modifier_at(b, theta)
+        Gs, dGs = G[b.rows, b.cols, b.fidx], dG[b.rows, b.cols, b.fidx]
+        out = Gs[:, None] * dHs
+        if dtheta is not None:
+            out = out + Hs[:, None] * (dGs @ dtheta)
+        return Gs * Hs, out
 
     def _grid_rows(
         self,

@@ -91,4 +91,13 @@ def fit_result(
         active_constraints=active_constraints(problem, z),
         document=problem.document(z),
         notes=list(notes),
+        modifiers=_modifiers(problem, z),
     )
+
+
+def _modifiers(problem: FitProblem, z: np.ndarray) -> dict[str, float]:
+    """The FRF modifier's parameters at ``z`` by name (empty without a modifier)."""
+    mod = problem.frf.modifier
+    if mod is None:
+        return {}
+    return {n: float(v) for n, v in zip(mod.names, problem.theta(z), strict=True)}

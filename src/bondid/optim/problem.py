@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..consistency.hull import Hull
+from ..cost.modifier import FrfModifier
 from ..cost.problem import CostOptions, FrfProblem
 from ..data.measurement import FrfData
 from ..exceptions import ConfigError, ParameterError
@@ -35,6 +36,7 @@ from ..model.parameters import ParameterInfo, get_parameters, set_parameter
 from .constraints import layout_constraints
 from .evaluator import Evaluator
 from .layout import Layout
+from .modified import ModifiedLayout
 from .tied import TiedParameters, check_ties, fitted_document
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -82,9 +84,12 @@ class FitProblem:
         start: starting values ``(n,)`` (default: the model's), clipped to the bounds; each
             fitted body is projected into the feasible set when it is not (see ``notes``).
         use_hull: constrain each fitted body's CoM to its collision geometry's convex hull.
-        ties: joint stiffness/damping (or gain) parameters driven by a free one:
+        ties: joint stiffness/damping parameters driven by a free one:
             ``{leader: [(member, factor), ...]}`` sets ``member = factor · leader``; members
             are not in ``names`` and not fitted on their own.
+        modifier: an FRF modifier ``H ← G(ω; θ) ⊙ H`` (:class:`bondid.cost.modifier.
+            FrfModifier`, e.g. a sensor delay) whose parameters θ are fitted too, in ``ln θ``
+            after the named ones in ``z`` (:mod:`.modified`); read them with :meth:`theta`.
 
     Raises:
         ParameterError: an unknown name or a link that does not move.
@@ -108,6 +113,7 @@ class FitProblem:
         start: np.ndarray | None = None,
         use_hull: bool = True,
         ties: Ties | None = None,
+        modifier: FrfModifier | None = None,
     ):
         from ..fit.bounds import infos_by_name
 
@@ -119,14 +125,15 @@ class FitProblem:
         p0 = get_parameters(doc, names) if start is None else np.asarray(start, dtype=float)
         if p0.shape != (len(names),) or not np.all(np.isfinite(p0)):
             raise ConfigError(f"start must be {len(names)} finite values, got shape {p0.shape}")
-        frf = FrfProblem(doc, datasets, options)
+        frf = FrfProblem(doc, datasets, options, modifier=modifier)
         for info in infos:
             if info.is_inertial and info.owner not in frf.affines[0].bodies:
                 raise ParameterError(
                     f"{info.name}: link {info.owner!r} does not move; cannot fit it"
                 )
         ties = check_ties(doc, names, ties or {})
-        self._setup(doc, frf, infos, lo, hi, p0, use_hull, {}, ties)
+        theta0 = None if modifier is None else np.array(modifier.start, float)
+        self._setup(doc, frf, infos, lo, hi, p0, use_hull, {}, ties, theta0)
 
     # -- construction ---------------------------------------------------------------------
     def _setup(
@@ -140,6 +147,7 @@ class FitProblem:
         use_hull: bool,
         hulls: dict[str, Hull | None],
         ties: dict[str, list[tuple[str, float]]],
+        theta0: np.ndarray | None = None,
     ) -> None:
         from ..fit.bounds import link_hulls
 
@@ -172,7 +180,11 @@ class FitProblem:
         self.z0 = self.layout.start(doc, clipped, lo, hi)
         self.notes.extend(self.layout.notes)
         self.lbz, self.ubz, self.var_labels = self.layout.variable_bounds(lo, hi)
-        self.evaluator = Evaluator(frf, self.layout)
+        self.model: Layout | ModifiedLayout = self.layout
+        self._theta0: np.ndarray | None = theta0
+        if frf.modifier is not None and theta0 is not None:
+            self._add_modifier(frf.modifier, theta0)
+        self.evaluator = Evaluator(frf, self.model)
         self._constraints: Constraints | None = None
         self._nlp: dict[str, Nlp] = {}
 
@@ -186,6 +198,7 @@ class FitProblem:
         norm: str | None = None,
         lower: np.ndarray | None = None,
         upper: np.ndarray | None = None,
+        theta: np.ndarray | None = None,
     ) -> FitProblem:
         """A problem over the same linearisations with another selection (nothing is
         linearised again; the data selection and the decision vector are rebuilt).
@@ -198,6 +211,7 @@ class FitProblem:
             bands: frequency bands (Hz) to fit (None = all; default: keep).
             kind, norm: another residual kind / norm (default: keep).
             lower, upper: bounds of the subset ``(len(names),)`` (default: this problem's).
+            theta: the FRF modifier's start ``(n_θ,)`` (default: this problem's).
         """
         x = self.initial if start is None else np.asarray(start, dtype=float)
         sub = self.names if names is None else list(names)
@@ -220,8 +234,28 @@ class FitProblem:
         hi = self.upper[idx] if upper is None else np.asarray(upper, dtype=float)
         ties = {k: v for k, v in self.ties.items() if k in sub}
         infos = [self.infos[i] for i in idx]
-        out._setup(doc, frf, infos, lo, hi, x[idx], self.use_hull, self._hulls, ties)
+        th = self._theta0 if theta is None else np.asarray(theta, dtype=float)
+        out._setup(doc, frf, infos, lo, hi, x[idx], self.use_hull, self._hulls, ties, th)
         return out
+
+    def _add_modifier(self, modifier: FrfModifier, theta0: np.ndarray) -> None:
+        """Append the modifier's ``ln θ`` entries to ``z`` (start, bounds, labels)."""
+        theta0 = np.clip(theta0, modifier.lower, modifier.upper)
+        self._theta0 = theta0
+        self.model = ModifiedLayout(self.layout, theta0)
+        n = self.layout.size
+        with np.errstate(divide="ignore"):
+            lo = np.log(np.asarray(modifier.lower) / theta0)
+            hi = np.log(np.asarray(modifier.upper) / theta0)
+        self.z0 = np.concatenate([self.z0, np.zeros(theta0.size)])
+        self.lbz, self.ubz = np.concatenate([self.lbz, lo]), np.concatenate([self.ubz, hi])
+        self.var_labels = self.var_labels + [(m, n + k) for k, m in enumerate(modifier.names)]
+
+    def theta(self, z: np.ndarray) -> np.ndarray:
+        """The FRF modifier's parameters ``(n_θ,)`` at ``z`` (empty without a modifier)."""
+        if isinstance(self.model, ModifiedLayout):
+            return self.model.modifier_values(z)
+        return np.zeros(0)
 
     # -- sizes and options ----------------------------------------------------------------
     @property
@@ -231,7 +265,7 @@ class FitProblem:
     @property
     def size(self) -> int:
         """Size of the decision vector ``z``."""
-        return int(self.layout.size)
+        return int(self.model.size)
 
     @property
     def n_residuals(self) -> int:
@@ -303,13 +337,13 @@ class FitProblem:
         """Residual ``(n_r,)`` and Jacobian ``(n_r, n)`` in the named parameters (SI units) at
         the solution ``z`` (what the parameter statistics are computed from)."""
         doc = self.document(z)
-        frf = self.frf.moved(self.layout, np.asarray(z, dtype=float), doc)
+        frf = self.frf.moved(self.model, np.asarray(z, dtype=float), doc)
         pmap = TiedParameters(doc, frf.affines[0], self.names, self.ties)
         return frf.residual_and_jacobian(pmap, get_parameters(doc, self.names))
 
     def phase_wall_fraction(self, z: np.ndarray) -> float:
         """:meth:`bondid.cost.FrfProblem.phase_wall_fraction` at ``z``."""
-        return self.frf.phase_wall_fraction(self.layout, np.asarray(z, dtype=float))
+        return self.frf.phase_wall_fraction(self.model, np.asarray(z, dtype=float))
 
 
 _NONNEG = (".stiffness", ".damping", ".mass")

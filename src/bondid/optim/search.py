@@ -132,6 +132,14 @@ class _Run:
 
 
 @dataclass
+class _State:
+    """Where the search is: the named values ``x`` ``(n,)`` and the modifier's θ."""
+
+    x: np.ndarray
+    theta: np.ndarray
+
+
+@dataclass
 class _Solved:
     """A step's kept solve: the problem its ``z`` belongs to, notes, presolve iterations."""
 
@@ -176,16 +184,18 @@ def run_search(
           "constraint_hessian": constraint_hessian}  # fmt: skip
     run = _Run(max_iter, kw, on_step)
     x = problem.initial.copy()
+    state = _State(x, problem.theta(problem.z0))
     records: list[StepResult] = []
     iterations = 0
     final: _Solved | None = None
     for k, step in enumerate(steps):
         last = k == len(steps) - 1
-        done = _step(problem, step, x, run, records, last)
+        done = _step(problem, step, state, run, records, last)
         if done is not None:
             iterations += done.iterations
             idx = [problem.names.index(n) for n in done.problem.names]
             x[idx] = done.problem.values(done.solution.z)
+            state.theta = done.problem.theta(done.solution.z)
             final = done if last else None
     if final is None:  # the last step was skipped: nothing solved over every name
         final = _Solved(problem, _unsolved(problem, records[-1].skipped or "skipped"))
@@ -208,7 +218,7 @@ def _unsolved(problem: FitProblem, why: str) -> Solution:
 def _step(
     problem: FitProblem,
     step: Step,
-    x: np.ndarray,
+    state: _State,
     run: _Run,
     records: list[StepResult],
     last: bool,
@@ -222,7 +232,7 @@ def _step(
         record.skipped = step.skip
     else:
         try:
-            sub = _restricted(problem, step, x, names)
+            sub = _restricted(problem, step, state, names)
         except ConfigError as exc:
             if "no data" not in str(exc) or last:
                 raise
@@ -270,11 +280,14 @@ def _bands_of(problem: FitProblem, step: Step) -> list[Band]:
     return [problem.data_span_hz]
 
 
-def _restricted(problem: FitProblem, step: Step, x: np.ndarray, names: list[str]) -> FitProblem:
-    """The step's problem at ``x`` (the whole problem itself when nothing changes)."""
+def _restricted(problem: FitProblem, step: Step, state: _State, names: list[str]) -> FitProblem:
+    """The step's problem at the current point (the whole problem itself when nothing
+    changes)."""
+    x = state.x
     same = (
         names == problem.names and step.bands is KEEP and step.kind is None
         and step.norm is None and step.cap is None and np.array_equal(x, problem.initial)
+        and np.array_equal(state.theta, problem.theta(problem.z0))
     )  # fmt: skip
     if same:
         return problem
@@ -283,9 +296,11 @@ def _restricted(problem: FitProblem, step: Step, x: np.ndarray, names: list[str]
     if step.cap is not None:
         hi, xs = problem.upper[idx], x[idx]
         upper = np.where(np.isfinite(hi) | (xs <= 0.0), hi, step.cap * xs)
+    theta = state.theta if state.theta.size else None
     return problem.restrict(
-        names, start=x, bands=step.bands, kind=step.kind, norm=step.norm, upper=upper
-    )
+        names, start=x, bands=step.bands, kind=step.kind, norm=step.norm, upper=upper,
+        theta=theta,
+    )  # fmt: skip
 
 
 def _solve_step(sub: FitProblem, step: Step, max_iter: int, kw: dict[str, Any]) -> _Solved:
@@ -311,7 +326,8 @@ def _presolved(direct: _Solved, presolve: int, max_iter: int, kw: dict[str, Any]
     if pre.failed and pre.kept == "start":
         direct.notes.append(f"the presolved fit failed ({pre.status}); kept the direct one")
         return direct
-    again = sub.restrict(start=pre_problem.values(pre.z))
+    theta = pre_problem.theta(pre.z)
+    again = sub.restrict(start=pre_problem.values(pre.z), theta=theta if theta.size else None)
     second = solve(again, max_iter=max_iter, **kw)
     if second.failed:
         direct.notes.append(f"the presolved fit failed ({second.status}); kept the direct one")
