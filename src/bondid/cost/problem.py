@@ -31,6 +31,7 @@ from ..threads import thread_map
 from .modifier import FrfModifier
 from .residuals import (
     check_kind,
+    db_rms,
     parts,
     residual,
     residual_jacobian,
@@ -396,10 +397,3 @@ class FrfProblem:
             ch.append(np.tile(b.channel, k))
             fr.append(np.tile(b.freq_hz[b.fidx], k))
         return np.concatenate(ds_i), np.concatenate(ch), np.concatenate(fr)
-
-
-def db_rms(Hs: np.ndarray, Hm: np.ndarray) -> float:
-    """The spec's gap figure: RMS over points of (20/ln10)·|ln(Hm/Hs)| (phase wrapped)."""
-    r = residual("complex_log", np.asarray(Hs), np.asarray(Hm))
-    finite = np.all(np.isfinite(r), axis=0)
-    return float(np.sqrt(np.mean(np.sum(r[:, finite] ** 2, axis=0))))

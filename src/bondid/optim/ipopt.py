@@ -5,14 +5,12 @@ The FRF residual ``r(z)`` is computed in numpy (exact Jacobian ``J = ∂r/∂z``
 
 * objective ``f(z) = ‖r‖²`` (residual only, no Jacobian: IPOPT's line-search trial points),
 * ``grad_f``: ``(f, 2 Jᵀ r)``,
-* ``hess_lag``: the Gauss–Newton Hessian of the Lagrangian ``λ_f · 2 JᵀJ + Σ λ_g,i ∇² g_i``;
-  the objective part drops the second-order residual terms (and is Levenberg–Marquardt damped
-  far from the solution, see :class:`~.evaluator.Evaluator`); the constraint part comes from
-  CasADi's symbolic Hessians (SX) and is by default CONVEXIFIED (negative eigenvalues clipped
-  to 0): the exact ``Σ λ ∇² g`` of the inertia equalities is indefinite, which made IPOPT
-  regularise the whole Hessian by ``δ ≈ 1…100`` every iteration and crawl. Limited-memory
-  quasi-Newton on the scalar cost needs hundreds of iterations on this problem; Gauss–Newton
-  tens.
+* ``hess_lag``: the Gauss–Newton Hessian of the Lagrangian ``λ_f · 2 JᵀJ + Σ λ_g,i ∇² g_i``
+  (objective part Levenberg–Marquardt damped far from the solution, see
+  :class:`~.evaluator.Evaluator`; constraint part from CasADi's symbolic Hessians, by default
+  CONVEXIFIED: the exact ``Σ λ ∇² g`` of the inertia equalities is indefinite, which made
+  IPOPT regularise the whole Hessian by ``δ ≈ 1…100`` every iteration and crawl).
+  Limited-memory quasi-Newton needs hundreds of iterations on this problem; Gauss–Newton tens.
 
 :func:`solve` never raises for an IPOPT status: every outcome is a :class:`Solution`. A solve
 that failed (infeasible, restoration failed, CasADi error ...) keeps the lowest-cost iterate
