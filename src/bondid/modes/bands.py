@@ -156,12 +156,20 @@ def _grid_step(freq_hz: np.ndarray, f: float) -> float:
 
 
 def automatic_bands(
-    features: Sequence[Feature], freq_hz: np.ndarray, *, min_halfwidth: float = 0.02
+    features: Sequence[Feature],
+    freq_hz: np.ndarray,
+    *,
+    min_halfwidth: float = 0.02,
+    min_points: int = 1,
 ) -> list[Band]:
     """Bands around and between ``features`` covering the used frequencies ``freq_hz`` (Hz).
 
+    ``min_points``: a band holding fewer frequencies is merged into its lower neighbour (the
+    first into its upper one), so that every band can be scored (the diagnosis's gap bands).
+
     Returns:
-        Bands in frequency order (see the module docstring); each holds ≥ 1 frequency.
+        Bands in frequency order (see the module docstring); each holds ≥ 1 frequency
+        (≥ ``min_points`` when there are that many).
     """
     fs = np.unique(np.asarray(freq_hz, dtype=float))
     lo_all, hi_all = float(fs[0]), float(fs[-1])
@@ -198,6 +206,26 @@ def automatic_bands(
                     inside &= ~r.contains(fs)
         if inside.any():
             out.append(b)
+    return _merge_small(out, fs, min_points)
+
+
+def _merge_small(bands: list[Band], fs: np.ndarray, min_points: int) -> list[Band]:
+    """``bands`` with those holding fewer than ``min_points`` of ``fs`` merged into their
+    lower neighbour (the first into its upper one)."""
+    out = list(bands)
+    k = 0
+    while len(out) > 1 and k < len(out):
+        if int(out[k].contains(fs).sum()) >= min_points:
+            k += 1
+            continue
+        a = k - 1 if k > 0 else 0
+        lo, hi = out[a], out[a + 1]
+        if "resonance" in (lo.cls, hi.cls):
+            cls = "resonance"
+        else:
+            cls = lo.cls if lo.cls == "below" else hi.cls
+        out[a : a + 2] = [Band(lo.f_lo_hz, hi.f_hi_hz, cls, [*lo.features, *hi.features])]
+        k = a
     return out
 
 
