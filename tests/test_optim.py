@@ -227,3 +227,33 @@ def test_frf_modifier_parameters_are_fitted_with_the_model(bonder: UrdfDocument)
     # the same problem restricted (other bands) keeps the modifier and its start
     sub = problem.restrict(bands=[(10.0, 2000.0)], theta=np.array([4e-5]))
     np.testing.assert_allclose(sub.theta(sub.z0), [4e-5])
+
+
+class _Pull:
+    """Rows ``w (z − z₀)`` pulling a problem's decision vector toward its start."""
+
+    def __init__(self, problem: FitProblem, weight: float):
+        self.z0, self.weight, self.size = problem.z0.copy(), weight, problem.size
+
+    def __call__(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self.weight * (z - self.z0), self.weight * np.eye(self.size)
+
+
+def test_extra_rows_join_the_objective_not_the_reported_cost(bonder: UrdfDocument) -> None:
+    name = "x_guide_ry.stiffness"
+    k0 = get_parameters(bonder, [name])[0]
+    truth = bonder.copy()
+    set_parameter(truth, name, 1.05 * k0)
+    data = synth(truth)
+    free = run_search(FitProblem(bonder, data, [name]), direct(0)).result
+    assert free.parameter(name) == pytest.approx(1.05 * k0, rel=1e-6)
+    problem = FitProblem(bonder, data, [name], extra_rows=lambda p: _Pull(p, 1e3))
+    z = problem.z0 + 0.01
+    rows = 1e3 * 0.01 * np.ones(problem.size)
+    assert problem.residual(z).size == problem.n_residuals + problem.size
+    assert problem.cost(z) == pytest.approx(problem.data_cost(z) + rows @ rows, rel=1e-12)
+    held = run_search(problem, direct(0)).result
+    assert abs(held.parameter(name) / k0 - 1.0) < 1e-3  # the pull wins over the data
+    assert held.cost_initial == pytest.approx(free.cost_initial, rel=1e-12)  # data alone
+    sub = problem.restrict(bands=[(10.0, 500.0)])
+    assert sub.rows is not None and sub.rows.size == sub.size

@@ -8,10 +8,22 @@ trial point.
 
 from __future__ import annotations
 
+from typing import Protocol
+
 import numpy as np
 
 from ..cost.problem import FrfProblem, ParameterModel
 from ..exceptions import ComputationError
+
+
+class ExtraRows(Protocol):
+    """Residual rows appended to the data's (e.g. a prior): ``size`` rows, evaluated as
+    ``rows(z) -> (r (size,), ∂r/∂z (size, n))``."""
+
+    @property
+    def size(self) -> int: ...
+
+    def __call__(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
 
 
 class Evaluator:
@@ -29,9 +41,19 @@ class Evaluator:
     convergence of Gauss–Newton is kept. Only the step direction changes, not the optimum.
     """
 
-    def __init__(self, problem: FrfProblem, pmodel: ParameterModel, *, damping: bool = True):
+    def __init__(
+        self,
+        problem: FrfProblem,
+        pmodel: ParameterModel,
+        *,
+        damping: bool = True,
+        prior: ExtraRows | None = None,
+    ):
         self.problem = problem
         self.pmodel = pmodel
+        #: extra residual rows ``z -> (r (m,), J (m, n))`` appended to the data's (e.g. a
+        #: prior toward the model's values); None = none
+        self.prior = prior
         self._jac: tuple[bytes, np.ndarray, np.ndarray] | None = None
         self._res: tuple[bytes, np.ndarray] | None = None
         self.n_residual = 0
@@ -46,7 +68,8 @@ class Evaluator:
         self._prev = None
 
     def _fail(self, n: int) -> tuple[np.ndarray, np.ndarray]:
-        r = np.full(self.problem.n_residuals, np.nan)
+        extra = 0 if self.prior is None else int(self.prior.size)
+        r = np.full(self.problem.n_residuals + extra, np.nan)
         return r, np.full((r.size, n), np.nan)
 
     def residual(self, z: np.ndarray) -> np.ndarray:
@@ -59,6 +82,8 @@ class Evaluator:
         try:
             with np.errstate(all="ignore"):
                 r = self.problem.residual(self.pmodel, z)
+                if self.prior is not None:
+                    r = np.concatenate([r, self.prior(z)[0]])
         except (np.linalg.LinAlgError, FloatingPointError, ValueError, ComputationError):
             r = self._fail(z.size)[0]
         self.n_residual += 1
@@ -73,6 +98,9 @@ class Evaluator:
         try:
             with np.errstate(all="ignore"):
                 r, J = self.problem.residual_and_jacobian(self.pmodel, z)
+                if self.prior is not None:
+                    rp, Jp = self.prior(z)
+                    r, J = np.concatenate([r, rp]), np.vstack([J, Jp])
         except (np.linalg.LinAlgError, FloatingPointError, ValueError, ComputationError):
             r, J = self._fail(z.size)
         self.n_jacobian += 1

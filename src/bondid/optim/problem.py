@@ -20,7 +20,7 @@ solves.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -34,7 +34,7 @@ from ..exceptions import ConfigError, ParameterError
 from ..model.document import UrdfDocument
 from ..model.parameters import ParameterInfo, get_parameters, set_parameter
 from .constraints import layout_constraints
-from .evaluator import Evaluator
+from .evaluator import Evaluator, ExtraRows
 from .layout import Layout
 from .modified import ModifiedLayout
 from .tied import TiedParameters, check_ties, fitted_document
@@ -87,6 +87,12 @@ class FitProblem:
         ties: joint stiffness/damping parameters driven by a free one:
             ``{leader: [(member, factor), ...]}`` sets ``member = factor · leader``; members
             are not in ``names`` and not fitted on their own.
+        extra_rows: builds residual rows appended to the data's for each problem made from
+            this one (here and by :meth:`restrict`), e.g. a prior toward the model's values:
+            ``extra_rows(problem) -> rows | None`` with ``rows(z) -> (r (m,), J (m, size))``
+            and ``rows.size == m`` (:class:`~.evaluator.ExtraRows`); it may tighten
+            ``problem.lbz``/``ubz`` and extend ``var_labels`` and ``notes``. The reported
+            costs stay the data's alone.
         modifier: an FRF modifier ``H ← G(ω; θ) ⊙ H`` (:class:`bondid.cost.modifier.
             FrfModifier`, e.g. a sensor delay) whose parameters θ are fitted too, in ``ln θ``
             after the named ones in ``z`` (:mod:`.modified`); read them with :meth:`theta`.
@@ -114,6 +120,7 @@ class FitProblem:
         use_hull: bool = True,
         ties: Ties | None = None,
         modifier: FrfModifier | None = None,
+        extra_rows: Callable[[FitProblem], ExtraRows | None] | None = None,
     ):
         from ..fit.bounds import infos_by_name
 
@@ -133,6 +140,7 @@ class FitProblem:
                 )
         ties = check_ties(doc, names, ties or {})
         theta0 = None if modifier is None else np.array(modifier.start, float)
+        self._extra_rows = extra_rows
         self._setup(doc, frf, infos, lo, hi, p0, use_hull, {}, ties, theta0)
 
     # -- construction ---------------------------------------------------------------------
@@ -184,7 +192,8 @@ class FitProblem:
         self._theta0: np.ndarray | None = theta0
         if frf.modifier is not None and theta0 is not None:
             self._add_modifier(frf.modifier, theta0)
-        self.evaluator = Evaluator(frf, self.model)
+        self.rows = None if self._extra_rows is None else self._extra_rows(self)
+        self.evaluator = Evaluator(frf, self.model, prior=self.rows)
         self._constraints: Constraints | None = None
         self._nlp: dict[str, Nlp] = {}
 
@@ -230,6 +239,7 @@ class FitProblem:
         doc = self.document_at(x)
         frf = frf.moved(self.parameter_map(), x, doc)
         out = object.__new__(FitProblem)
+        out._extra_rows = self._extra_rows
         lo = self.lower[idx] if lower is None else np.asarray(lower, dtype=float)
         hi = self.upper[idx] if upper is None else np.asarray(upper, dtype=float)
         ties = {k: v for k, v in self.ties.items() if k in sub}
@@ -279,16 +289,22 @@ class FitProblem:
 
     # -- evaluation (decision vector) -----------------------------------------------------
     def residual(self, z: np.ndarray) -> np.ndarray:
-        """Scaled residual ``(n_residuals,)`` at ``z`` (NaN where the model is invalid)."""
+        """Scaled residual at ``z`` (NaN where the model is invalid): the data's
+        ``(n_residuals,)``, then the extra rows if any."""
         return self.evaluator.residual(z)
 
     def residual_and_jacobian(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Residual ``(n_r,)`` and its exact Jacobian ``(n_r, size)`` at ``z``."""
+        """Residual (as :meth:`residual`) and its exact Jacobian ``(·, size)`` at ``z``."""
         return self.evaluator.residual_and_jacobian(z)
 
     def cost(self, z: np.ndarray) -> float:
-        """``‖r(z)‖²``."""
+        """The objective ``‖r(z)‖²`` (the data's and the extra rows')."""
         return self.evaluator.cost(z)
+
+    def data_cost(self, z: np.ndarray) -> float:
+        """The data's part of the cost (what is reported)."""
+        r = self.residual(z)[: self.n_residuals]
+        return float(r @ r)
 
     def constraints(self) -> Constraints:
         """The constraints ``g(z)`` with bounds and labels (built once, then cached)."""

@@ -202,7 +202,7 @@ def run_search(
     sub = final.problem
     notes = list(problem.notes) + [n for n in sub.notes if n not in problem.notes]
     result = fit_result(
-        sub, final.solution, initial=problem.initial, cost_initial=problem.cost(problem.z0),
+        sub, final.solution, initial=problem.initial, cost_initial=problem.data_cost(problem.z0),
         iterations=iterations, wall_s=time.perf_counter() - t0, notes=notes + final.notes,
     )  # fmt: skip
     return SearchResult(result, records, final.solution)
