@@ -13,8 +13,6 @@ from bondid.data.measurement import FrfData
 from bondid.data.noise import add_measurement_noise
 from bondid.exceptions import ConfigError, ParameterError, SolverError
 from bondid.fit import default_bounds, fit
-from bondid.fit.continuation import CONTINUATION_BANDS, continuation_fit
-from bondid.fit.solver import prepare
 from bondid.linear.affine import build_affine_model
 from bondid.model import (
     UrdfDocument,
@@ -23,6 +21,8 @@ from bondid.model import (
     select_parameters,
     set_parameter,
 )
+from bondid.optim import FitProblem, SearchResult, run_search
+from bondid.optim.schedules import CONTINUATION_BANDS, continuation
 
 URDF = "urdf/bonder.urdf"
 OPS = [{}, {"x": 0.05, "y": -0.03, "z": 0.1}]
@@ -36,6 +36,14 @@ INERTIAL = [
     "z_stage.inertia.ixx",
 ]
 REL = {"mass": 0.5, "com": 0.6, "inertia": 0.6, "stiffness": 0.6, "damping": 0.6}
+
+
+def continuation_fit(
+    doc: UrdfDocument, data: list[FrfData], names: list[str], *, on_stage=None, **kw
+) -> SearchResult:
+    """The band-continuation search (default schedule) on a problem built from ``kw``."""
+    problem = FitProblem(doc, data, names, **kw)
+    return run_search(problem, continuation(problem), on_step=on_stage)
 
 
 @pytest.fixture(scope="module")
@@ -217,18 +225,19 @@ def test_gradient_matches_central_differences(bonder: UrdfDocument) -> None:
         "y_guide_rz.damping",
     ]
     truth = _com_outside_truth(bonder)  # any data that do not fit the start exactly
-    setup = prepare(bonder, synth(truth, 120), names)
-    z0 = setup.z0 + 0.05 * np.random.default_rng(0).standard_normal(setup.z0.size)
-    g = setup.nlp.gradient(z0)
+    problem = FitProblem(bonder, synth(truth, 120), names)
+    nlp = problem.nlp()
+    z0 = problem.z0 + 0.05 * np.random.default_rng(0).standard_normal(problem.z0.size)
+    g = nlp.gradient(z0)
     fd = np.empty_like(g)
     for k in range(z0.size):
         h = 1e-6 * max(1.0, abs(z0[k]))
         e = np.zeros_like(z0)
         e[k] = h
-        fd[k] = (setup.nlp.cost(z0 + e) - setup.nlp.cost(z0 - e)) / (2 * h)
+        fd[k] = (nlp.cost(z0 + e) - nlp.cost(z0 - e)) / (2 * h)
     np.testing.assert_allclose(g, fd, rtol=1e-5, atol=1e-7 * np.max(np.abs(g)))
     # every z is physically consistent (log-Cholesky)
-    for blk in setup.layout.blocks:
+    for blk in problem.layout.blocks:
         assert is_consistent(pi_from_theta(blk.theta(z0 + 3.0)))
 
 

@@ -15,12 +15,13 @@ import pytest
 from bondid.data import FrfData, write_csv
 from bondid.exceptions import ConfigError
 from bondid.fit.cli import build_parser, main, resolve_settings
-from bondid.fit.continuation import FIRST_BAND_SHARE, continuation_fit, continuation_tops
 from bondid.fit.multistart import lhs_starts
-from bondid.fit.staged import automatic_stage_bands, model_modes, staged_fit
 from bondid.fit.study import load_study, study_from_dict
 from bondid.linear import build_affine_model
 from bondid.model import UrdfDocument, get_parameter, set_parameter
+from bondid.modes.bands import model_resonances, stage_bands
+from bondid.optim import FitProblem, run_search
+from bondid.optim.schedules import FIRST_BAND_SHARE, continuation, continuation_tops, staged
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -262,10 +263,13 @@ def test_continuation_bands_and_errors(case: dict[str, Path]) -> None:
     assert len(tops) == 7 and tops == sorted(tops) and tops[-1] < 4000.0
     assert tops[0] == pytest.approx(4000.0**FIRST_BAND_SHARE)
     assert continuation_tops(1.0, 4000.0, 1) == []
+    from bondid.data import read_frf
+
     doc = UrdfDocument.load(case["model"])
     lo, hi = np.array([0.0]), np.array([np.inf])
+    problem = FitProblem(doc, [read_frf(case["data0"])], ["p.damping"], lower=lo, upper=hi)
     with pytest.raises(ConfigError, match="at least 2 bands"):
-        continuation_fit(doc, [], ["p.damping"], lower=lo, upper=hi, n_bands=1)
+        continuation(problem, 1)
 
 
 def test_lhs_starts_within_bounds() -> None:
@@ -302,14 +306,14 @@ def test_multistart_parallel(case: dict[str, Path], tmp_path: Path, capsys) -> N
 
 def test_modes_and_staged(case: dict[str, Path]) -> None:
     doc = UrdfDocument.load(case["model"])
-    modes = model_modes(doc)
+    modes = model_resonances(doc)
     lm = build_affine_model(doc).linear_model()
     w = np.sqrt(np.linalg.eigvals(np.linalg.solve(lm.M, lm.K)).real)
     # lightly damped: the damped |λ| equal the undamped frequencies √(eig(M⁻¹K))
     np.testing.assert_allclose(sorted(m.f_hz for m in modes), sorted(w / (2 * np.pi)), rtol=1e-2)
     assert [m.parasitic for m in modes].count(True) == 1
     fp = next(m.f_hz for m in modes if m.parasitic)
-    bands = automatic_stage_bands(modes, 1.0, 1000.0)
+    bands = stage_bands(modes, 1.0, 1000.0)
     assert bands["stiffness"] == [(1.0, fp / 1.5)] and bands["inertia"] == [(fp, 1000.0)]
     assert any(lo < fp < hi for lo, hi in bands["damping"])
 
@@ -319,7 +323,8 @@ def test_modes_and_staged(case: dict[str, Path]) -> None:
     names = ["B.mass", "p.stiffness", "p.damping"]
     lo = np.array([0.3, 1.0e4, 1.0])
     hi = np.array([0.8, 4.0e4, 10.0])
-    res = staged_fit(doc, datasets, names, lower=lo, upper=hi, max_iter=80)
+    problem = FitProblem(doc, datasets, names, lower=lo, upper=hi)
+    res = run_search(problem, staged(problem, max_iter=80), max_iter=80)
     assert [s.name for s in res.stages] == ["stiffness", "damping", "inertia", "all"]
     assert res.stages[0].names == ["p.stiffness"] and res.stages[2].names == ["B.mass"]
     np.testing.assert_allclose(res.result.initial, [0.5, 2.0e4, 5.0])

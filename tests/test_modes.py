@@ -200,3 +200,25 @@ def test_mode_html_is_offline_and_server_stops(tmp_path, capsys):
     scene.close()
     with pytest.raises(ProcessLookupError):
         os.kill(pid, 0)
+
+
+def test_bands_from_features_merge_bands_with_too_few_points():
+    """Known answer: a log grid of 40 points 1–1000 Hz (ratio 1.19 between points), two
+    close resonances and a lone anti-resonance: the bands tile the range, and with
+    ``min_points`` every band holds at least that many frequencies."""
+    from bondid.modes.bands import Feature, automatic_bands, merge_spans
+
+    f = np.geomspace(1.0, 1000.0, 40)
+    feats = [Feature(100.0, 0.01, "resonance"), Feature(104.0, 0.01, "resonance"),
+             Feature(300.0, 0.01, "anti-resonance", "x.x")]  # fmt: skip
+    plain = automatic_bands(feats, f)
+    assert [b.cls for b in plain] == ["below", "resonance", "between", "resonance", "above"]
+    assert plain[1].features == feats[:2]  # the two close resonances share one window
+    for few in (3, 6):
+        bands = automatic_bands(feats, f, min_points=few)
+        assert all(int(b.contains(f).sum()) >= few for b in bands)
+        assert bands[0].f_lo_hz == 1.0 and bands[-1].f_hi_hz == 1000.0
+        spans = [(b.f_lo_hz, b.f_hi_hz) for b in bands]
+        assert merge_spans(spans) == [(1.0, 1000.0)]  # contiguous: they tile the range
+        assert sum(len(b.features) for b in bands) == 3
+    assert len(automatic_bands(feats, f, min_points=6)) < len(plain)

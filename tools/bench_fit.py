@@ -313,7 +313,7 @@ BASELINES: dict[str, str] = {
 }
 
 
-def main(argv: list[str] | None = None) -> int:
+def _parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="smoke run: 200 frequencies, 3 s budgets")
     ap.add_argument("--n-freq", type=int, default=None, help="frequencies (default 2000)")
@@ -330,6 +330,11 @@ def main(argv: list[str] | None = None) -> int:
         help="IPOPT iterations of (a)'s presolved second fit (default: bondid.fit's; 0 = none)",
     )  # fmt: skip
     ap.add_argument("--json", type=Path, default=None, help="also write the table as JSON")
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = _parser()
     args = ap.parse_args(argv)
     n_freq = args.n_freq or (200 if args.quick else 2000)
     budget = args.budget_s if args.budget_s is not None else (3.0 if args.quick else 600.0)
@@ -370,33 +375,30 @@ def main(argv: list[str] | None = None) -> int:
     rows[0].method = "(a) bondid.fit"
     a = rows[0]
     print_table(rows, a)
-    scale = np.maximum(np.abs(x_truth), 1e-12)
     if args.json is not None:
-        doc_json = {
-            "n_parameters": len(names),
-            "n_freq": n_freq,
-            "n_residuals": problem.n_residuals,
-            "budget_s": budget,
-            "db_rms_start": math.sqrt(c0),
-            "db_rms_truth": math.sqrt(ct),
-            "rows": [
-                {
-                    "method": r.method,
-                    "wall_s": r.wall_s,
-                    "cost": r.cost,
-                    "db_rms": r.db_rms,
-                    "evals": r.evals,
-                    "converged": r.converged,
-                    "status": r.status,
-                    "time_ratio_to_a": r.wall_s / a.wall_s,
-                    "reached_a": reached(r, a),
-                    "median_rel_error_vs_truth": float(np.median(np.abs(r.x - x_truth) / scale)),
-                }
-                for r in rows
-            ],
-        }
-        args.json.write_text(json.dumps(doc_json, indent=2) + "\n", encoding="utf-8")
+        head = {"n_parameters": len(names), "n_freq": n_freq,
+                "n_residuals": problem.n_residuals, "budget_s": budget,
+                "db_rms_start": math.sqrt(c0), "db_rms_truth": math.sqrt(ct)}  # fmt: skip
+        _write_json(args.json, head, rows, a, x_truth)
     return 0
+
+
+def _write_json(path: Path, head: dict, rows: list[Row], a: Row, x_truth: np.ndarray) -> None:
+    """The table as JSON: ``head`` (the problem) and one entry per method."""
+    scale = np.maximum(np.abs(x_truth), 1e-12)
+    doc_json = {
+        **head,
+        "rows": [
+            {
+                "method": r.method, "wall_s": r.wall_s, "cost": r.cost, "db_rms": r.db_rms,
+                "evals": r.evals, "converged": r.converged, "status": r.status,
+                "time_ratio_to_a": r.wall_s / a.wall_s, "reached_a": reached(r, a),
+                "median_rel_error_vs_truth": float(np.median(np.abs(r.x - x_truth) / scale)),
+            }
+            for r in rows
+        ],
+    }  # fmt: skip
+    path.write_text(json.dumps(doc_json, indent=2) + "\n", encoding="utf-8")
 
 
 def reached(r: Row, a: Row, rtol: float = 1e-3) -> bool:

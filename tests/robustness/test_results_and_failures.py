@@ -97,16 +97,14 @@ def test_every_default_bound_is_finite(indices):
 def test_failed_ipopt_still_writes_fit_json(inputs, run, tmp_path, monkeypatch):
     """IPOPT failing outright (here forced after a real solve) keeps its best feasible
     iterate: fit.json has status "failed", the best point, and why; exit 1."""
-    from bondid.fit import nlp
+    from bondid.optim import ipopt
 
-    real = nlp.FitNlp.solve
+    real = ipopt._stats
 
-    def failing(self, *a, **kw):
-        out = real(self, *a, **kw)
-        out.status, out.success = "Diverging_Iterates", False
-        return out
+    def failing(solver, n_recorded):
+        return "Diverging_Iterates", real(solver, n_recorded)[1]
 
-    monkeypatch.setattr(nlp.FitNlp, "solve", failing)
+    monkeypatch.setattr(ipopt, "_stats", failing)
     out = tmp_path / "fit"
     argv = fast_args("fit", inputs["model"], [inputs["d0"]], out)
     argv[argv.index("--max-iter") + 1] = "10"

@@ -2,12 +2,10 @@
 
 :class:`FrfProblem` ties a model, one or more measured data sets (each at its own operating
 point, so one linearisation per pose) and the cost options together. Its decision vector ``x``
-is whatever a *parameter model* maps onto the physical values (and, when it has
-``gain_values(x) -> {name: g}`` and ``gain_jacobian(x) -> {name: dg/dx (n,)}``, onto free
-transducer gains ``gain.in.X`` / ``gain.out.Y``: ``H = g_out · H_model · g_in``); two exist:
-:class:`bondid.linear.parameter_map.ParameterMap` (named URDF parameters) and the fit's
-log-Cholesky map. A parameter model has ``size``, ``values(x) -> (π (nb,10), k (nv,), d (nv,))``
-and ``jacobian(x) -> (dπ (nb,10,n), dk (nv,n), dd (nv,n))``.
+is whatever a *parameter model* (:class:`ParameterModel`) maps onto the physical values ``(π
+(nb,10), k (nv,), d (nv,))`` with exact derivatives, and optionally onto free transducer gains
+``gain.in.X`` / ``gain.out.Y`` (``H = g_out · H_model · g_in``). Which points are used is
+decided by :mod:`bondid.cost.selection`.
 
 The residual vector is scaled so that ``cost = ‖r‖²`` is the weighted mean square over the
 selected complex points (for ``complex_log`` that is ``db_rms²``).
@@ -15,92 +13,63 @@ selected complex points (for ``complex_log`` that is ``db_rms²``).
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
 
 from ..data.io import check_against_model
 from ..data.measurement import FrfData
-from ..data.weights import check_weighting, information_weights
-from ..exceptions import ChannelError, ConfigError
+from ..data.weights import check_weighting
+from ..exceptions import ConfigError
 from ..frf.jacobian import frf_and_jacobian, jacobian_blocks
 from ..linear.affine import AffineModel, build_affine_model, model_inputs, model_outputs
 from ..model.document import UrdfDocument
 from ..threads import thread_map
+from .modifier import FrfModifier
 from .residuals import (
     check_kind,
+    db_rms,
     parts,
     residual,
     residual_jacobian,
     residual_jacobian_parts,
     robust,
 )
+from .selection import CostOptions, DataSelection, select_points, used_points
+
+#: the former private name of :class:`DataSelection` (read by bondid.diagnose)
+_Block = DataSelection
+
+__all__ = ["CostOptions", "DataSelection", "FrfProblem", "ParameterModel", "db_rms", "used_points"]
 
 
 class ParameterModel(Protocol):
-    @property
-    def size(self) -> int: ...
+    """What :class:`FrfProblem` evaluates the model at: a map from a parameter vector ``x``
+    ``(size,)`` to the values of every linearisation's affine model, with exact derivatives.
 
-    def values(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
-
-    def jacobian(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
-
-
-@dataclass
-class CostOptions:
-    """How model and measurement are compared.
-
-    Attributes:
-        kind: residual kind (see :mod:`bondid.cost.residuals`), default ``complex_log``.
-        norm: ``l2`` or ``l1`` (smooth pseudo-Huber, ``l1_delta`` in residual units).
-        bands: frequency bands (Hz) to use; None = all.
-        channels: ``OUT.IN`` names to use; None = every channel in the data.
-        channel_weights: extra weight per channel (default 1: the log residuals already
-            balance channels whose levels differ by 50 dB).
-        use_coherence: False ignores the file's coherence column (``auto`` then weighs by
-            the estimated noise alone, ``coherence`` becomes ``none``).
-        weighting: the point weights (:mod:`bondid.data.weights`): ``auto`` (default: the
-            coherence combined with the noise estimated from the data where the file has a
-            coherence, the estimate alone otherwise), ``coherence``, ``estimated`` or
-            ``none``. Weights are ``w = Ŝ/(Ŝ + N̂)`` in 0..1, the coherence analogue.
+    Implemented by :class:`bondid.linear.parameter_map.ParameterMap` (named URDF parameters),
+    :class:`bondid.optim.layout.Layout` (the fit's decision vector) and
+    :class:`bondid.optim.tied.TiedParameters` (named parameters with ties). A model may also
+    have transducer gains: ``gain_values(x) -> {name: g}`` and ``gain_jacobian(x) -> {name:
+    dg/dx (size,)}`` (optional; without them the gains stay the model's).
     """
 
-    kind: str = "complex_log"
-    norm: str = "l2"
-    l1_delta: float = 1.0
-    bands: Sequence[tuple[float, float]] | None = None
-    channels: Sequence[str] | None = None
-    channel_weights: dict[str, float] = field(default_factory=dict)
-    use_coherence: bool = True
-    weighting: str = "auto"
-
     @property
-    def name(self) -> str:
-        return f"{self.kind}_{self.norm}"
+    def size(self) -> int:
+        """Length of the parameter vector ``x``."""
+        ...
 
-    @property
-    def effective_weighting(self) -> str:
-        """The weighting applied, after ``use_coherence`` (see the class docstring)."""
-        if self.use_coherence:
-            return self.weighting
-        return {"auto": "estimated", "coherence": "none"}.get(self.weighting, self.weighting)
+    def values(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(π (nb, 10), stiffness (nv,), damping (nv,))`` at ``x`` (SI units; π in
+        Pinocchio's order ``m, m·c, I_o``)."""
+        ...
 
-
-@dataclass
-class _Block:
-    data: FrfData
-    affine: AffineModel
-    freq_hz: np.ndarray  # frequencies used (n_fu,)
-    rows: np.ndarray  # (n_sel,) output index into data/model outputs
-    cols: np.ndarray  # (n_sel,) input index into the model inputs
-    fidx: np.ndarray  # (n_sel,) index into freq_hz
-    flat: np.ndarray | None  # (n_sel,) index into the model FRF's flattened (o, i, f); None = all
-    Hm: np.ndarray  # (n_sel,) measured
-    weight: np.ndarray  # (n_sel,) weights (unnormalised)
-    scale: np.ndarray  # (n_sel,) channel scale for linear_magnitude
-    channel: np.ndarray  # (n_sel,) channel name per point
+    def jacobian(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(dπ/dx (nb, 10, size), dk/dx (nv, size), dd/dx (nv, size))`` at ``x``."""
+        ...
 
 
 _Values = tuple[np.ndarray, np.ndarray, np.ndarray]
@@ -110,6 +79,12 @@ _Gains = dict[str, float]
 def _free_gains(pmodel: ParameterModel, x: np.ndarray) -> _Gains:
     """Free transducer gains of a parameter model (those with ``gain_values``), by name."""
     fn = getattr(pmodel, "gain_values", None)
+    return dict(fn(x)) if fn is not None else {}
+
+
+def _free_gain_jacobian(pmodel: ParameterModel, x: np.ndarray) -> dict[str, np.ndarray]:
+    """d g / d x ``(size,)`` of every free gain of a parameter model (``gain_jacobian``)."""
+    fn = getattr(pmodel, "gain_jacobian", None)
     return dict(fn(x)) if fn is not None else {}
 
 
@@ -125,12 +100,12 @@ def _gain_arrays(affine: AffineModel, gains: _Gains) -> tuple[np.ndarray, np.nda
     return gi, go
 
 
-def _block_affine(b: _Block, values: _Values, gains: _Gains) -> AffineModel:
+def _block_affine(b: DataSelection, values: _Values, gains: _Gains) -> AffineModel:
     affine = b.affine.with_values(*values)
     return affine.with_gains(*_gain_arrays(affine, gains)) if gains else affine
 
 
-def _block_frf(b: _Block, values: _Values, gains: _Gains | None = None) -> np.ndarray:
+def _block_frf(b: DataSelection, values: _Values, gains: _Gains | None = None) -> np.ndarray:
     """Model FRF ``(n_out, n_in_model, n_fu)`` of a data set at parameter ``values``."""
     return _block_affine(b, values, gains or {}).linear_model().frf(b.freq_hz)
 
@@ -152,85 +127,141 @@ def _gain_columns(
 
 
 class FrfProblem:
-    """Residuals of a model against measured FRFs (one linearisation per data set)."""
+    """Residuals of a model against measured FRFs (one linearisation per data set).
+
+    Args:
+        doc: the model (its channels and, unless ``affines`` is given, its linearisations).
+        datasets: measured FRFs (receptance), each at its operating point.
+        options: cost options (default :class:`CostOptions`).
+        affines: the linearisations, one per data set (default: built from ``doc``).
+        modifier: an FRF modifier ``H ← G(ω; θ) ⊙ H`` (:mod:`bondid.cost.modifier`); θ comes
+            from a parameter model with ``modifier_values(x)`` / ``modifier_jacobian(x)``
+            (``(n_θ,)``, ``(n_θ, size)``), else it is held at :attr:`modifier_theta`.
+
+    The residual (``(n_residuals,)``, ``cost = ‖r‖²``) holds ``parts(kind)`` real entries per
+    selected point, data set after data set, each block ``(part, point)``-ordered; the points
+    are described by :attr:`blocks` (:class:`DataSelection`), :meth:`residual_labels` and
+    :meth:`entry_weights`.
+    """
 
     def __init__(
-        self, doc: UrdfDocument, datasets: Sequence[FrfData], options: CostOptions | None = None
+        self,
+        doc: UrdfDocument,
+        datasets: Sequence[FrfData],
+        options: CostOptions | None = None,
+        *,
+        affines: Sequence[AffineModel] | None = None,
+        modifier: FrfModifier | None = None,
     ):
         self.doc = doc
+        self.modifier = modifier
+        #: the modifier's parameters used when the parameter model has none (``(n_θ,)``)
+        self.modifier_theta = None if modifier is None else np.array(modifier.start, float)
         self.options = options or CostOptions()
         check_kind(self.options.kind, self.options.norm)
         check_weighting(self.options.weighting, "cost weighting")
         if not datasets:
             raise ConfigError("no measured data given")
-        inputs, outputs = model_inputs(doc), model_outputs(doc)
-        movable = doc.movable_joint_names
-        self.blocks: list[_Block] = []
-        for ds in datasets:
-            check_against_model(ds, inputs=inputs, outputs=outputs, joints=movable)
-            affine = build_affine_model(doc, ds.operating_point, outputs=ds.outputs)
-            self.blocks.append(self._block(ds, affine))
+        if affines is None:
+            inputs, outputs = model_inputs(doc), model_outputs(doc)
+            movable = doc.movable_joint_names
+            for ds in datasets:
+                check_against_model(ds, inputs=inputs, outputs=outputs, joints=movable)
+            affines = [
+                build_affine_model(doc, ds.operating_point, outputs=ds.outputs) for ds in datasets
+            ]
+        self.blocks: list[DataSelection] = [
+            select_points(ds, a, self.options) for ds, a in zip(datasets, affines, strict=True)
+        ]
         total = sum(float(b.weight.sum()) for b in self.blocks)
         if total <= 0:
             raise ConfigError("the selected channels and bands leave no data to fit")
         self._norm = 1.0 / np.sqrt(total)
 
+    # -- the same linearisations, other selections or values ---------------------------------
+    @property
+    def datasets(self) -> list[FrfData]:
+        """The measured data sets, one per linearisation (in order)."""
+        return [b.data for b in self.blocks]
+
+    def with_options(self, options: CostOptions) -> FrfProblem:
+        """The same data and linearisations compared with other ``options`` (other bands,
+        channels, residual kind or norm); nothing is linearised again."""
+        out = FrfProblem(
+            self.doc, self.datasets, options, affines=self.affines, modifier=self.modifier
+        )
+        out.modifier_theta = self.modifier_theta
+        return out
+
+    def moved(self, pmodel: ParameterModel, x: np.ndarray, doc: UrdfDocument) -> FrfProblem:
+        """The same problem with every linearisation's parameter values set to ``pmodel``'s
+        values at ``x`` (``doc``: the model document holding those values). The affine bases
+        and the data selections are shared: nothing is linearised or selected again."""
+        values, gains = pmodel.values(x), _free_gains(pmodel, x)
+        out = copy.copy(self)
+        out.doc = doc
+        out.modifier_theta = self._theta(pmodel, x)[0]
+        out.blocks = [
+            dataclasses.replace(b, affine=_block_affine(b, values, gains)) for b in self.blocks
+        ]
+        return out
+
     @property
     def affines(self) -> list[AffineModel]:
+        """The linearisations, one per data set."""
         return [b.affine for b in self.blocks]
 
-    def _block(self, ds: FrfData, affine: AffineModel) -> _Block:
-        opt = self.options
-        where = ds.source or "<data>"
-        col_of = [affine.inputs.index(i) for i in ds.inputs]
-        chosen = np.array(ds.present)
-        if opt.channels is not None:
-            wanted = set(opt.channels)
-            unknown = wanted - {f"{o}.{i}" for o in ds.outputs for i in ds.inputs}
-            if unknown:
-                raise ChannelError(
-                    f"{where}: --channels names {', '.join(sorted(unknown))}, not in the data;"
-                    f" valid: {', '.join(ds.channels)}"
-                )
-            for ka, o in enumerate(ds.outputs):
-                for kb, i in enumerate(ds.inputs):
-                    chosen[ka, kb] &= f"{o}.{i}" in wanted
-        fmask = np.ones(ds.freq_hz.size, bool)
-        if opt.bands:
-            fmask = np.zeros(ds.freq_hz.size, bool)
-            for lo, hi in opt.bands:
-                fmask |= (ds.freq_hz >= lo) & (ds.freq_hz <= hi)
-        sel = chosen[:, :, None] & fmask[None, None, :] & np.isfinite(ds.H)
-        a, b, f = np.nonzero(sel)
-        used = np.unique(f)
-        fidx = np.searchsorted(used, f)
-        Hm = ds.H[a, b, f]
-        w = information_weights(ds, opt.effective_weighting)[a, b, f]
-        names = np.array([f"{ds.outputs[i]}.{ds.inputs[j]}" for i, j in zip(a, b, strict=True)])
-        for ch, cw in opt.channel_weights.items():
-            w = np.where(names == ch, w * float(cw), w)
-        scale = np.ones(a.size)
-        for ch in np.unique(names):
-            m = names == ch
-            scale[m] = np.sqrt(np.mean(np.abs(Hm[m]) ** 2))
-        cols = np.array(col_of, dtype=int)[b]
-        n_o, n_i, n_f = len(affine.outputs), len(affine.inputs), used.size
-        flat = (a * n_i + cols) * n_f + fidx
-        whole = flat.size == n_o * n_i * n_f and np.array_equal(flat, np.arange(flat.size))
-        return _Block(
-            ds, affine, ds.freq_hz[used], a, cols, fidx, None if whole else flat, Hm, w, scale,
-            names,
-        )  # fmt: skip
+    @property
+    def total_weight(self) -> float:
+        """Sum of the point weights of every selected point (the cost's normaliser)."""
+        return float(sum(float(b.weight.sum()) for b in self.blocks))
+
+    @property
+    def freq_range_hz(self) -> tuple[float, float]:
+        """Lowest and highest frequency used (Hz)."""
+        return (
+            min(float(b.freq_hz.min()) for b in self.blocks),
+            max(float(b.freq_hz.max()) for b in self.blocks),
+        )
+
+    def entry_weights(self) -> np.ndarray:
+        """Per residual entry: its point's weight over :attr:`total_weight`, ``(n_r,)``."""
+        k = parts(self.options.kind)
+        return np.concatenate([np.tile(b.weight, k) for b in self.blocks]) / self.total_weight
 
     # -- evaluation -----------------------------------------------------------------------
     @property
     def n_residuals(self) -> int:
         return parts(self.options.kind) * sum(b.Hm.size for b in self.blocks)
 
-    def model_frf(self, pmodel: ParameterModel, x: np.ndarray) -> list[np.ndarray]:
-        """Model FRF at each data set's used frequencies, ``(n_out, n_in_model, n_fu)`` each."""
+    def used_frf(self, pmodel: ParameterModel, x: np.ndarray) -> list[np.ndarray]:
+        """Model FRF at each data set's used frequencies, ``(n_out, n_in_model, n_fu)`` each
+        (receptance; :func:`bondid.frf.aligned.model_frf` gives it in a data set's layout)."""
         values, gains = pmodel.values(x), _free_gains(pmodel, x)
-        return thread_map(lambda b: _block_frf(b, values, gains), self.blocks)
+        theta = self._theta(pmodel, x)[0]
+
+        def one(b: DataSelection) -> np.ndarray:
+            H = _block_frf(b, values, gains)
+            return H if theta is None else H * self._modifier_at(b, theta)[0]
+
+        return thread_map(one, self.blocks)
+
+    def _theta(
+        self, pmodel: ParameterModel, x: np.ndarray
+    ) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """The modifier's ``θ`` ``(n_θ,)`` and ``∂θ/∂x`` ``(n_θ, size)`` (None: no modifier;
+        no derivative when θ is held)."""
+        if self.modifier is None:
+            return None, None
+        values = getattr(pmodel, "modifier_values", None)
+        jacobian = getattr(pmodel, "modifier_jacobian", None)
+        if values is None or jacobian is None:
+            return self.modifier_theta, None
+        return np.asarray(values(x), float), np.asarray(jacobian(x), float)
+
+    def _modifier_at(self, b: DataSelection, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        assert self.modifier is not None
+        return self.modifier.at(theta, b.freq_hz, b.affine.outputs, b.affine.inputs)
 
     def phase_wall_fraction(
         self, pmodel: ParameterModel, x: np.ndarray, limit_rad: float = np.pi / 2
@@ -239,7 +270,7 @@ class FrfProblem:
         measured one by more than ``limit_rad`` — where a log cost sits on the far side of a
         sign change (a wall a local method cannot cross). 0 … 1."""
         total = bad = 0.0
-        for b, H in zip(self.blocks, self.model_frf(pmodel, x), strict=True):
+        for b, H in zip(self.blocks, self.used_frf(pmodel, x), strict=True):
             Hs = H[b.rows, b.cols, b.fidx]
             dphi = np.abs(np.angle(Hs * np.conj(b.Hm)))
             total += float(b.weight.sum())
@@ -250,8 +281,13 @@ class FrfProblem:
         """Scaled residual vector ``(n_residuals,)``; ``cost = ‖r‖²``."""
         values, gains = pmodel.values(x), _free_gains(pmodel, x)
 
-        def one(b: _Block) -> np.ndarray:
-            Hs = _block_frf(b, values, gains)[b.rows, b.cols, b.fidx]
+        theta = self._theta(pmodel, x)[0]
+
+        def one(b: DataSelection) -> np.ndarray:
+            H = _block_frf(b, values, gains)
+            if theta is not None:
+                H = H * self._modifier_at(b, theta)[0]
+            Hs = H[b.rows, b.cols, b.fidx]
             return self._weighted(b, residual(self.options.kind, Hs, b.Hm, b.scale))[0]
 
         return np.concatenate(thread_map(one, self.blocks))
@@ -265,8 +301,9 @@ class FrfProblem:
         its rows of the result.
         """
         values, gains = pmodel.values(x), _free_gains(pmodel, x)
-        dgains = pmodel.gain_jacobian(x) if gains else {}  # type: ignore[attr-defined]
+        dgains = _free_gain_jacobian(pmodel, x) if gains else {}
         dpi, dk, dd = pmodel.jacobian(x)
+        theta, dtheta = self._theta(pmodel, x)
         n_p, k = dpi.shape[2], parts(self.options.kind)
         sizes = [k * b.Hm.size for b in self.blocks]
         start = np.concatenate([[0], np.cumsum(sizes)])
@@ -278,25 +315,44 @@ class FrfProblem:
             rb = r[start[i] : start[i + 1]]
             Jb = J[start[i] : start[i + 1]].reshape(k, b.Hm.size, n_p)
             affine = _block_affine(b, values, gains)
-            if b.flat is None and not gains:
+            if b.flat is None and not gains and theta is None:
                 self._grid_rows(b, affine, (dpi, dk, dd), rb, Jb)
                 return
             H, dH = frf_and_jacobian(affine, b.freq_hz, dpi, dk, dd)
             Hs = H[b.rows, b.cols, b.fidx]
-            res = residual(self.options.kind, Hs, b.Hm, b.scale)
-            rb[:], weight = self._weighted(b, res)
             flat = np.arange(Hs.size) if b.flat is None else b.flat
             dHs = dH.reshape(-1, n_p)[flat]
             if gains:
                 dHs = dHs + _gain_columns(affine, gains, dgains, b.rows, b.cols, Hs)
+            if theta is not None:
+                Hs, dHs = self._modified(b, theta, dtheta, Hs, dHs)
+            res = residual(self.options.kind, Hs, b.Hm, b.scale)
+            rb[:], weight = self._weighted(b, res)
             residual_jacobian(self.options.kind, Hs, b.Hm, dHs, b.scale, weight, out=Jb)
 
         thread_map(one, range(len(self.blocks)))
         return r, J
 
+    def _modified(
+        self,
+        b: DataSelection,
+        theta: np.ndarray,
+        dtheta: np.ndarray | None,
+        Hs: np.ndarray,
+        dHs: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """``G ⊙ Hs`` ``(n_sel,)`` and its derivative ``G ∂Hs/∂x + Hs ∂G/∂θ ∂θ/∂x``
+        ``(n_sel, size)`` (module :mod:`bondid.cost.modifier`)."""
+        G, dG = self._modifier_at(b, theta)
+        Gs, dGs = G[b.rows, b.cols, b.fidx], dG[b.rows, b.cols, b.fidx]
+        out = Gs[:, None] * dHs
+        if dtheta is not None:
+            out = out + Hs[:, None] * (dGs @ dtheta)
+        return Gs * Hs, out
+
     def _grid_rows(
         self,
-        b: _Block,
+        b: DataSelection,
         affine: AffineModel,
         derivatives: tuple[np.ndarray, np.ndarray, np.ndarray],
         r: np.ndarray,
@@ -320,7 +376,7 @@ class FrfProblem:
                 out=Jg[:, :, :, sl],
             )  # fmt: skip
 
-    def _weighted(self, b: _Block, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _weighted(self, b: DataSelection, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Weighted residuals ``(parts·n_sel,)`` (norm mapping, √weight, normalisation) and
         the factor ``(parts, n_sel)`` their derivatives take."""
         sw = np.sqrt(b.weight) * self._norm
@@ -341,10 +397,3 @@ class FrfProblem:
             ch.append(np.tile(b.channel, k))
             fr.append(np.tile(b.freq_hz[b.fidx], k))
         return np.concatenate(ds_i), np.concatenate(ch), np.concatenate(fr)
-
-
-def db_rms(Hs: np.ndarray, Hm: np.ndarray) -> float:
-    """The spec's gap figure: RMS over points of (20/ln10)·|ln(Hm/Hs)| (phase wrapped)."""
-    r = residual("complex_log", np.asarray(Hs), np.asarray(Hm))
-    finite = np.all(np.isfinite(r), axis=0)
-    return float(np.sqrt(np.mean(np.sum(r[:, finite] ** 2, axis=0))))

@@ -151,3 +151,10 @@ def robust(r: np.ndarray, norm: str, delta: float) -> tuple[np.ndarray, np.ndarr
     rt = r * g
     d = 1.0 / (s * g)
     return rt, d
+
+
+def db_rms(Hs: np.ndarray, Hm: np.ndarray) -> float:
+    """The spec's gap figure: RMS over points of (20/ln10)·|ln(Hm/Hs)| (phase wrapped)."""
+    r = residual("complex_log", np.asarray(Hs), np.asarray(Hm))
+    finite = np.all(np.isfinite(r), axis=0)
+    return float(np.sqrt(np.mean(np.sum(r[:, finite] ** 2, axis=0))))

@@ -2,6 +2,7 @@
 
 The public names are imported lazily, so ``python -m bondid.fit`` can choose the BLAS
 threading (:mod:`bondid.blas`) before NumPy loads; CasADi is imported when a fit is built.
+The optimisation itself lives in :mod:`bondid.optim` (problem, IPOPT, search schedules).
 """
 
 from __future__ import annotations
@@ -13,7 +14,6 @@ _LAZY = {
     "default_bounds": "bounds",
     "FitResult": "result",
     "fit": "solver",
-    "prepare": "solver",
 }
 
 __all__ = sorted(_LAZY)

@@ -231,16 +231,14 @@ def summary(result: Any, content: dict[str, Any] | None, extra: dict[str, Any]) 
     return "\n".join(lines)
 
 
-def _body(args: argparse.Namespace) -> int:
+def _load(args: argparse.Namespace, s: StudySettings) -> dict[str, Any]:
+    """Model, data, names, bounds and the results folder of a fit command (checked)."""
     from ..data.for_model import load_datasets
     from ..results import open_results
     from ..validation import check_inputs, load_model
     from .model_setup import prepare_model, uff_map
-    from .multistart import run_multistart
-    from .outputs import FIT_JSON, check_out_dir, write_outputs
-    from .staged import cost_at
+    from .outputs import check_out_dir
 
-    s = resolve_settings(args)
     assert s.model is not None
     inputs: list[Path] = [s.model, *s.data] + ([s.source] if s.source else [])
     inputs += [f for f in (s.points_file, args.points_file) if f is not None]
@@ -256,12 +254,22 @@ def _body(args: argparse.Namespace) -> int:
     names = resolve_names(doc, datasets, s, options)
     lower, upper = resolve_bounds(doc, names, s, max(float(d.freq_hz[-1]) for d in datasets))
     warnings += start_outside_bounds(doc, names, lower, upper)
+    return {
+        "inputs": inputs, "res": res, "doc": doc, "warnings": warnings, "datasets": datasets,
+        "options": options, "names": names, "lower": lower, "upper": upper,
+    }  # fmt: skip
+
+
+def _search(s: StudySettings, w: dict[str, Any], quiet: bool) -> Any:
+    """Run the multistart search with progress on stderr; its :class:`MultistartResult`."""
+    from ..optim.schedules import Strategy
+    from .multistart import run_multistart
 
     single = s.multistart == 1 or s.workers == 1
     prog = Progress(
         "fit" if s.multistart == 1 else f"fit ({s.multistart} starts)",
         None if single else s.multistart,
-        quiet=args.quiet,
+        quiet=quiet,
     )
 
     def on_iteration(it: int, cost: float) -> None:
@@ -274,52 +282,34 @@ def _body(args: argparse.Namespace) -> int:
             )
             prog.update(1, f"start {out.index}: {info}")
 
-    try:
-        ms = run_multistart(
-            doc, datasets, names, lower=lower, upper=upper, options=options,
-            n_starts=s.multistart, seed=s.seed, max_iter=s.max_iter, workers=s.workers,
-            staged=s.staged, continuation=s.continuation, stage_bands=s.stage_bands or None,
-            on_run=on_run, on_iteration=on_iteration, presolve_iter=s.presolve,
-        )  # fmt: skip
-    except SolverError as exc:  # no run kept an iterate: still say so in fit.json
-        if res is not None:
-            write_failure(res, exc, doc, names, lower, upper, s, warnings)
-        raise
-    result = ms.best
-    prog.close(f"{result.status}, cost {result.cost_final:.4g}")
+    strategy = Strategy(
+        staged=s.staged, continuation=s.continuation, stage_bands=s.stage_bands or None,
+        presolve_iter=s.presolve, max_iter=s.max_iter,
+    )  # fmt: skip
+    ms = run_multistart(
+        w["doc"], w["datasets"], w["names"], lower=w["lower"], upper=w["upper"],
+        options=w["options"], n_starts=s.multistart, seed=s.seed, workers=s.workers,
+        strategy=strategy, on_run=on_run, on_iteration=on_iteration,
+    )  # fmt: skip
+    prog.close(f"{ms.best.status}, cost {ms.best.cost_final:.4g}")
+    return ms
+
+
+def _model_cost(ms: Any, w: dict[str, Any]) -> float:
+    """The cost at the model's own values (start 0), from its run when it has one."""
     start0 = ms.runs[0].result
-    if start0 is not None and not (s.staged or s.continuation):
-        cost_model = float(start0.cost_initial)
-    else:
-        cost_model = cost_at(
-            doc, datasets, names, np.clip(get_parameters(doc, names), lower, upper), options
-        )
-    extra: dict[str, Any] = {
-        "cost_model": cost_model,
-        "command": "bondid.fit",
-        "model_file": str(s.model),
-        "study_file": None if s.source is None else str(s.source),
-        "settings": s.to_json_dict(),
-        "multistart": ms.spread(),
-        "stages": [st.to_json_dict() for st in ms.best_run.stages] or None,
-        "warnings": warnings,
-    }
-    content = None
-    if res is not None:
-        histories = [r.result.cost_history if r.result else [] for r in ms.runs]
-        content = write_outputs(
-            res.tmp, result=result, initial_doc=doc, datasets=datasets, options=options,
-            inputs=inputs, histories=histories,
-            history_labels=[f"start {r.index}" for r in ms.runs], extra=extra,
-        )  # fmt: skip
-        res.commit(warnings=warnings, main=FIT_JSON)
-    print(summary(result, content, extra))
-    for line in warn_lines(warnings):
-        print(line)
-    if args.out is not None:
-        print(f"results: {args.out} ({', '.join(content['outputs']) if content else ''})")
-    else:
-        print("(no --out given: nothing written)")
+    if start0 is not None:
+        return float(start0.cost_initial)
+    from ..optim.problem import FitProblem
+
+    problem = FitProblem(
+        w["doc"], w["datasets"], w["names"], options=w["options"], lower=w["lower"],
+        upper=w["upper"],
+    )  # fmt: skip
+    return problem.cost(problem.z0)
+
+
+def _exit_code(result: Any) -> int:
     if result.status == "failed":
         print(
             f"error: the fit failed ({result.failure}); fit.json keeps the best point reached",
@@ -334,6 +324,45 @@ def _body(args: argparse.Namespace) -> int:
         )
         return EXIT_FAILED
     return EXIT_OK
+
+
+def _body(args: argparse.Namespace) -> int:
+    from .outputs import FIT_JSON, write_outputs
+
+    s = resolve_settings(args)
+    w = _load(args, s)
+    res, warnings = w["res"], w["warnings"]
+    try:
+        ms = _search(s, w, args.quiet)
+    except SolverError as exc:  # no run kept an iterate: still say so in fit.json
+        if res is not None:
+            write_failure(res, exc, w["doc"], w["names"], w["lower"], w["upper"], s, warnings)
+        raise
+    result = ms.best
+    extra: dict[str, Any] = {
+        "cost_model": _model_cost(ms, w), "command": "bondid.fit", "model_file": str(s.model),
+        "study_file": None if s.source is None else str(s.source),
+        "settings": s.to_json_dict(), "multistart": ms.spread(),
+        "stages": [st.to_json_dict() for st in ms.best_run.stages] or None,
+        "warnings": warnings,
+    }  # fmt: skip
+    content = None
+    if res is not None:
+        histories = [r.result.cost_history if r.result else [] for r in ms.runs]
+        content = write_outputs(
+            res.tmp, result=result, initial_doc=w["doc"], datasets=w["datasets"],
+            options=w["options"], inputs=w["inputs"], histories=histories,
+            history_labels=[f"start {r.index}" for r in ms.runs], extra=extra,
+        )  # fmt: skip
+        res.commit(warnings=warnings, main=FIT_JSON)
+    print(summary(result, content, extra))
+    for line in warn_lines(warnings):
+        print(line)
+    if args.out is not None:
+        print(f"results: {args.out} ({', '.join(content['outputs']) if content else ''})")
+    else:
+        print("(no --out given: nothing written)")
+    return _exit_code(result)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

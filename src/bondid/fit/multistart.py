@@ -4,9 +4,12 @@ Start 0 is always the model's own (URDF) values; starts 1..N-1 fill the box
 ``[lower, upper]`` with a seeded Latin hypercube (:class:`scipy.stats.qmc.LatinHypercube`),
 so the same seed gives the same starts. A parameter whose box spans more than a decade with
 ``lower > 0`` (typically an absolute stiffness or damping range) is sampled uniformly in its
-logarithm. The fits run in separate processes (:class:`concurrent.futures.ProcessPoolExecutor`,
-2 workers by default, one per core of the reference machine); the best final cost wins and the
-spread of the final costs is reported.
+logarithm. Each start runs one search (:mod:`bondid.optim.search`, the schedule chosen by a
+:class:`~bondid.optim.schedules.Strategy`). The runs go to separate processes
+(:class:`concurrent.futures.ProcessPoolExecutor`, 2 workers by default, one per core of the
+reference machine), each building its problem once; starts run in this process share one
+problem (:meth:`FitProblem.restrict`, no new linearisation). The best final cost of a run
+that did not fail wins and the spread of the final costs is reported.
 """
 
 from __future__ import annotations
@@ -25,9 +28,10 @@ from ..data.measurement import FrfData
 from ..exceptions import ComputationError, ConfigError, SolverError
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameters
-from .solver import PRESOLVE_ITER
+from ..optim.schedules import Strategy
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
+    from ..optim.problem import FitProblem
     from .result import FitResult
 
 #: Called as each run finishes: (runs done, runs total, the finished run).
@@ -87,7 +91,7 @@ class RunOutcome:
     result: FitResult | None
     error: str | None = None
     status: str | None = None
-    stages: list[Any] = field(default_factory=list)  # staged fit: StageResult per stage
+    stages: list[Any] = field(default_factory=list)  # StepResult per step (staged, continuation)
     wall_s: float = 0.0
 
     @property
@@ -133,57 +137,46 @@ class MultistartResult:
 
 @dataclass
 class _Job:
+    """One start: the problem's inputs, the start ``(p,)`` and the strategy."""
+
     index: int
-    doc: UrdfDocument
-    datasets: list[FrfData]
-    names: list[str]
-    options: CostOptions
-    lower: np.ndarray
-    upper: np.ndarray
+    problem_args: tuple[UrdfDocument, list[FrfData], list[str], CostOptions, np.ndarray, np.ndarray]
     start: np.ndarray
-    max_iter: int
-    staged: bool
-    stage_bands: dict[str, list[tuple[float, float]]] | None
-    presolve_iter: int = PRESOLVE_ITER
-    continuation: int = 0
+    strategy: Strategy
 
 
-def _run_job(job: _Job, progress: Callable[[int, float], None] | None = None) -> RunOutcome:
+def _problem(job: _Job, base: FitProblem | None = None) -> FitProblem:
+    """The job's problem: ``base`` restarted at the job's start, or built from its inputs."""
+    if base is not None:
+        return base.restrict(start=job.start)
+    from ..optim.problem import FitProblem
+
+    doc, datasets, names, options, lo, hi = job.problem_args
+    return FitProblem(doc, datasets, names, options=options, lower=lo, upper=hi, start=job.start)
+
+
+def _run_job(
+    job: _Job,
+    progress: Callable[[int, float], None] | None = None,
+    base: FitProblem | None = None,
+) -> RunOutcome:
     """Run one start (in a worker process or in-process).
 
-    A failed computation (solver failure, singular matrix) becomes a failed run; bad input
-    (:class:`ConfigError`, :class:`ParameterError`, ...) propagates.
+    A failed computation (singular matrix, a solver that raised) becomes a failed run; bad
+    input (:class:`ConfigError`, :class:`ParameterError`, ...) propagates.
     """
+    from ..optim.search import run_search
+
     t0 = time.perf_counter()
     try:
-        if job.staged or job.continuation:
-            from .continuation import continuation_fit
-            from .staged import staged_fit
-
-            common: dict[str, Any] = {
-                "options": job.options, "lower": job.lower, "upper": job.upper,
-                "start": job.start, "max_iter": job.max_iter, "progress": progress,
-                "presolve_iter": job.presolve_iter,
-            }  # fmt: skip
-            st = (
-                staged_fit(job.doc, job.datasets, job.names, stage_bands=job.stage_bands, **common)
-                if job.staged
-                else continuation_fit(
-                    job.doc, job.datasets, job.names, n_bands=job.continuation, **common
-                )
-            )
-            return RunOutcome(
-                job.index, job.start, st.result, stages=st.stages,
-                wall_s=time.perf_counter() - t0,
-            )  # fmt: skip
-        from .solver import fit
-
-        res = fit(
-            job.doc, job.datasets, job.names, options=job.options, lower=job.lower,
-            upper=job.upper, start=job.start, max_iter=job.max_iter, progress=progress,
-            presolve_iter=job.presolve_iter,
+        problem = _problem(job, base)
+        st = run_search(
+            problem, job.strategy.steps(problem), max_iter=job.strategy.max_iter,
+            progress=progress,
         )  # fmt: skip
-        return RunOutcome(job.index, job.start, res, wall_s=time.perf_counter() - t0)
+        return RunOutcome(
+            job.index, job.start, st.result, stages=st.stages, wall_s=time.perf_counter() - t0
+        )
     except ComputationError as exc:
         return RunOutcome(
             job.index, job.start, None, str(exc), getattr(exc, "status", None),
@@ -191,6 +184,37 @@ def _run_job(job: _Job, progress: Callable[[int, float], None] | None = None) ->
         )  # fmt: skip
     except (np.linalg.LinAlgError, FloatingPointError) as exc:
         return RunOutcome(job.index, job.start, None, str(exc), wall_s=time.perf_counter() - t0)
+
+
+def _in_process(jobs: list[_Job], on_run: RunProgress | None, on_iteration: Any) -> list:
+    """Run the jobs here, one after another, on one problem built once."""
+    runs = []
+    base = _problem(jobs[0]) if len(jobs) > 1 else None
+    for k, job in enumerate(jobs):
+        runs.append(_run_job(job, on_iteration, base))
+        if on_run is not None:
+            on_run(k + 1, len(jobs), runs[-1])
+    return runs
+
+
+def _in_pool(jobs: list[_Job], workers: int, on_run: RunProgress | None) -> list:
+    """Run the jobs in worker processes (each builds its problem)."""
+    from ..interrupt import ignore_in_worker, terminate_on_interrupt
+
+    runs: list[RunOutcome | None] = [None] * len(jobs)
+    with (
+        ProcessPoolExecutor(
+            max_workers=min(workers, len(jobs)), initializer=ignore_in_worker
+        ) as pool,
+        terminate_on_interrupt(pool),
+    ):
+        futures: dict[Future[RunOutcome], int] = {pool.submit(_run_job, j): j.index for j in jobs}
+        for k, fut in enumerate(as_completed(futures)):
+            out = fut.result()
+            runs[futures[fut]] = out
+            if on_run is not None:
+                on_run(k + 1, len(jobs), out)
+    return runs
 
 
 def run_multistart(
@@ -203,16 +227,12 @@ def run_multistart(
     options: CostOptions | None = None,
     n_starts: int = 1,
     seed: int = 0,
-    max_iter: int = 200,
     workers: int = 2,
-    staged: bool = False,
-    continuation: int = 0,
-    stage_bands: dict[str, list[tuple[float, float]]] | None = None,
+    strategy: Strategy | None = None,
     on_run: RunProgress | None = None,
     on_iteration: Callable[[int, float], None] | None = None,
-    presolve_iter: int = PRESOLVE_ITER,
 ) -> MultistartResult:
-    """Fit from ``n_starts`` starts (start 0 = the URDF values) and keep the best.
+    """Search from ``n_starts`` starts (start 0 = the URDF values) and keep the best.
 
     Args:
         doc: the model (not modified).
@@ -220,68 +240,38 @@ def run_multistart(
         names: free parameters, length ``p``.
         lower, upper: bounds, shape ``(p,)`` each (SI units of each parameter).
         options: cost options (default :class:`CostOptions`).
-        n_starts: number of starts; 1 runs the single fit in this process.
+        n_starts: number of starts; 1 runs the single search in this process.
         seed: Latin-hypercube seed.
-        max_iter: IPOPT iteration limit per fit.
         workers: processes to use (1 = run the starts one after another here).
-        staged: run each start as a staged fit (:func:`bondid.fit.staged.staged_fit`).
-        continuation: run each start as a band continuation with this many bands
-            (:func:`bondid.fit.continuation.continuation_fit`); 0 = off.
-        stage_bands: user bands per stage for the staged fit.
+        strategy: the schedule of each search and its iteration limits (default: direct).
         on_run: called in this process as each run finishes.
         on_iteration: per-iteration progress ``(iteration, cost)``, only for runs done in
             this process (``workers == 1`` or a single start).
-        presolve_iter: normalised-complex presolve iterations of each fit
-            (:data:`bondid.fit.solver.PRESOLVE_ITER`).
 
     Returns:
-        :class:`MultistartResult`; ``.best`` is the best :class:`FitResult`.
+        :class:`MultistartResult`; ``.best`` is the best :class:`FitResult` (a run whose
+        solver failed counts only when every run failed).
 
     Raises:
-        SolverError: every run failed (keeps the status of start 0's failure).
+        SolverError: every run failed without a result (keeps the status of start 0's failure).
         ConfigError: bad start count.
     """
     t0 = time.perf_counter()
-    opts = options or CostOptions()
     names = list(names)
     lo = np.asarray(lower, dtype=float)
     hi = np.asarray(upper, dtype=float)
-    x0 = np.clip(get_parameters(doc, names), lo, hi)
-    starts = lhs_starts(x0, lo, hi, n_starts, seed)
-    common = (list(datasets), names, opts, lo, hi)
-    jobs = [
-        _Job(i, doc, *common, starts[i], max_iter, staged, stage_bands, presolve_iter, continuation)
-        for i in range(n_starts)
-    ]
-    runs: list[RunOutcome | None] = [None] * n_starts
+    starts = lhs_starts(np.clip(get_parameters(doc, names), lo, hi), lo, hi, n_starts, seed)
+    args = (doc, list(datasets), names, options or CostOptions(), lo, hi)
+    jobs = [_Job(i, args, starts[i], strategy or Strategy()) for i in range(n_starts)]
     if n_starts == 1 or workers <= 1:
-        for k, job in enumerate(jobs):
-            runs[job.index] = out = _run_job(job, on_iteration)
-            if on_run is not None:
-                on_run(k + 1, n_starts, out)
+        done = _in_process(jobs, on_run, on_iteration)
     else:
-        from ..interrupt import ignore_in_worker, terminate_on_interrupt
-
-        with (
-            ProcessPoolExecutor(
-                max_workers=min(workers, n_starts), initializer=ignore_in_worker
-            ) as pool,
-            terminate_on_interrupt(pool),
-        ):
-            futures: dict[Future[RunOutcome], int] = {
-                pool.submit(_run_job, j): j.index for j in jobs
-            }
-            for k, fut in enumerate(as_completed(futures)):
-                out = fut.result()
-                runs[futures[fut]] = out
-                if on_run is not None:
-                    on_run(k + 1, n_starts, out)
-    done = [r for r in runs if r is not None]
-    ok = [r for r in done if r.result is not None]
+        done = _in_pool(jobs, workers, on_run)
+    ok = [r for r in done if r is not None and r.result is not None]
     if not ok:
         first = done[0]
         raise SolverError(
             f"all {n_starts} fit run(s) failed; start 0: {first.error}", status=first.status
         )
-    best = min(ok, key=lambda r: (r.cost, r.index))
+    best = min(ok, key=lambda r: (r.result.status == "failed", r.cost, r.index))
     return MultistartResult(done, best.index, time.perf_counter() - t0)

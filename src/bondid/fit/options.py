@@ -32,6 +32,8 @@ from .study import (
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The command's options. One flat declaration, in the order ``--help`` lists them (longer
+    than 60 lines because it is a list, read top-down; splitting it would scatter the list)."""
     p = make_parser("fit", "Fit a machine model's parameters to measured FRFs.")
     p.add_argument("--model", type=Path, help="the machine's URDF file (or model = in --study)")
     p.add_argument(
@@ -149,6 +151,17 @@ def resolve_settings(args: argparse.Namespace) -> StudySettings:
         s.coherence = args.coherence
     if args.weighting is not None:
         s.weighting = args.weighting
+    _search_settings(args, s)
+    if s.model is None:
+        raise ConfigError("no model: give --model URDF (or model = ... in the study file)")
+    if not s.data:
+        raise ConfigError("no data: give --data FILE... (or data = [...] in the study file)")
+    return s
+
+
+def _search_settings(args: argparse.Namespace, s: StudySettings) -> None:
+    """The search options (multistart, seed, workers, staged, stage bands, continuation,
+    iterations, presolve) laid over ``s``."""
     s.multistart = _positive(args.multistart, "--multistart", 1) or s.multistart
     if args.seed is not None:
         s.seed = int(_positive(args.seed, "--seed", 0) or 0)
@@ -180,8 +193,3 @@ def resolve_settings(args: argparse.Namespace) -> StudySettings:
         s.max_iter = int(_positive(args.max_iter, "--max-iter", 0) or 0)
     if args.presolve is not None:
         s.presolve = int(_positive(args.presolve, "--presolve", 0) or 0)
-    if s.model is None:
-        raise ConfigError("no model: give --model URDF (or model = ... in the study file)")
-    if not s.data:
-        raise ConfigError("no data: give --data FILE... (or data = [...] in the study file)")
-    return s

@@ -24,11 +24,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..atomic import refuse_overwrite, write_text_atomic
-from ..cost.problem import CostOptions
+from ..cost.problem import CostOptions, used_points
 from ..cost.residuals import DB
 from ..data.measurement import FrfData
 from ..exceptions import ConfigError
-from ..linear.affine import build_affine_model
+from ..frf.aligned import model_frf
 from ..model.document import UrdfDocument
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -99,35 +99,6 @@ def _units(doc: UrdfDocument, joints: Sequence[str]) -> dict[str, Any]:
     return plot_units(doc, joints)
 
 
-def model_frf(doc: UrdfDocument, ds: FrfData) -> np.ndarray:
-    """The model's FRF at ``ds``'s operating point and frequencies, in ``ds``'s channel layout.
-
-    Returns:
-        complex ``(n_out, n_in, n_freq)`` in ``ds.quantity``, rows ``ds.outputs``, columns
-        ``ds.inputs``.
-    """
-    lm = build_affine_model(doc, ds.operating_point, outputs=ds.outputs).linear_model()
-    H = lm.frf(ds.freq_hz, ds.quantity)
-    cols = [lm.inputs.index(i) for i in ds.inputs]
-    return H[:, cols, :]
-
-
-def _used_mask(ds: FrfData, options: CostOptions) -> np.ndarray:
-    """Boolean ``(n_out, n_in, n_freq)``: the points the fit used (channels, bands, finite)."""
-    chosen = ds.present.copy()
-    if options.channels is not None:
-        wanted = set(options.channels)
-        for a, o in enumerate(ds.outputs):
-            for b, i in enumerate(ds.inputs):
-                chosen[a, b] &= f"{o}.{i}" in wanted
-    fmask = np.ones(ds.freq_hz.size, bool)
-    if options.bands:
-        fmask[:] = False
-        for lo, hi in options.bands:
-            fmask |= (ds.freq_hz >= lo) & (ds.freq_hz <= hi)
-    return chosen[:, :, None] & fmask[None, None, :] & np.isfinite(ds.H)
-
-
 def _sq_db(Hs: np.ndarray, Hm: np.ndarray) -> np.ndarray:
     """Per point ``((20/ln10)|ln(Hm/Hs)|)²`` with the phase wrapped to (−π, π]."""
     L = np.log(Hm / Hs)
@@ -160,6 +131,64 @@ def _rms(e: list[np.ndarray]) -> float | None:
     return _wrms(e, [np.ones(x.size) for x in e])
 
 
+class _Errors:
+    """Squared dB errors and weights gathered over data sets, for :func:`db_rms_report`."""
+
+    def __init__(self) -> None:
+        self.E: dict[str, list[np.ndarray]] = {"initial": [], "final": []}
+        self.W: list[np.ndarray] = []
+        self.coh: dict[str, list[np.ndarray]] = {"initial": [], "final": []}
+        self.per_ch: dict[str, dict[str, list[np.ndarray]]] = {}
+        self.n_all = 0
+
+    def add(
+        self, ds: FrfData, frfs: tuple[np.ndarray, np.ndarray], mask: np.ndarray, w: np.ndarray
+    ) -> dict[str, Any]:
+        """One data set's points (``mask``, weights ``w`` ``(n_out, n_in, n_freq)``); returns
+        its ``by_dataset`` entry."""
+        entry: dict[str, Any] = {"file": ds.source, "by_channel": {}}
+        good = mask.copy()
+        if ds.coherence is not None:
+            good &= np.nan_to_num(ds.coherence, nan=1.0) >= COHERENT
+        self.n_all += int(mask.sum())
+        self.W.append(w[mask])
+        for label, H in zip(("initial", "final"), frfs, strict=True):
+            e = _sq_db(H[mask], ds.H[mask])
+            entry[label] = _wrms([e], [w[mask]])
+            entry[f"{label}_unweighted"] = _rms([e])
+            self.E[label].append(e)
+            self.coh[label].append(_sq_db(H[good], ds.H[good]))
+            self._channels(ds, H, mask, w, label, entry["by_channel"])
+        return entry
+
+    def _channels(
+        self, ds: FrfData, H: np.ndarray, mask: np.ndarray, w: np.ndarray, label: str,
+        out: dict[str, dict[str, Any]],
+    ) -> None:  # fmt: skip
+        for a, o in enumerate(ds.outputs):
+            for b, i in enumerate(ds.inputs):
+                m = mask[a, b]
+                if not m.any():
+                    continue
+                ch = f"{o}.{i}"
+                ec = _sq_db(H[a, b, m], ds.H[a, b, m])
+                slot = out.setdefault(ch, {})
+                slot[label] = _wrms([ec], [w[a, b, m]])
+                slot[f"{label}_unweighted"] = _rms([ec])
+                acc = self.per_ch.setdefault(ch, {"initial": [], "final": [], "w": []})
+                acc[label].append(ec)
+                if label == "initial":
+                    acc["w"].append(w[a, b, m])
+
+    def by_channel(self) -> dict[str, dict[str, float | None]]:
+        out = {}
+        for ch, d in self.per_ch.items():
+            row = {k: _wrms(d[k], d["w"]) for k in ("initial", "final")}
+            row.update({f"{k}_unweighted": _rms(d[k]) for k in ("initial", "final")})
+            out[ch] = row
+        return out
+
+
 def db_rms_report(
     initial: UrdfDocument,
     fitted: UrdfDocument,
@@ -184,61 +213,25 @@ def db_rms_report(
 
     weighting = options.effective_weighting
     frfs = model_frfs or [(model_frf(initial, ds), model_frf(fitted, ds)) for ds in datasets]
-    E: dict[str, list[np.ndarray]] = {"initial": [], "final": []}
-    W: list[np.ndarray] = []
-    coh: dict[str, list[np.ndarray]] = {"initial": [], "final": []}
-    n_all = 0
-    per_ch: dict[str, dict[str, list[np.ndarray]]] = {}
-    by_ds = []
-    for ds, (H0, H1) in zip(datasets, frfs, strict=True):
-        mask = _used_mask(ds, options)
-        wall = np.nan_to_num(information_weights(ds, weighting), nan=0.0)
-        entry: dict[str, Any] = {"file": ds.source, "by_channel": {}}
-        good = mask.copy()
-        if ds.coherence is not None:
-            good &= np.nan_to_num(ds.coherence, nan=1.0) >= COHERENT
-        n_all += int(mask.sum())
-        W.append(wall[mask])
-        for label, H in (("initial", H0), ("final", H1)):
-            e = _sq_db(H[mask], ds.H[mask])
-            entry[label] = _wrms([e], [wall[mask]])
-            entry[f"{label}_unweighted"] = _rms([e])
-            E[label].append(e)
-            coh[label].append(_sq_db(H[good], ds.H[good]))
-            for a, o in enumerate(ds.outputs):
-                for b, i in enumerate(ds.inputs):
-                    m = mask[a, b]
-                    if not m.any():
-                        continue
-                    ch = f"{o}.{i}"
-                    ec = _sq_db(H[a, b, m], ds.H[a, b, m])
-                    slot = entry["by_channel"].setdefault(ch, {})
-                    slot[label] = _wrms([ec], [wall[a, b, m]])
-                    slot[f"{label}_unweighted"] = _rms([ec])
-                    acc = per_ch.setdefault(ch, {"initial": [], "final": [], "w": []})
-                    acc[label].append(ec)
-                    if label == "initial":
-                        acc["w"].append(wall[a, b, m])
-        by_ds.append(entry)
-
-    def channel(d: dict[str, list[np.ndarray]]) -> dict[str, float | None]:
-        out = {k: _wrms(d[k], d["w"]) for k in ("initial", "final")}
-        out.update({f"{k}_unweighted": _rms(d[k]) for k in ("initial", "final")})
-        return out
-
-    n_good = sum(x.size for x in coh["final"])
+    acc = _Errors()
+    by_ds = [
+        acc.add(ds, H01, used_points(ds, options),
+                np.nan_to_num(information_weights(ds, weighting), nan=0.0))
+        for ds, H01 in zip(datasets, frfs, strict=True)
+    ]  # fmt: skip
+    n_good = sum(x.size for x in acc.coh["final"])
     return {
-        "initial": _wrms(E["initial"], W),
-        "final": _wrms(E["final"], W),
+        "initial": _wrms(acc.E["initial"], acc.W),
+        "final": _wrms(acc.E["final"], acc.W),
         "weighting": weighting,
         "definition": DB_RMS_DEFINITION,
-        "unweighted": {"initial": _rms(E["initial"]), "final": _rms(E["final"])},
-        "by_channel": {ch: channel(d) for ch, d in per_ch.items()},
+        "unweighted": {"initial": _rms(acc.E["initial"]), "final": _rms(acc.E["final"])},
+        "by_channel": acc.by_channel(),
         "by_dataset": by_ds,
         "coherent": {
-            "initial": _rms(coh["initial"]),
-            "final": _rms(coh["final"]),
-            "fraction": n_good / n_all if n_all else None,
+            "initial": _rms(acc.coh["initial"]),
+            "final": _rms(acc.coh["final"]),
+            "fraction": n_good / acc.n_all if acc.n_all else None,
             "min_coherence": COHERENT,
         },
     }
@@ -275,41 +268,13 @@ def write_outputs(
     Raises:
         ConfigError: an output would overwrite an input.
     """
-    from ..data.weights import noise_estimate, weighting_summary
-    from ..plots import Curve, noise_curve, plot_bode, plot_convergence
+    from ..data.weights import weighting_summary
 
     out = check_out_dir(out_dir, inputs, datasets)
     out.mkdir(parents=True, exist_ok=True)
-    written: list[str] = []
     frfs = [(model_frf(initial_doc, ds), model_frf(result.document, ds)) for ds in datasets]
-    for ds, (H0, H1), name in zip(datasets, frfs, bode_names(datasets), strict=True):
-        op = " ".join(f"{k}={v:g}" for k, v in ds.operating_point.items()) or "neutral"
-        plot_bode(
-            ds.freq_hz,
-            [
-                Curve("measured", ds.H, kind="measured"),
-                Curve("initial model", H0, style={"linestyle": "--"}),
-                Curve("fitted model", H1),
-                noise_curve(noise_estimate(ds).sigma),
-            ],
-            outputs=ds.outputs,
-            inputs=ds.inputs,
-            path=out / name,
-            title=f"{Path(ds.source).name if ds.source else name}: operating point {op}",
-            quantity=ds.quantity,
-            units=_units(initial_doc, [*ds.outputs, *ds.inputs]),
-        )
-        written.append(name)
-    runs = [list(h) for h in histories if len(h) > 0]
-    if runs:
-        labels = None
-        if history_labels is not None:
-            labels = [lb for lb, h in zip(history_labels, histories, strict=True) if len(h) > 0]
-        plot_convergence(
-            runs, path=out / CONVERGENCE_PNG, labels=labels,
-            title=f"Convergence ({result.cost_name})",
-        )  # fmt: skip
-        written.append(CONVERGENCE_PNG)
+    written = _bode_plots(out, datasets, frfs, initial_doc)
+    written += _convergence_plot(out, result.cost_name, histories, history_labels)
     result.document.write(out / FITTED_URDF)
     written.append(FITTED_URDF)
     content = dict(result.to_json_dict())
@@ -321,3 +286,52 @@ def write_outputs(
     content["outputs"] = [*written, FIT_JSON]
     write_text_atomic(out / FIT_JSON, json.dumps(jsonable(content), indent=2) + "\n")
     return content
+
+
+def _bode_plots(
+    out: Path,
+    datasets: Sequence[FrfData],
+    frfs: Sequence[tuple[np.ndarray, np.ndarray]],
+    doc: UrdfDocument,
+) -> list[str]:
+    """``bode_<stem>.png`` per data set: measured, initial and fitted model, noise level."""
+    from ..data.weights import noise_estimate
+    from ..plots import Curve, noise_curve, plot_bode
+
+    written = []
+    for ds, (H0, H1), name in zip(datasets, frfs, bode_names(datasets), strict=True):
+        op = " ".join(f"{k}={v:g}" for k, v in ds.operating_point.items()) or "neutral"
+        curves = [
+            Curve("measured", ds.H, kind="measured"),
+            Curve("initial model", H0, style={"linestyle": "--"}),
+            Curve("fitted model", H1),
+            noise_curve(noise_estimate(ds).sigma),
+        ]
+        plot_bode(
+            ds.freq_hz, curves, outputs=ds.outputs, inputs=ds.inputs, path=out / name,
+            title=f"{Path(ds.source).name if ds.source else name}: operating point {op}",
+            quantity=ds.quantity, units=_units(doc, [*ds.outputs, *ds.inputs]),
+        )  # fmt: skip
+        written.append(name)
+    return written
+
+
+def _convergence_plot(
+    out: Path,
+    cost_name: str,
+    histories: Sequence[Sequence[float]],
+    history_labels: Sequence[str] | None,
+) -> list[str]:
+    """``convergence.png`` of the runs with a history (``[]`` when none has one)."""
+    from ..plots import plot_convergence
+
+    runs = [list(h) for h in histories if len(h) > 0]
+    if not runs:
+        return []
+    labels = None
+    if history_labels is not None:
+        labels = [lb for lb, h in zip(history_labels, histories, strict=True) if len(h) > 0]
+    plot_convergence(
+        runs, path=out / CONVERGENCE_PNG, labels=labels, title=f"Convergence ({cost_name})"
+    )
+    return [CONVERGENCE_PNG]

@@ -112,6 +112,9 @@ class FitResult:
     solver_status: str | None = None
     #: why the fit failed (None when it did not); ``fitted`` is then the best point reached
     failure: str | None = None
+    #: fitted FRF-modifier parameters by name (a fit with a :class:`bondid.cost.modifier.
+    #: FrfModifier`, e.g. a diagnosis candidate's delay); empty otherwise
+    modifiers: dict[str, float] = field(default_factory=dict)
 
     def parameter(self, name: str) -> float:
         """Fitted value of ``name``."""
@@ -144,4 +147,5 @@ class FitResult:
             "notes": list(self.notes),
             "solver_status": self.solver_status or self.status,
             "failure": self.failure,
+            **({"modifiers": dict(self.modifiers)} if self.modifiers else {}),
         }

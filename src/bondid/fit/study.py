@@ -65,12 +65,15 @@ import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..cost.residuals import NORMS, RESIDUAL_KINDS
 from ..data.weights import WEIGHTINGS
 from ..exceptions import ConfigError
 from ..model.points import Point
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from ..modes.bands import Span as Band
 
 #: Parameter kinds a bound key may name (besides names and globs).
 KINDS = ("mass", "com", "inertia", "stiffness", "damping", "gain")
@@ -96,8 +99,6 @@ _SECTION_KEYS = {
     ),
 }
 
-Band = tuple[float, float]
-
 
 @dataclass
 class StudySettings:
@@ -121,7 +122,7 @@ class StudySettings:
         staged: fit by bands first (stiffness, damping, inertia), then everything.
         stage_bands: stage -> bands (Hz); a missing stage takes bands from the modes.
         continuation: number of bands of a band continuation (growing band from the lowest
-            frequencies, :mod:`bondid.fit.continuation`); 0 = off. Not with ``staged``.
+            frequencies, :mod:`bondid.optim.schedules`); 0 = off. Not with ``staged``.
         max_iter: IPOPT iteration limit per fit.
         presolve: IPOPT iterations on the normalised complex error before a log-cost fit
             (:data:`bondid.fit.solver.PRESOLVE_ITER`; 0 = none).
@@ -363,6 +364,14 @@ def study_from_dict(
 
     read_model_keys(doc, s, where, base)
 
+    _read_parameters(doc, s, where)
+    _read_cost(doc, s, where)
+    _read_search(doc, s, where)
+    return s
+
+
+def _read_parameters(doc: Mapping[str, Any], s: StudySettings, where: str) -> None:
+    """The study's ``[parameters]`` and ``[bounds]`` tables into ``s``."""
     par = _table(doc.get("parameters", {}), where, "parameters")
     _check_keys(par, _SECTION_KEYS["parameters"], where, "parameters")
     if "free" in par:
@@ -371,11 +380,13 @@ def study_from_dict(
             raise _fail(where, "parameters.free", "empty; give names, globs or groups")
     if "fixed" in par:
         s.fixed = check_names(par["fixed"], where, "parameters.fixed")
-
     bounds = _table(doc.get("bounds", {}), where, "bounds")
     for key, value in bounds.items():
         add_bound(s, key, check_bound(value, where, f"bounds.{key}"))
 
+
+def _read_cost(doc: Mapping[str, Any], s: StudySettings, where: str) -> None:
+    """The study's ``[cost]`` table into ``s``."""
     cost = _table(doc.get("cost", {}), where, "cost")
     _check_keys(cost, _SECTION_KEYS["cost"], where, "cost")
     if "kind" in cost:
@@ -392,34 +403,31 @@ def study_from_dict(
         s.coherence = check_bool(cost["coherence"], where, "cost.coherence")
     if "weighting" in cost:
         s.weighting = check_choice(cost["weighting"], WEIGHTINGS, where, "cost.weighting")
-    if "channel_weights" in cost:
-        for ch, w in _table(cost["channel_weights"], where, "cost.channel_weights").items():
-            key = f"cost.channel_weights.{ch}"
-            if isinstance(w, bool) or not isinstance(w, int | float) or not 0 <= w < float("inf"):
-                raise _fail(where, key, f"{w!r} is not a finite weight >= 0")
-            if ch.count(".") != 1:
-                raise _fail(where, key, "not a channel name OUT.IN such as x.y")
-            s.channel_weights[ch] = float(w)
+    for ch, w in _table(cost.get("channel_weights", {}), where, "cost.channel_weights").items():
+        key = f"cost.channel_weights.{ch}"
+        if isinstance(w, bool) or not isinstance(w, int | float) or not 0 <= w < float("inf"):
+            raise _fail(where, key, f"{w!r} is not a finite weight >= 0")
+        if ch.count(".") != 1:
+            raise _fail(where, key, "not a channel name OUT.IN such as x.y")
+        s.channel_weights[ch] = float(w)
 
+
+#: ``[search]`` integer keys: minimum value
+_SEARCH_INTS = {"multistart": 1, "seed": 0, "workers": 1, "continuation": 0, "max_iter": 0,
+                "presolve": 0}  # fmt: skip
+
+
+def _read_search(doc: Mapping[str, Any], s: StudySettings, where: str) -> None:
+    """The study's ``[search]`` table into ``s``."""
     search = _table(doc.get("search", {}), where, "search")
     _check_keys(search, _SECTION_KEYS["search"], where, "search")
-    if "multistart" in search:
-        s.multistart = check_int(search["multistart"], where, "search.multistart", 1)
-    if "seed" in search:
-        s.seed = check_int(search["seed"], where, "search.seed", 0)
-    if "workers" in search:
-        s.workers = check_int(search["workers"], where, "search.workers", 1)
+    for key, minimum in _SEARCH_INTS.items():
+        if key in search:
+            setattr(s, key, check_int(search[key], where, f"search.{key}", minimum))
     if "staged" in search:
         s.staged = check_bool(search["staged"], where, "search.staged")
-    if "continuation" in search:
-        s.continuation = check_int(search["continuation"], where, "search.continuation", 0)
-    if "max_iter" in search:
-        s.max_iter = check_int(search["max_iter"], where, "search.max_iter", 0)
-    if "presolve" in search:
-        s.presolve = check_int(search["presolve"], where, "search.presolve", 0)
     if "stage_bands" in search:
         table = _table(search["stage_bands"], where, "search.stage_bands")
         _check_keys(table, STAGES, where, "search.stage_bands")
         for stage, bands in table.items():
             s.stage_bands[stage] = check_bands(bands, where, f"search.stage_bands.{stage}")
-    return s

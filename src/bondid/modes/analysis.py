@@ -258,7 +258,6 @@ def modal_analysis(
     """
     import scipy.linalg as sl
 
-    n = lm.nv
     try:
         A, Bs, Cs, _ = lm.state_space()
         lam, Yl, Xr = sl.eig(A, left=True, right=True)
@@ -268,69 +267,73 @@ def modal_analysis(
         raise ComputationError("modal analysis: the state matrix has non-finite eigenvalues")
     scale = float(np.max(np.abs(lam))) if lam.size else 0.0
     rigid_tol = max(rigid_rtol * scale, 1e-12)
-
-    keep = []
-    for r, lr in enumerate(lam):
-        if abs(lr) <= rigid_tol or abs(lr.imag) <= REAL_RTOL * abs(lr) or lr.imag > 0:
-            keep.append(r)
-    keep.sort(key=lambda r: (abs(lam[r]), r))
-
     modes: list[Mode] = []
-    for r in keep:
-        lr = complex(lam[r])
-        x, y = Xr[:, r], Yl[:, r]
-        if abs(lr) <= rigid_tol:
-            kind, lr = "rigid", 0j
-        elif abs(lr.imag) <= REAL_RTOL * abs(lr):
-            kind, lr = "real", complex(lr.real, 0.0)
-        else:
-            kind = "vibration"
-        denom = np.vdot(y, x)  # y^H x
-        if abs(denom) <= 1e-12 * np.linalg.norm(x) * np.linalg.norm(y):
-            residue = np.full((Cs.shape[0], Bs.shape[1]), np.nan + 0j)  # defective
-        else:
-            residue = np.outer(Cs @ x, np.conj(y) @ Bs) / denom
-        if kind == "rigid":
-            part = np.full(residue.shape, np.nan)
-            dom = part.copy()
-        else:
-            w_r = abs(lr.imag) if kind == "vibration" else abs(lr)
-            s = 1j * w_r
-            term = residue / (s - lr)
-            if kind == "vibration":
-                term = term + np.conj(residue) / (s - np.conj(lr))
-            part = np.abs(term)
-            h = np.abs(_receptance(lm, w_r))
-            with np.errstate(divide="ignore", invalid="ignore"):
-                dom = np.where(h > 0, part / np.where(h > 0, h, 1.0), np.nan)
-        phi = _normalise(x[:n])
-        W = lm.K if kind == "vibration" else lm.M
-        share = _energy_share(phi, W)
+    for r in _listed(lam, rigid_tol):
+        kind, lr = _classify(complex(lam[r]), rigid_tol)
+        residue = _residue(Xr[:, r], Yl[:, r], Bs, Cs)
+        part, dom = _participation(lm, kind, lr, residue)
+        phi = _normalise(Xr[: lm.nv, r])
+        share = _energy_share(phi, lm.K if kind == "vibration" else lm.M)
         if not np.any(share):
             share = np.abs(phi) ** 2 / max(float(np.sum(np.abs(phi) ** 2)), 1e-300)
         modes.append(
             Mode(
-                index=len(modes) + 1,
-                eigenvalue=lr,
-                f_hz=abs(lr) / (2 * math.pi),
-                zeta=None if kind == "rigid" else -lr.real / abs(lr),
-                kind=kind,
-                shape=phi,
-                residue=residue,
-                participation=part,
-                dominance=dom,
-                energy_share=share,
+                index=len(modes) + 1, eigenvalue=lr, f_hz=abs(lr) / (2 * math.pi),
+                zeta=None if kind == "rigid" else -lr.real / abs(lr), kind=kind, shape=phi,
+                residue=residue, participation=part, dominance=dom, energy_share=share,
                 dominant_dof=lm.dofs[int(np.argmax(share))],
             )
-        )
+        )  # fmt: skip
     return ModalResult(
-        modes=modes,
-        dofs=tuple(lm.dofs),
-        inputs=tuple(lm.inputs),
-        outputs=tuple(lm.outputs),
-        operating_point=dict(operating_point or {}),
-        q0=np.asarray(lm.q0, dtype=float).copy(),
-    )
+        modes=modes, dofs=tuple(lm.dofs), inputs=tuple(lm.inputs), outputs=tuple(lm.outputs),
+        operating_point=dict(operating_point or {}), q0=np.asarray(lm.q0, dtype=float).copy(),
+    )  # fmt: skip
+
+
+def _listed(lam: np.ndarray, rigid_tol: float) -> list[int]:
+    """Indices of the eigenvalues listed (rigid, real, and one member of each pair), lowest
+    ``|λ|`` first."""
+    keep = [
+        r for r, lr in enumerate(lam)
+        if abs(lr) <= rigid_tol or abs(lr.imag) <= REAL_RTOL * abs(lr) or lr.imag > 0
+    ]  # fmt: skip
+    return sorted(keep, key=lambda r: (abs(lam[r]), r))
+
+
+def _classify(lr: complex, rigid_tol: float) -> tuple[str, complex]:
+    """``(kind, λ)``: rigid (λ set to 0), real (imaginary part dropped) or vibration."""
+    if abs(lr) <= rigid_tol:
+        return "rigid", 0j
+    if abs(lr.imag) <= REAL_RTOL * abs(lr):
+        return "real", complex(lr.real, 0.0)
+    return "vibration", lr
+
+
+def _residue(x: np.ndarray, y: np.ndarray, Bs: np.ndarray, Cs: np.ndarray) -> np.ndarray:
+    """``R = C x yᴴ B / (yᴴ x)`` ``(n_out, n_in)``; NaN for a defective eigenvalue."""
+    denom = np.vdot(y, x)  # y^H x
+    if abs(denom) <= 1e-12 * np.linalg.norm(x) * np.linalg.norm(y):
+        return np.full((Cs.shape[0], Bs.shape[1]), np.nan + 0j)
+    return np.outer(Cs @ x, np.conj(y) @ Bs) / denom
+
+
+def _participation(
+    lm: LinearModel, kind: str, lr: complex, residue: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(participation, dominance)`` ``(n_out, n_in)`` of a mode (module docstring)."""
+    if kind == "rigid":
+        part = np.full(residue.shape, np.nan)
+        return part, part.copy()
+    w_r = abs(lr.imag) if kind == "vibration" else abs(lr)
+    s = 1j * w_r
+    term = residue / (s - lr)
+    if kind == "vibration":
+        term = term + np.conj(residue) / (s - np.conj(lr))
+    part = np.abs(term)
+    h = np.abs(_receptance(lm, w_r))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dom = np.where(h > 0, part / np.where(h > 0, h, 1.0), np.nan)
+    return part, dom
 
 
 def match_mode(reference: Mode, candidates: list[Mode]) -> Mode:

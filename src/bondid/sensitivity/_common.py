@@ -96,10 +96,7 @@ class Setup:
 
 def entry_weights(problem: FrfProblem) -> np.ndarray:
     """Per residual entry: its point's weight over the total weight, ``(n_r,)``."""
-    k = parts(problem.options.kind)
-    w = [np.tile(b.weight, k) for b in problem.blocks]
-    total = sum(float(b.weight.sum()) for b in problem.blocks)
-    return np.concatenate(w) / total
+    return problem.entry_weights()
 
 
 def reference_scales(
@@ -123,7 +120,7 @@ def reference_scales(
     p0 = pmap.p0
     scale = np.array(p0, dtype=float)
     zero = []
-    f_lo = min(float(b.freq_hz.min()) for b in problem.blocks)
+    f_lo = problem.freq_range_hz[0]
     w_lo = 2.0 * np.pi * f_lo
     affine = problem.affines[0]
     M = affine.mass_matrix()
@@ -184,7 +181,7 @@ def make_setup(
         freq_hz=fr,
         direction=direction,
         weight=entry_weights(problem),
-        total_weight=sum(float(b.weight.sum()) for b in problem.blocks),
+        total_weight=problem.total_weight,
     )
 
 

@@ -20,16 +20,16 @@ Layout of the decision vector ``z`` (all entries O(1)):
   magnitude of its starting value (1 in SI units when that is 0).
 
 :class:`Layout` is a *parameter model* for :class:`bondid.cost.FrfProblem` (``size``,
-``values``, ``jacobian``) and also builds the CasADi constraint expressions of the NLP:
-equalities for fixed inertia components of a body whose other inertia components are free,
-bounds on free inertia components, and the CoM-in-hull inequalities ``A t ≤ b`` (linear in z).
+``values``, ``jacobian``); :mod:`bondid.optim.constraints` builds the NLP's constraint
+expressions on it: equalities for fixed inertia components of a body whose other inertia
+components are free, bounds on free inertia components, and the CoM-in-hull inequalities
+``A t ≤ b`` (linear in z).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -97,8 +97,10 @@ class JointVar:
     kind: str  # stiffness / damping
     dof: int  # index into the affine model's velocity coordinates
     index: int  # index in z
-    name_index: int  # index in names
+    name_index: int  # index in names (-1: a tied member, not a free name)
     scale: float
+    factor: float = 1.0  # a tied member: value = factor · its leader's value
+    leader: int = -1  # a tied member: its leader's position in Layout.joints
 
 
 @dataclass
@@ -120,6 +122,21 @@ def named_from_pi(pi: np.ndarray) -> dict[str, float]:
     return out
 
 
+def _new_block(doc: UrdfDocument, affine: AffineModel, link: str, hull: Hull | None) -> BodyBlock:
+    """A body's block with its length scale ``L``: half the hull's bounding-box diagonal, else
+    the radius of gyration, else 0.1 m (the δ shift and σ scale are set by ``start``)."""
+    m, _, I_c = link_inertial(doc, link)
+    if hull is not None:
+        length = 0.5 * hull.size
+    elif m > 0:
+        length = float(np.sqrt(max(np.trace(I_c), 0.0) / m)) or 0.1
+    else:
+        length = 0.1
+    scale = np.ones(10)
+    scale[7:] = length
+    return BodyBlock(link, affine.bodies.index(link), 0, np.zeros(10), scale, length, 1.0, hull)
+
+
 class Layout:
     """Decision vector of the fit (see the module docstring) and its maps.
 
@@ -128,6 +145,8 @@ class Layout:
         affine: any :class:`AffineModel` of ``doc`` (gives body and DOF indices, base values).
         infos: the free parameters, in order (length ``n``).
         hulls: link hull per fitted body (None = no CoM constraint).
+        ties: ``{leader: [(member, factor), ...]}``: joint parameters set to ``factor ·
+            leader`` (:mod:`bondid.optim.tied`); they share the leader's entry of ``z``.
     """
 
     def __init__(
@@ -136,64 +155,60 @@ class Layout:
         affine: AffineModel,
         infos: Sequence[ParameterInfo],
         hulls: dict[str, Hull | None],
+        ties: dict[str, list[tuple[str, float]]] | None = None,
     ):
+        """Body blocks first (10 entries each), then gains and joint parameters."""
         self.infos = list(infos)
         self.base_pi = affine.pi.copy()
         self.base_k = affine.stiffness.copy()
         self.base_d = affine.damping.copy()
-        self.blocks: list[BodyBlock] = []
+        self.blocks = self._body_blocks(doc, affine, hulls)
         self.joints: list[JointVar] = []
+        self.gains: list[GainVar] = []
         self.notes: list[str] = []
-        by_link: dict[str, BodyBlock] = {}
-        offset = 0
+        offset = 10 * len(self.blocks)
+        for j, info in enumerate(self.infos):
+            if info.kind == "gain":
+                self.gains.append(GainVar(info.name, offset, j))
+            elif not info.is_inertial:
+                dof = affine.dofs.index(info.owner)
+                self.joints.append(JointVar(info.name, info.kind, dof, offset, j, 1.0))
+            else:
+                continue
+            offset += 1
+        self.size = offset
+        self._tie_members(affine, ties or {})
+
+    def _body_blocks(
+        self, doc: UrdfDocument, affine: AffineModel, hulls: dict[str, Hull | None]
+    ) -> list[BodyBlock]:
+        """One :class:`BodyBlock` per link with a free inertial parameter, in order."""
+        blocks: dict[str, BodyBlock] = {}
         for j, info in enumerate(self.infos):
             if not info.is_inertial:
                 continue
-            blk = by_link.get(info.owner)
-            if blk is None:
-                m, _, I_c = link_inertial(doc, info.owner)
-                hull = hulls.get(info.owner)
-                if hull is not None:
-                    length = 0.5 * hull.size
-                elif m > 0:
-                    length = float(np.sqrt(max(np.trace(I_c), 0.0) / m)) or 0.1
-                else:
-                    length = 0.1
-                shift = np.zeros(10)  # δ shift and σ scale are set by start()
-                scale = np.ones(10)
-                scale[7:] = length
-                blk = BodyBlock(
-                    info.owner,
-                    affine.bodies.index(info.owner),
-                    offset,
-                    shift,
-                    scale,
-                    length,
-                    1.0,
-                    hull,
-                )
-                by_link[info.owner] = blk
-                self.blocks.append(blk)
-                offset += 10
-            blk.free[_component(info)] = j
-        for blk in self.blocks:
+            if info.owner not in blocks:
+                blocks[info.owner] = _new_block(doc, affine, info.owner, hulls.get(info.owner))
+                blocks[info.owner].offset = 10 * (len(blocks) - 1)
+            blocks[info.owner].free[_component(info)] = j
+        for blk in blocks.values():
             m, c, I_c = link_inertial(doc, blk.link)
             urdf = {"mass": m}
             urdf.update({f"com.{a}": float(c[k]) for k, a in enumerate(COM_AXES)})
             urdf.update({f"inertia.{n}": float(I_c[_IJ[n]]) for n in INERTIA_COMPONENTS})
             blk.fixed = {k: v for k, v in urdf.items() if k not in blk.free}
-        self.gains: list[GainVar] = []
-        for j, info in enumerate(self.infos):
-            if info.kind == "gain":
-                self.gains.append(GainVar(info.name, offset, j))
-                offset += 1
-                continue
-            if info.is_inertial:
-                continue
-            dof = affine.dofs.index(info.owner)
-            self.joints.append(JointVar(info.name, info.kind, dof, offset, j, 1.0))
-            offset += 1
-        self.size = offset
+        return list(blocks.values())
+
+    def _tie_members(self, affine: AffineModel, ties: dict[str, list[tuple[str, float]]]) -> None:
+        """A :class:`JointVar` per tied member, on its leader's entry of ``z``."""
+        leaders = {jv.name: k for k, jv in enumerate(self.joints)}
+        for lead, members in ties.items():
+            k = leaders[lead]
+            for member, factor in members:
+                joint, _, kind = member.rpartition(".")
+                dof = affine.dofs.index(joint)
+                index = self.joints[k].index
+                self.joints.append(JointVar(member, kind, dof, index, -1, 1.0, factor, k))
 
     # -- start point -----------------------------------------------------------------------
     def start(
@@ -237,6 +252,9 @@ class Layout:
             if not any(k.startswith("inertia.") for k in blk.free):
                 blk.fixed_v = z[blk.offset + 1 : blk.offset + 7].copy()
         for jv in self.joints:
+            if jv.leader >= 0:
+                jv.scale = jv.factor * self.joints[jv.leader].scale
+                continue
             v = float(p0[jv.name_index])
             # a start at 0 keeps the SI unit as its scale: IPOPT pushes a start off its bound
             # by ~1e-2 scaled units, which, scaled by the (finite, far) upper bound, would be a
@@ -301,7 +319,8 @@ class Layout:
             for comp, j in blk.free.items():
                 out[j] = vals[comp]
         for jv in self.joints:
-            out[jv.name_index] = jv.scale * z[jv.index]
+            if jv.name_index >= 0:
+                out[jv.name_index] = jv.scale * z[jv.index]
         for gv in self.gains:
             out[gv.name_index] = gv.g0 * float(np.exp(z[gv.index]))
         return out
@@ -338,7 +357,7 @@ class Layout:
             if blk.fixed_v is not None:
                 sl = slice(blk.offset + 1, blk.offset + 7)
                 lbz[sl] = ubz[sl] = blk.fixed_v
-        for jv in self.joints:
+        for jv in (j for j in self.joints if j.name_index >= 0):
             lbz[jv.index] = lower[jv.name_index] / jv.scale
             ubz[jv.index] = upper[jv.name_index] / jv.scale
             labels.append((jv.name, jv.index))
@@ -348,66 +367,3 @@ class Layout:
             ubz[gv.index] = np.log(r[1]) if r[1] > 0 and np.isfinite(r[1]) else np.inf
             labels.append((gv.name, gv.index))
         return lbz, ubz, labels
-
-    # -- CasADi constraints ----------------------------------------------------------------
-    def constraints(
-        self, zsym: Any, lower: np.ndarray, upper: np.ndarray
-    ) -> tuple[Any, np.ndarray, np.ndarray, list[str], list[str]]:
-        """Constraint expressions ``g(z)`` (CasADi column) with bounds and labels.
-
-        Rows, each scaled to O(1): fixed inertia components ``(I_c,k(θ) − v)/s_I = 0``; bounded
-        free inertia components ``lo/s_I ≤ I_c,k(θ)/s_I ≤ hi/s_I``; CoM in hull
-        ``(A t − b)/L ≤ 0`` (one row per facet, only for bodies with a free CoM component).
-
-        Returns:
-            ``(g, lbg, ubg, labels, groups)``: labels name each row; groups give the readable
-            constraint each row belongs to (e.g. ``"x_stage com in hull"``).
-        """
-        import casadi
-
-        rows: list[Any] = []
-        lbg: list[float] = []
-        ubg: list[float] = []
-        labels: list[str] = []
-        groups: list[str] = []
-        for blk in self.blocks:
-            zb = zsym[blk.offset : blk.offset + 10]
-            ze = casadi.DM(blk.shift) + casadi.DM(blk.scale) * zb
-            V: Any = casadi.SX.zeros(3, 3) if isinstance(zsym, casadi.SX) else casadi.MX.zeros(3, 3)
-            for k in range(3):
-                V[k, k] = casadi.exp(ze[_DIAG[k]])
-            for idx, r, c in _OFF:
-                V[r, c] = ze[idx]
-            S = V @ V.T  # second moment about the CoM
-            I_c = casadi.trace(S) * casadi.DM.eye(3) - S
-            s_i = blk.inertia_scale
-            if blk.fixed_v is None:
-                for comp in INERTIA_COMPONENTS:
-                    r, c = _IJ[comp]
-                    expr = I_c[r, c] / s_i
-                    key = f"inertia.{comp}"
-                    if key in blk.fixed:
-                        rows.append(expr)
-                        lbg.append(blk.fixed[key] / s_i)
-                        ubg.append(blk.fixed[key] / s_i)
-                        labels.append(f"{blk.link}.{key} fixed")
-                        groups.append(f"{blk.link}.{key} fixed")
-                        continue
-                    j = blk.free[key]
-                    lo, hi = float(lower[j]), float(upper[j])
-                    if np.isfinite(lo) or np.isfinite(hi):
-                        rows.append(expr)
-                        lbg.append(lo / s_i)
-                        ubg.append(hi / s_i)
-                        labels.append(self.infos[j].name)
-                        groups.append(self.infos[j].name)
-            if blk.hull is not None and any(k.startswith("com.") for k in blk.free):
-                t = blk.scale[_T] * zb[_T : _T + 3]  # shift of t is 0
-                for A_row, b_row in zip(blk.hull.A, blk.hull.b, strict=True):
-                    rows.append((casadi.dot(casadi.DM(A_row), t) - b_row) / blk.length)
-                    lbg.append(-np.inf)
-                    ubg.append(0.0)
-                    labels.append(f"{blk.link} com in hull")
-                    groups.append(f"{blk.link} com in hull")
-        g = casadi.vertcat(*rows) if rows else casadi.SX(0, 1)
-        return g, np.array(lbg), np.array(ubg), labels, groups

@@ -1,0 +1,149 @@
+"""Which measured points a cost uses: :class:`CostOptions`, :func:`used_points` and the
+public layout of one data set's selection (:class:`DataSelection`)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..data.measurement import FrfData
+from ..data.weights import information_weights
+from ..exceptions import ChannelError
+from ..linear.affine import AffineModel
+
+
+@dataclass
+class CostOptions:
+    """How model and measurement are compared.
+
+    Attributes:
+        kind: residual kind (see :mod:`bondid.cost.residuals`), default ``complex_log``.
+        norm: ``l2`` or ``l1`` (smooth pseudo-Huber, ``l1_delta`` in residual units).
+        bands: frequency bands (Hz) to use; None = all.
+        channels: ``OUT.IN`` names to use; None = every channel in the data.
+        channel_weights: extra weight per channel (default 1: the log residuals already
+            balance channels whose levels differ by 50 dB).
+        use_coherence: False ignores the file's coherence column (``auto`` then weighs by
+            the estimated noise alone, ``coherence`` becomes ``none``).
+        weighting: the point weights (:mod:`bondid.data.weights`): ``auto`` (default: the
+            coherence combined with the noise estimated from the data where the file has a
+            coherence, the estimate alone otherwise), ``coherence``, ``estimated`` or
+            ``none``. Weights are ``w = Ŝ/(Ŝ + N̂)`` in 0..1, the coherence analogue.
+    """
+
+    kind: str = "complex_log"
+    norm: str = "l2"
+    l1_delta: float = 1.0
+    bands: Sequence[tuple[float, float]] | None = None
+    channels: Sequence[str] | None = None
+    channel_weights: dict[str, float] = field(default_factory=dict)
+    use_coherence: bool = True
+    weighting: str = "auto"
+
+    @property
+    def name(self) -> str:
+        return f"{self.kind}_{self.norm}"
+
+    @property
+    def effective_weighting(self) -> str:
+        """The weighting applied, after ``use_coherence`` (see the class docstring)."""
+        if self.use_coherence:
+            return self.weighting
+        return {"auto": "estimated", "coherence": "none"}.get(self.weighting, self.weighting)
+
+
+@dataclass
+class DataSelection:
+    """The points of one data set a :class:`FrfProblem` uses (its public layout).
+
+    ``n_sel`` selected points (channels × used frequencies with finite data), listed output
+    channel, then input, then frequency; the model FRF ``H`` of this data set is
+    ``(n_out, n_in_model, n_fu)`` on ``freq_hz`` and ``H[rows, cols, fidx]`` are the modelled
+    values of the selected points.
+
+    Attributes:
+        data: the measured data set.
+        affine: its linearisation (at ``data.operating_point``).
+        freq_hz: the frequencies used ``(n_fu,)`` (Hz).
+        rows: ``(n_sel,)`` output index into the data's and the model's outputs.
+        cols: ``(n_sel,)`` input index into the model's inputs.
+        fidx: ``(n_sel,)`` index into ``freq_hz``.
+        flat: ``(n_sel,)`` index into the model FRF flattened ``(o, i, f)``; None = all.
+        Hm: ``(n_sel,)`` measured values.
+        weight: ``(n_sel,)`` point weights (unnormalised, 0…1 times channel weights).
+        scale: ``(n_sel,)`` channel RMS magnitude (for ``linear_magnitude``).
+        channel: ``(n_sel,)`` channel name ``OUT.IN`` per point.
+    """
+
+    data: FrfData
+    affine: AffineModel
+    freq_hz: np.ndarray
+    rows: np.ndarray
+    cols: np.ndarray
+    fidx: np.ndarray
+    flat: np.ndarray | None
+    Hm: np.ndarray
+    weight: np.ndarray
+    scale: np.ndarray
+    channel: np.ndarray
+
+    @property
+    def point_freq_hz(self) -> np.ndarray:
+        """Frequency (Hz) of each selected point ``(n_sel,)``."""
+        return self.freq_hz[self.fidx]
+
+
+def used_points(ds: FrfData, options: CostOptions) -> np.ndarray:
+    """Boolean ``(n_out, n_in, n_freq)``: the points of ``ds`` a fit with ``options`` uses
+    (present channels among ``options.channels``, frequencies in ``options.bands``, finite).
+
+    Raises:
+        ChannelError: ``options.channels`` names a channel the data lack.
+    """
+    chosen = np.array(ds.present)
+    if options.channels is not None:
+        wanted = set(options.channels)
+        unknown = wanted - {f"{o}.{i}" for o in ds.outputs for i in ds.inputs}
+        if unknown:
+            raise ChannelError(
+                f"{ds.source or '<data>'}: --channels names {', '.join(sorted(unknown))}, not"
+                f" in the data; valid: {', '.join(ds.channels)}"
+            )
+        for ka, o in enumerate(ds.outputs):
+            for kb, i in enumerate(ds.inputs):
+                chosen[ka, kb] &= f"{o}.{i}" in wanted
+    fmask = np.ones(ds.freq_hz.size, bool)
+    if options.bands:
+        fmask = np.zeros(ds.freq_hz.size, bool)
+        for lo, hi in options.bands:
+            fmask |= (ds.freq_hz >= lo) & (ds.freq_hz <= hi)
+    return chosen[:, :, None] & fmask[None, None, :] & np.isfinite(ds.H)
+
+
+def select_points(ds: FrfData, affine: AffineModel, opt: CostOptions) -> DataSelection:
+    """The points of ``ds`` a problem with options ``opt`` uses, with their weights and
+    channel scales, against the linearisation ``affine`` (:class:`DataSelection`)."""
+    col_of = [affine.inputs.index(i) for i in ds.inputs]
+    sel = used_points(ds, opt)
+    a, b, f = np.nonzero(sel)
+    used = np.unique(f)
+    fidx = np.searchsorted(used, f)
+    Hm = ds.H[a, b, f]
+    w = information_weights(ds, opt.effective_weighting)[a, b, f]
+    names = np.array([f"{ds.outputs[i]}.{ds.inputs[j]}" for i, j in zip(a, b, strict=True)])
+    for ch, cw in opt.channel_weights.items():
+        w = np.where(names == ch, w * float(cw), w)
+    scale = np.ones(a.size)
+    for ch in np.unique(names):
+        m = names == ch
+        scale[m] = np.sqrt(np.mean(np.abs(Hm[m]) ** 2))
+    cols = np.array(col_of, dtype=int)[b]
+    n_o, n_i, n_f = len(affine.outputs), len(affine.inputs), used.size
+    flat = (a * n_i + cols) * n_f + fidx
+    whole = flat.size == n_o * n_i * n_f and np.array_equal(flat, np.arange(flat.size))
+    return DataSelection(
+        ds, affine, ds.freq_hz[used], a, cols, fidx, None if whole else flat, Hm, w, scale,
+        names,
+    )  # fmt: skip

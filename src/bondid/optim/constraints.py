@@ -1,0 +1,76 @@
+"""The fit's constraints ``g(z)`` as CasADi expressions, with their bounds and labels.
+
+Rows, each scaled to O(1), per fitted body (:class:`~.layout.Layout`): fixed inertia components
+``(I_c,k(θ) − v)/s_I = 0`` of a body whose other inertia components are free, bounds on free
+inertia components, and the CoM-in-hull inequalities ``(A t − b)/L ≤ 0`` (linear in z).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..model.parameters import INERTIA_COMPONENTS
+from .layout import _DIAG, _IJ, _OFF, _T, BodyBlock, Layout
+
+
+def layout_constraints(
+    layout: Layout, zsym: Any, lower: np.ndarray, upper: np.ndarray
+) -> tuple[Any, np.ndarray, np.ndarray, list[str]]:
+    """Constraint expressions ``g(z)`` (CasADi column) with bounds and labels.
+
+    Rows, each scaled to O(1): fixed inertia components ``(I_c,k(θ) − v)/s_I = 0``; bounded
+    free inertia components ``lo/s_I ≤ I_c,k(θ)/s_I ≤ hi/s_I``; CoM in hull
+    ``(A t − b)/L ≤ 0`` (one row per facet, only for bodies with a free CoM component).
+
+    Returns:
+        ``(g, lbg, ubg, labels)``: a readable label per row (``"x_stage.inertia.ixx"``,
+        ``"x_stage.inertia.iyy fixed"``, ``"x_stage com in hull"``).
+    """
+    import casadi
+
+    rows: list[tuple[Any, float, float, str]] = []
+    for blk in layout.blocks:
+        zb = zsym[blk.offset : blk.offset + 10]
+        if blk.fixed_v is None:
+            rows += _inertia_rows(layout, blk, zb, lower, upper)
+        if blk.hull is not None and any(k.startswith("com.") for k in blk.free):
+            t = blk.scale[_T] * zb[_T : _T + 3]  # shift of t is 0
+            for A_row, b_row in zip(blk.hull.A, blk.hull.b, strict=True):
+                expr = (casadi.dot(casadi.DM(A_row), t) - b_row) / blk.length
+                rows.append((expr, -np.inf, 0.0, f"{blk.link} com in hull"))
+    g = casadi.vertcat(*(r[0] for r in rows)) if rows else casadi.SX(0, 1)
+    lbg = np.array([r[1] for r in rows])
+    ubg = np.array([r[2] for r in rows])
+    return g, lbg, ubg, [r[3] for r in rows]
+
+
+def _inertia_rows(
+    layout: Layout, blk: BodyBlock, zb: Any, lower: np.ndarray, upper: np.ndarray
+) -> list[tuple[Any, float, float, str]]:
+    """``(I_c,k(θ)/s_I, lower, upper, label)`` of a body's fixed and bounded components."""
+    import casadi
+
+    ze = casadi.DM(blk.shift) + casadi.DM(blk.scale) * zb
+    V: Any = casadi.SX.zeros(3, 3) if isinstance(zb, casadi.SX) else casadi.MX.zeros(3, 3)
+    for k in range(3):
+        V[k, k] = casadi.exp(ze[_DIAG[k]])
+    for idx, r, c in _OFF:
+        V[r, c] = ze[idx]
+    S = V @ V.T  # second moment about the CoM
+    I_c = casadi.trace(S) * casadi.DM.eye(3) - S
+    s_i = blk.inertia_scale
+    rows = []
+    for comp in INERTIA_COMPONENTS:
+        r, c = _IJ[comp]
+        key = f"inertia.{comp}"
+        if key in blk.fixed:
+            v = blk.fixed[key] / s_i
+            rows.append((I_c[r, c] / s_i, v, v, f"{blk.link}.{key} fixed"))
+            continue
+        j = blk.free[key]
+        lo, hi = float(lower[j]), float(upper[j])
+        if np.isfinite(lo) or np.isfinite(hi):
+            rows.append((I_c[r, c] / s_i, lo / s_i, hi / s_i, layout.infos[j].name))
+    return rows

@@ -1,0 +1,402 @@
+"""The one module that talks to CasADi/IPOPT: :func:`solve` a :class:`~.problem.FitProblem`.
+
+The FRF residual ``r(z)`` is computed in numpy (exact Jacobian ``J = ∂r/∂z``, see
+:class:`~.evaluator.Evaluator`) and enters CasADi through :class:`casadi.Callback` objects:
+
+* objective ``f(z) = ‖r‖²`` (residual only, no Jacobian: IPOPT's line-search trial points),
+* ``grad_f``: ``(f, 2 Jᵀ r)``,
+* ``hess_lag``: the Gauss–Newton Hessian of the Lagrangian ``λ_f · 2 JᵀJ + Σ λ_g,i ∇² g_i``
+  (objective part Levenberg–Marquardt damped far from the solution, see
+  :class:`~.evaluator.Evaluator`; constraint part from CasADi's symbolic Hessians, by default
+  CONVEXIFIED: the exact ``Σ λ ∇² g`` of the inertia equalities is indefinite, which made
+  IPOPT regularise the whole Hessian by ``δ ≈ 1…100`` every iteration and crawl).
+  Limited-memory quasi-Newton needs hundreds of iterations on this problem; Gauss–Newton tens.
+
+:func:`solve` never raises for an IPOPT status: every outcome is a :class:`Solution`. A solve
+that failed (infeasible, restoration failed, CasADi error ...) keeps the lowest-cost iterate
+that met the constraints (or the start when there was none), with ``failure`` set.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .. import interrupt
+from ..exceptions import ConfigError, SolverError
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from .evaluator import Evaluator
+    from .problem import Constraints, FitProblem
+
+#: IPOPT statuses counted as success.
+SUCCESS_STATUSES = frozenset({"Solve_Succeeded", "Solved_To_Acceptable_Level"})
+#: IPOPT statuses that leave a usable final iterate (``success=False``, no ``failure``).
+SOFT_STATUSES = frozenset(
+    {
+        "Maximum_Iterations_Exceeded",
+        "Maximum_CpuTime_Exceeded",
+        "Maximum_WallTime_Exceeded",
+        "Search_Direction_Becomes_Too_Small",
+        "User_Requested_Stop",
+        "Feasible_Point_Found",
+    }
+)
+#: ways of putting the constraints' second derivatives into ``hess_lag``
+CONSTRAINT_HESSIANS = ("convexified", "exact", "none")
+_FEASIBLE_TOL = 1e-6  # constraint violation up to which an iterate counts as feasible
+
+
+@dataclass
+class Solution:
+    """One IPOPT solve of a :class:`~.problem.FitProblem` (arrays in its decision vector ``z``).
+
+    Attributes:
+        z: the point kept ``(size,)``: IPOPT's last iterate, or, when the solve failed, the
+            lowest-cost feasible iterate (``kept == "best"``) or the start (``"start"``).
+        cost: ``‖r(z)‖²`` at ``z``.
+        status: IPOPT's ``return_status`` (``"exception"`` when CasADi raised).
+        success: IPOPT converged (:data:`SUCCESS_STATUSES`).
+        failure: why the solve failed (None when IPOPT stopped normally or at a limit,
+            :data:`SOFT_STATUSES`).
+        kept: ``"final"``, ``"best"`` or ``"start"`` (see ``z``).
+        iterations, wall_s: IPOPT iterations and wall time (s).
+        history: the objective at every IPOPT iteration.
+        g, lam_x, lam_g: constraint values ``(ng,)`` and multipliers at IPOPT's last iterate.
+    """
+
+    z: np.ndarray
+    cost: float
+    status: str
+    success: bool
+    iterations: int
+    wall_s: float = 0.0
+    history: list[float] = field(default_factory=list)
+    failure: str | None = None
+    kept: str = "final"
+    g: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    lam_x: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    lam_g: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    @property
+    def failed(self) -> bool:
+        """The solve failed (``failure`` is set); ``z`` is the best point it reached."""
+        return self.failure is not None
+
+    def error(self) -> SolverError:
+        """The failure as a :class:`SolverError` keeping IPOPT's status."""
+        return SolverError(self.failure or f"IPOPT stopped with {self.status}", status=self.status)
+
+
+def _numpy_callback_class() -> Any:
+    import casadi
+
+    class NumpyCallback(casadi.Callback):
+        """A CasADi function of dense column inputs evaluated by a Python function."""
+
+        def __init__(
+            self,
+            name: str,
+            in_sizes: list[int],
+            out_shapes: list[tuple[int, int]],
+            fn: Callable,
+            jacobian: Callable[[Any], Any] | None = None,
+        ):
+            casadi.Callback.__init__(self)
+            self._in, self._out, self._fn, self._jac = in_sizes, out_shapes, fn, jacobian
+            self.construct(name, {"enable_fd": False})
+
+        def has_jacobian(self) -> bool:
+            return self._jac is not None
+
+        def get_jacobian(self, name: str, inames: Any, onames: Any, opts: Any) -> Any:
+            # only used for the one-input objective: d f / d z
+            z = casadi.MX.sym("z", self._in[0])
+            nominal = [casadi.MX.sym(f"out{i}", *s) for i, s in enumerate(self._out)]
+            assert self._jac is not None
+            return casadi.Function(name, [z, *nominal], [self._jac(z)], inames, onames, opts)
+
+        def get_n_in(self) -> int:
+            return len(self._in)
+
+        def get_n_out(self) -> int:
+            return len(self._out)
+
+        def get_sparsity_in(self, i: int) -> Any:
+            return casadi.Sparsity.dense(self._in[i], 1)
+
+        def get_sparsity_out(self, i: int) -> Any:
+            return casadi.Sparsity.dense(*self._out[i])
+
+        def eval(self, arg: Any) -> Any:
+            out = self._fn(*[np.asarray(a, dtype=float).reshape(-1) for a in arg])
+            return [
+                casadi.DM(np.asarray(o, dtype=float).reshape(s))
+                for o, s in zip(out, self._out, strict=True)
+            ]
+
+    return NumpyCallback
+
+
+def _iteration_callback_class() -> Any:
+    import casadi
+
+    class IterationCallback(casadi.Callback):
+        """IPOPT's per-iteration hook: hands ``(f, x, g)`` to ``record``."""
+
+        def __init__(
+            self, nx: int, ng: int, record: Callable[[float, np.ndarray, np.ndarray], None]
+        ):
+            casadi.Callback.__init__(self)
+            self._nx, self._ng, self._record = nx, ng, record
+            self.construct("fit_iteration", {})
+
+        def get_n_in(self) -> int:
+            return casadi.nlpsol_n_out()
+
+        def get_n_out(self) -> int:
+            return 1
+
+        def get_name_in(self, i: int) -> str:
+            return casadi.nlpsol_out(i)
+
+        def get_name_out(self, i: int) -> str:
+            return "ret"
+
+        def get_sparsity_in(self, i: int) -> Any:
+            name = casadi.nlpsol_out(i)
+            if name == "f":
+                return casadi.Sparsity.dense(1, 1)
+            if name in ("x", "lam_x"):
+                return casadi.Sparsity.dense(self._nx, 1)
+            if name in ("g", "lam_g"):
+                return casadi.Sparsity.dense(self._ng, 1)
+            return casadi.Sparsity(0, 0)
+
+        def eval(self, arg: Any) -> Any:
+            names = casadi.nlpsol_out()
+            self._record(
+                float(arg[names.index("f")]),
+                np.asarray(arg[names.index("x")], dtype=float).reshape(-1),
+                np.asarray(arg[names.index("g")], dtype=float).reshape(-1),
+            )
+            # non-zero asks IPOPT to stop (User_Requested_Stop): a Ctrl-C that CasADi caught
+            return [1 if interrupt.requested() else 0]
+
+    return IterationCallback
+
+
+class Nlp:
+    """``min ‖r(z)‖²`` s.t. ``lbz ≤ z ≤ ubz``, ``lbg ≤ g(z) ≤ ubg`` as CasADi functions.
+
+    Args:
+        evaluator: residuals and Jacobian (numpy).
+        constraints: the symbolic constraints ``g(z)`` with their bounds and labels.
+        constraint_hessian: ``"convexified"`` (default), ``"exact"`` or ``"none"``: how
+            ``Σ λ_g ∇² g`` enters ``hess_lag``.
+
+    Attributes:
+        cost_fn: CasADi ``z -> f`` (the NLP's objective).
+        grad_fn: CasADi ``(z, p) -> (f, ∇f)`` (IPOPT's ``grad_f``; ``p`` is empty).
+        hess_fn: CasADi ``(z, p, λ_f, λ_g) -> triu(∇²L)`` (IPOPT's ``hess_lag``).
+        g_fn: CasADi ``z -> g``.
+    """
+
+    def __init__(
+        self,
+        evaluator: Evaluator,
+        constraints: Constraints,
+        constraint_hessian: str = "convexified",
+    ):
+        import casadi
+
+        if constraint_hessian not in CONSTRAINT_HESSIANS:
+            raise ConfigError(
+                f"constraint_hessian {constraint_hessian!r} is invalid; "
+                f"valid: {', '.join(CONSTRAINT_HESSIANS)}"
+            )
+        NumpyCallback = _numpy_callback_class()
+        self.evaluator, self.constraints = evaluator, constraints
+        self.n = n = int(constraints.zsym.shape[0])
+        self.ng = ng = constraints.size
+        self.g_fn = casadi.Function("fit_g", [constraints.zsym], [constraints.expr])
+        self._grad_cb = NumpyCallback(
+            "fit_grad", [n], [(1, 1), (n, 1)], lambda z: list(evaluator.cost_and_gradient(z))
+        )
+        # the objective's Jacobian (needed by CasADi's own derivative machinery) is grad_f
+        self._cost_cb = NumpyCallback(
+            "fit_cost", [n], [(1, 1)], lambda z: [evaluator.cost(z)],
+            jacobian=lambda z: self._grad_cb(z)[1].T,
+        )  # fmt: skip
+        hess_g = _constraint_hessian(constraints, constraint_hessian)
+        self._hess_cb = NumpyCallback(
+            "fit_hess_lag", [n, 1, ng], [(n, n)],
+            lambda z, lf, lg: [float(lf[0]) * evaluator.gauss_newton(z) + hess_g(z, lg)],
+        )  # fmt: skip
+        self._x = x = casadi.MX.sym("x", n)
+        self._p = p = casadi.MX.sym("p", 0, 1)
+        lam_f, lam_g = casadi.MX.sym("lam_f", 1), casadi.MX.sym("lam_g", ng)
+        self.cost_fn = casadi.Function("fit_f", [x], [self._cost_cb(x)])
+        f_val, g_val = self._grad_cb(x)
+        self.grad_fn = casadi.Function(
+            "nlp_grad_f", [x, p], [f_val, g_val], ["x", "p"], ["f", "grad"]
+        )
+        self.hess_fn = casadi.Function(
+            "nlp_hess_l", [x, p, lam_f, lam_g], [casadi.triu(self._hess_cb(x, lam_f, lam_g))],
+            ["x", "p", "lam_f", "lam_g"], ["hess"],
+        )  # fmt: skip
+
+    def gradient(self, z: np.ndarray) -> np.ndarray:
+        """∇f ``(n,)`` at ``z`` through the CasADi ``grad_f`` function IPOPT uses."""
+        import casadi
+
+        return np.asarray(self.grad_fn(z, casadi.DM(0, 1))[1], dtype=float).reshape(-1)
+
+    def cost(self, z: np.ndarray) -> float:
+        """f at ``z`` through the CasADi objective function IPOPT uses."""
+        return float(self.cost_fn(z))
+
+    def solver(
+        self, record: Callable[[float, np.ndarray, np.ndarray], None], ipopt: dict
+    ) -> tuple[Any, Any]:
+        """A ``casadi.nlpsol`` IPOPT instance calling ``record(f, z, g)`` every iteration, and
+        its iteration callback (which must outlive the solver's calls)."""
+        import casadi
+
+        it_cb = _iteration_callback_class()(self.n, self.ng, record)
+        opts: dict[str, Any] = {
+            "grad_f": self.grad_fn, "hess_lag": self.hess_fn, "iteration_callback": it_cb,
+            "print_time": False, "show_eval_warnings": False, "ipopt": ipopt,
+        }  # fmt: skip
+        nlp = {"x": self._x, "p": self._p, "f": self._cost_cb(self._x), "g": self.g_fn(self._x)}
+        return casadi.nlpsol("bondid_fit", "ipopt", nlp, opts), it_cb
+
+
+def _constraint_hessian(
+    constraints: Constraints, mode: str
+) -> Callable[[np.ndarray, np.ndarray], Any]:
+    """``(z, λ_g) -> Σ λ_g,i ∇² g_i`` ``(n, n)`` (convexified, exact or 0, see :class:`Nlp`)."""
+    import casadi
+
+    n = int(constraints.zsym.shape[0])
+    if constraints.size == 0 or mode == "none":
+        return lambda z, lg: np.zeros((n, n))
+    lam = casadi.SX.sym("lam_g", constraints.size)
+    expr = casadi.hessian(casadi.dot(lam, constraints.expr), constraints.zsym)[0]
+    fn = casadi.Function("fit_hess_g", [constraints.zsym, lam], [expr])
+
+    def hess(z: np.ndarray, lg: np.ndarray) -> np.ndarray:
+        Hg = np.asarray(fn(z, lg), dtype=float)
+        if mode == "convexified":
+            w, V = np.linalg.eigh(0.5 * (Hg + Hg.T))
+            Hg = (V * np.maximum(w, 0.0)) @ V.T
+        return Hg
+
+    return hess
+
+
+class _Recorder:
+    """The cost history and the lowest-cost feasible iterate of one solve."""
+
+    def __init__(self, lbg: np.ndarray, ubg: np.ndarray, progress: Callable | None):
+        self.lbg, self.ubg, self.progress = lbg, ubg, progress
+        self.history: list[float] = []
+        self.best_z: np.ndarray | None = None
+        self.best_cost = float("inf")
+
+    def __call__(self, cost: float, z: np.ndarray, g: np.ndarray) -> None:
+        self.history.append(cost)
+        tol = _FEASIBLE_TOL
+        feasible = bool(np.all(g >= self.lbg - tol) and np.all(g <= self.ubg + tol))
+        if feasible and np.isfinite(cost) and cost < self.best_cost:
+            self.best_z, self.best_cost = z.copy(), cost
+        if self.progress is not None:
+            self.progress(len(self.history) - 1, cost)
+
+
+def solve(
+    problem: FitProblem,
+    z0: np.ndarray | None = None,
+    *,
+    max_iter: int = 200,
+    tol: float = 1e-10,
+    progress: Callable[[int, float], None] | None = None,
+    ipopt_options: dict[str, Any] | None = None,
+    constraint_hessian: str = "convexified",
+) -> Solution:
+    """Run IPOPT (quiet) on ``problem`` from ``z0`` (default ``problem.z0``).
+
+    Args:
+        problem: the fit problem (its evaluator, variable bounds and constraints).
+        z0: start ``(problem.size,)`` in the decision vector.
+        max_iter, tol: IPOPT's ``max_iter`` and ``tol``.
+        progress: called as ``progress(iteration, cost)`` at every IPOPT iteration.
+        ipopt_options: extra IPOPT options (override the defaults).
+        constraint_hessian: see :class:`Nlp`.
+
+    Returns:
+        A :class:`Solution`; never raises for IPOPT's outcome (a Ctrl-C still interrupts).
+    """
+    z_start = problem.z0 if z0 is None else np.asarray(z0, dtype=float)
+    nlp = problem.nlp(constraint_hessian)
+    problem.evaluator.reset()  # every solve starts with the same damping
+    cons = nlp.constraints
+    rec = _Recorder(cons.lower, cons.upper, progress)
+    ipopt: dict[str, Any] = {"print_level": 0, "sb": "yes", "max_iter": int(max_iter),
+                             "tol": float(tol), "mu_strategy": "monotone"}  # fmt: skip
+    ipopt.update(ipopt_options or {})
+    t0 = time.perf_counter()
+    try:
+        solver, _callback = nlp.solver(rec, ipopt)
+        sol = solver(x0=z_start, lbx=problem.lbz, ubx=problem.ubz, lbg=cons.lower, ubg=cons.upper)
+    except RuntimeError as exc:
+        interrupt.check()  # CasADi turned a Ctrl-C into an error: it is an interrupt
+        why = f"IPOPT failed: {str(exc).splitlines()[0]}"
+        return _failed(problem, z_start, rec, "exception", why, time.perf_counter() - t0)
+    interrupt.check()  # a Ctrl-C during the solve stopped IPOPT: stop the run too
+    wall = time.perf_counter() - t0
+    status, iterations = _stats(solver, len(rec.history))
+    if status not in SUCCESS_STATUSES | SOFT_STATUSES:
+        why = (
+            f"IPOPT stopped with {status} after {iterations} iterations "
+            f"(cost {float(sol['f']):.6g}); check the bounds and the start"
+        )
+        out = _failed(problem, z_start, rec, status, why, wall)
+        out.iterations = iterations
+        return out
+    return Solution(
+        z=_column(sol["x"]), cost=float(sol["f"]), status=status,
+        success=status in SUCCESS_STATUSES, iterations=iterations, wall_s=wall,
+        history=rec.history, g=_column(sol["g"]), lam_x=_column(sol["lam_x"]),
+        lam_g=_column(sol["lam_g"]),
+    )  # fmt: skip
+
+
+def _stats(solver: Any, n_recorded: int) -> tuple[str, int]:
+    """IPOPT's ``(return_status, iterations)`` after a solve."""
+    stats = solver.stats()
+    return str(stats.get("return_status", "unknown")), int(
+        stats.get("iter_count", max(n_recorded - 1, 0))
+    )
+
+
+def _column(v: Any) -> np.ndarray:
+    return np.asarray(v, dtype=float).reshape(-1)
+
+
+def _failed(
+    problem: FitProblem, z0: np.ndarray, rec: _Recorder, status: str, why: str, wall: float
+) -> Solution:
+    """A failed solve: the best feasible iterate recorded, else the start."""
+    if rec.best_z is not None:
+        z, cost, kept = rec.best_z, rec.best_cost, "best"
+    else:
+        z, cost, kept = z0.copy(), problem.cost(z0), "start"
+    return Solution(
+        z=z, cost=cost, status=status, success=False, iterations=max(len(rec.history) - 1, 0),
+        wall_s=wall, history=rec.history, failure=why, kept=kept,
+    )  # fmt: skip

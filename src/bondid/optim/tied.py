@@ -1,0 +1,123 @@
+"""Named parameters with ties, and the model document at a fit's solution.
+
+A *tie* drives joint parameters that are not fitted on their own by a free one:
+``{leader: [(member, factor), ...]}`` sets ``member = factor · leader`` (e.g. one shear
+stiffness for every segment of a lumped chain a diagnosis candidate adds). Leaders and members
+are joint ``stiffness`` or ``damping`` parameters.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from ..exceptions import ConfigError
+from ..linear.affine import AffineModel
+from ..linear.parameter_map import ParameterMap
+from ..model.document import UrdfDocument
+from ..model.parameters import COM_AXES, parameter_infos, set_link_inertial, set_parameter
+from .layout import _IJ, Layout
+
+_TIEABLE = ("stiffness", "damping")
+
+
+def check_ties(
+    doc: UrdfDocument, names: Sequence[str], ties: Mapping[str, Sequence[tuple[str, float]]]
+) -> dict[str, list[tuple[str, float]]]:
+    """Validated ties (see the module docstring) as a plain dict.
+
+    Raises:
+        ConfigError: a leader not among ``names``, a member that is free or tied twice, a
+            parameter that is not a joint stiffness/damping, or a factor that is not finite
+            and > 0.
+    """
+    kinds = {p.name: p.kind for p in parameter_infos(doc)}
+    out: dict[str, list[tuple[str, float]]] = {}
+    seen: set[str] = set()
+    for leader, members in ties.items():
+        if leader not in names:
+            raise ConfigError(f"tie {leader!r}: the leader must be one of the free parameters")
+        for name in [leader, *(m for m, _ in members)]:
+            if kinds.get(name) not in _TIEABLE:
+                raise ConfigError(
+                    f"tie {leader!r}: {name!r} is not a joint stiffness or damping of "
+                    f"{doc.source or '<URDF>'}; only those can be tied"
+                )
+        for member, factor in members:
+            if member in names or member in seen:
+                raise ConfigError(f"tie {leader!r}: {member!r} is free or tied twice")
+            if not (np.isfinite(factor) and factor > 0):
+                raise ConfigError(f"tie {leader!r}: factor {factor!r} of {member}; give > 0")
+            seen.add(member)
+        out[leader] = [(m, float(f)) for m, f in members]
+    return out
+
+
+class TiedParameters:
+    """A parameter model (:class:`bondid.cost.ParameterModel`) over the free named
+    parameters ``x`` ``(n,)``, the tied members following their leaders.
+
+    Args:
+        doc, affine: as for :class:`~bondid.linear.parameter_map.ParameterMap`.
+        names: the free parameters ``(n,)``.
+        ties: validated ties (:func:`check_ties`).
+    """
+
+    def __init__(
+        self,
+        doc: UrdfDocument,
+        affine: AffineModel,
+        names: Sequence[str],
+        ties: Mapping[str, Sequence[tuple[str, float]]],
+    ):
+        names = list(names)
+        members = [(m, names.index(lead), f) for lead, ms in ties.items() for m, f in ms]
+        self.names = tuple(names)
+        self.map = ParameterMap(doc, affine, [*names, *(m for m, _, _ in members)])
+        self.T = np.vstack([np.eye(len(names)), np.zeros((len(members), len(names)))])
+        for row, (_, col, factor) in enumerate(members, start=len(names)):
+            self.T[row, col] = factor
+
+    @property
+    def size(self) -> int:
+        return len(self.names)
+
+    def values(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(π ``(nb, 10)``, stiffness ``(nv,)``, damping ``(nv,)``) at ``x``."""
+        return self.map.values(self.T @ np.asarray(x, dtype=float))
+
+    def jacobian(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """dπ/dx ``(nb, 10, n)``, dk/dx ``(nv, n)``, dd/dx ``(nv, n)``."""
+        dpi, dk, dd = self.map.jacobian(self.T @ np.asarray(x, dtype=float))
+        return dpi @ self.T, dk @ self.T, dd @ self.T
+
+    def gain_values(self, x: np.ndarray) -> dict[str, float]:
+        return self.map.gain_values(self.T @ np.asarray(x, dtype=float))
+
+    def gain_jacobian(self, x: np.ndarray) -> dict[str, np.ndarray]:
+        jac = self.map.gain_jacobian(self.T @ np.asarray(x, dtype=float))
+        return {k: v @ self.T for k, v in jac.items()}
+
+
+def fitted_document(
+    doc: UrdfDocument, layout: Layout, z: np.ndarray, p: np.ndarray
+) -> UrdfDocument:
+    """A copy of ``doc`` with the fitted bodies at ``z`` and the joint parameters and gains
+    ``p`` (named values ``(n,)``; tied members follow ``z``). Fixed inertial components keep
+    their exact URDF values."""
+    out = doc.copy()
+    for link, vals in layout.body_values(z).items():
+        blk = next(b for b in layout.blocks if b.link == link)
+        vals = {**vals, **blk.fixed}
+        c = np.array([vals[f"com.{a}"] for a in COM_AXES])
+        I_c = np.zeros((3, 3))
+        for comp, (r, s) in _IJ.items():
+            I_c[r, s] = I_c[s, r] = vals[f"inertia.{comp}"]
+        set_link_inertial(out, link, vals["mass"], c, I_c)
+    for jv in layout.joints:
+        v = p[jv.name_index] if jv.name_index >= 0 else jv.scale * z[jv.index]
+        set_parameter(out, jv.name, max(float(v), 0.0))
+    for gv in layout.gains:
+        set_parameter(out, gv.name, float(p[gv.name_index]))
+    return out
