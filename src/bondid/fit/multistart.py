@@ -146,6 +146,7 @@ class _Job:
     stage_bands: dict[str, list[tuple[float, float]]] | None
     presolve_iter: int = PRESOLVE_ITER
     continuation: int = 0
+    prior_width: float = 0.0
 
 
 def _run_job(job: _Job, progress: Callable[[int, float], None] | None = None) -> RunOutcome:
@@ -181,7 +182,7 @@ def _run_job(job: _Job, progress: Callable[[int, float], None] | None = None) ->
         res = fit(
             job.doc, job.datasets, job.names, options=job.options, lower=job.lower,
             upper=job.upper, start=job.start, max_iter=job.max_iter, progress=progress,
-            presolve_iter=job.presolve_iter,
+            presolve_iter=job.presolve_iter, prior_width=job.prior_width,
         )  # fmt: skip
         return RunOutcome(job.index, job.start, res, wall_s=time.perf_counter() - t0)
     except ComputationError as exc:
@@ -211,6 +212,7 @@ def run_multistart(
     on_run: RunProgress | None = None,
     on_iteration: Callable[[int, float], None] | None = None,
     presolve_iter: int = PRESOLVE_ITER,
+    prior_width: float = 0.0,
 ) -> MultistartResult:
     """Fit from ``n_starts`` starts (start 0 = the URDF values) and keep the best.
 
@@ -233,6 +235,8 @@ def run_multistart(
             this process (``workers == 1`` or a single start).
         presolve_iter: normalised-complex presolve iterations of each fit
             (:data:`bondid.fit.solver.PRESOLVE_ITER`).
+        prior_width: width of the prior toward the model's values (:mod:`bondid.fit.prior`;
+            0 = none) of each plain fit; staged and continuation runs have none.
 
     Returns:
         :class:`MultistartResult`; ``.best`` is the best :class:`FitResult`.
@@ -250,7 +254,18 @@ def run_multistart(
     starts = lhs_starts(x0, lo, hi, n_starts, seed)
     common = (list(datasets), names, opts, lo, hi)
     jobs = [
-        _Job(i, doc, *common, starts[i], max_iter, staged, stage_bands, presolve_iter, continuation)
+        _Job(
+            i,
+            doc,
+            *common,
+            starts[i],
+            max_iter,
+            staged,
+            stage_bands,
+            presolve_iter,
+            continuation,
+            prior_width,
+        )
         for i in range(n_starts)
     ]
     runs: list[RunOutcome | None] = [None] * n_starts

@@ -46,9 +46,19 @@ class Evaluator:
     convergence of Gauss–Newton is kept. Only the step direction changes, not the optimum.
     """
 
-    def __init__(self, problem: FrfProblem, pmodel: ParameterModel, *, damping: bool = True):
+    def __init__(
+        self,
+        problem: FrfProblem,
+        pmodel: ParameterModel,
+        *,
+        damping: bool = True,
+        prior: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None,
+    ):
         self.problem = problem
         self.pmodel = pmodel
+        #: extra residual rows ``z -> (r (m,), J (m, n))`` appended to the data's (a prior,
+        #: :mod:`bondid.fit.prior`); None = none
+        self.prior = prior
         self._jac: tuple[bytes, np.ndarray, np.ndarray] | None = None
         self._res: tuple[bytes, np.ndarray] | None = None
         self.n_residual = 0
@@ -58,7 +68,8 @@ class Evaluator:
         self._prev: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # z, r, J
 
     def _fail(self, n: int) -> tuple[np.ndarray, np.ndarray]:
-        r = np.full(self.problem.n_residuals, np.nan)
+        extra = 0 if self.prior is None else int(self.prior.size)  # type: ignore[attr-defined]
+        r = np.full(self.problem.n_residuals + extra, np.nan)
         return r, np.full((r.size, n), np.nan)
 
     def residual(self, z: np.ndarray) -> np.ndarray:
@@ -71,6 +82,8 @@ class Evaluator:
         try:
             with np.errstate(all="ignore"):
                 r = self.problem.residual(self.pmodel, z)
+                if self.prior is not None:
+                    r = np.concatenate([r, self.prior(z)[0]])
         except (np.linalg.LinAlgError, FloatingPointError, ValueError, ComputationError):
             r = self._fail(z.size)[0]
         self.n_residual += 1
@@ -85,6 +98,9 @@ class Evaluator:
         try:
             with np.errstate(all="ignore"):
                 r, J = self.problem.residual_and_jacobian(self.pmodel, z)
+                if self.prior is not None:
+                    rp, Jp = self.prior(z)
+                    r, J = np.concatenate([r, rp]), np.vstack([J, Jp])
         except (np.linalg.LinAlgError, FloatingPointError, ValueError, ComputationError):
             r, J = self._fail(z.size)
         self.n_jacobian += 1

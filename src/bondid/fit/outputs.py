@@ -175,17 +175,21 @@ def db_rms_report(
         "by_channel": {ch: {"initial", "final", "initial_unweighted", "final_unweighted"}},
         "by_dataset": [{"file", "initial", "final", "initial_unweighted",
         "final_unweighted", "by_channel"}], "coherent": {"initial", "final", "fraction",
-        "min_coherence"}}`` (dB). ``initial``/``final`` are ``sqrt(Σ w e² / Σ w)`` with ``w``
+        "min_coherence"}, "noise_level"}`` (dB). ``noise_level``: the weighted figure an exact
+        model would score on these data (:mod:`bondid.cost.noise_level`; complex_log only).
+        ``initial``/``final`` are ``sqrt(Σ w e² / Σ w)`` with ``w``
         the information weight of :attr:`CostOptions.effective_weighting` (so noise-only
         points barely count); ``coherent`` is the unweighted figure over the points whose
         measured coherence is at least :data:`COHERENT` (all points without coherence).
     """
+    from ..cost.noise_level import expected_sq_db, weighted_level
     from ..data.weights import information_weights
 
     weighting = options.effective_weighting
     frfs = model_frfs or [(model_frf(initial, ds), model_frf(fitted, ds)) for ds in datasets]
     E: dict[str, list[np.ndarray]] = {"initial": [], "final": []}
     W: list[np.ndarray] = []
+    N: list[np.ndarray] = []  # expected squared dB error of an exact model
     coh: dict[str, list[np.ndarray]] = {"initial": [], "final": []}
     n_all = 0
     per_ch: dict[str, dict[str, list[np.ndarray]]] = {}
@@ -199,6 +203,7 @@ def db_rms_report(
             good &= np.nan_to_num(ds.coherence, nan=1.0) >= COHERENT
         n_all += int(mask.sum())
         W.append(wall[mask])
+        N.append(expected_sq_db(ds, options.use_coherence)[mask])
         for label, H in (("initial", H0), ("final", H1)):
             e = _sq_db(H[mask], ds.H[mask])
             entry[label] = _wrms([e], [wall[mask]])
@@ -230,6 +235,7 @@ def db_rms_report(
     return {
         "initial": _wrms(E["initial"], W),
         "final": _wrms(E["final"], W),
+        "noise_level": weighted_level(N, W) if options.kind == "complex_log" else None,
         "weighting": weighting,
         "definition": DB_RMS_DEFINITION,
         "unweighted": {"initial": _rms(E["initial"]), "final": _rms(E["final"])},

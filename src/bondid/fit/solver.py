@@ -57,6 +57,7 @@ from ..model.parameters import COM_AXES, get_parameters, set_link_inertial, set_
 from .bounds import default_bounds, infos_by_name, link_hulls
 from .nlp import Evaluator, FitNlp, NlpOutcome
 from .parameterisation import _IJ, Layout
+from .prior import PRIOR_IPOPT, make_prior, shape_bounds
 from .result import FitResult, parameter_statistics
 
 #: IPOPT iterations of the presolve on the normalised complex error (eq. 6.3 of the seed) that
@@ -125,6 +126,7 @@ def prepare(
     start: np.ndarray | None = None,
     use_hull: bool = True,
     constraint_hessian: str = "convexified",
+    prior_width: float = 0.0,
 ) -> FitSetup:
     """Build the problem, the decision vector, the bounds and the CasADi NLP (no solve).
 
@@ -173,7 +175,10 @@ def prepare(
     z0 = layout.start(doc, p0, lo, hi)
     notes.extend(layout.notes)
     lbz, ubz, var_labels = layout.variable_bounds(lo, hi)
-    evaluator = Evaluator(problem, layout)
+    if prior_width > 0:
+        var_labels += shape_bounds(doc, layout, lbz, ubz)
+    prior = make_prior(doc, layout, problem, prior_width, notes)
+    evaluator = Evaluator(problem, layout, prior=prior)
     g_labels: list[str] = []
 
     def constraints(zs: Any) -> tuple[Any, np.ndarray, np.ndarray]:
@@ -315,6 +320,7 @@ def fit(
     constraint_hessian: str = "convexified",
     ipopt_options: dict[str, Any] | None = None,
     presolve_iter: int = PRESOLVE_ITER,
+    prior_width: float = 0.0,
 ) -> FitResult:
     """Fit the named parameters of ``doc`` to measured FRFs (see the module docstring).
 
@@ -339,6 +345,9 @@ def fit(
             error, and the fit with the lower final cost is kept (see :data:`PRESOLVE_ITER`),
             unless the direct fit succeeded without phase walls (:data:`WALL_SHARE`);
             0 = the direct fit only.
+        prior_width: relative width τ of a weak prior toward ``doc``'s values, scaled by
+            the data's noise (:mod:`bondid.fit.prior`; log costs with the l2 norm); 0 = none.
+            The presolve runs without it. The reported costs are the data's alone.
 
     Returns:
         :class:`FitResult`. IPOPT's iteration/time limits and similar stops that leave a usable
@@ -351,10 +360,12 @@ def fit(
             ``status`` keeps IPOPT's ``return_status``.
     """
     t0 = time.perf_counter()
+    if prior_width > 0:
+        ipopt_options = {**PRIOR_IPOPT, **(ipopt_options or {})}
     kw: dict[str, Any] = {"lower": lower, "upper": upper, "use_hull": use_hull}
     setup = prepare(
         doc, datasets, names, options=options, start=start,
-        constraint_hessian=constraint_hessian, **kw,
+        constraint_hessian=constraint_hessian, prior_width=prior_width, **kw,
     )  # fmt: skip
     cost_initial = setup.evaluator.cost(setup.z0)
     initial = setup.initial.copy()
@@ -384,7 +395,7 @@ def fit(
             )  # fmt: skip
             pre_setup = prepare(
                 doc, datasets, names, options=options, start=pre.fitted,
-                constraint_hessian=constraint_hessian, **kw,
+                constraint_hessian=constraint_hessian, prior_width=prior_width, **kw,
             )  # fmt: skip
             runs.append((pre_setup, _ipopt(pre_setup, **solve_kw), pre.iterations))
         except SolverError as exc:
