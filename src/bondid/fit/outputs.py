@@ -176,7 +176,8 @@ def db_rms_report(
         "by_dataset": [{"file", "initial", "final", "initial_unweighted",
         "final_unweighted", "by_channel"}], "coherent": {"initial", "final", "fraction",
         "min_coherence"}, "noise_level"}`` (dB). ``noise_level``: the weighted figure an exact
-        model would score on these data (:mod:`bondid.cost.noise_level`; complex_log only).
+        model would score on these data (:mod:`bondid.cost.noise_level`; whatever the cost
+        the fit minimised: ``db_rms`` is always the complex-log figure).
         ``initial``/``final`` are ``sqrt(Σ w e² / Σ w)`` with ``w``
         the information weight of :attr:`CostOptions.effective_weighting` (so noise-only
         points barely count); ``coherent`` is the unweighted figure over the points whose
@@ -235,7 +236,7 @@ def db_rms_report(
     return {
         "initial": _wrms(E["initial"], W),
         "final": _wrms(E["final"], W),
-        "noise_level": weighted_level(N, W) if options.kind == "complex_log" else None,
+        "noise_level": weighted_level(N, W),
         "weighting": weighting,
         "definition": DB_RMS_DEFINITION,
         "unweighted": {"initial": _rms(E["initial"]), "final": _rms(E["final"])},
