@@ -109,7 +109,10 @@ def test_fit_end_to_end(case: dict[str, Path], tmp_path: Path, capsys) -> None:
     model, d0, d1 = case["model"], case["data0"], case["data1"]
     before = {p: _sha(p) for p in (model, d0, d1)}
     out = tmp_path / "res"
-    code, stdout, _ = _run(capsys, "--model", model, "--data", d0, d1, "--out", out, "--quiet")
+    # the exact known answer: no prior (bondid.fit.prior; tests/test_prior.py has the default)
+    argv = ["--model", model, "--data", d0, d1, "--out", out, "--quiet", "--free", "parasitic",
+            "--prior", "0"]  # fmt: skip
+    code, stdout, _ = _run(capsys, *argv)
     assert code == 0, stdout
     res = json.loads((out / "fit.json").read_text())
     for key in ("status", "cost_initial", "cost_final", "cost_name", "iterations", "wall_s"):
@@ -240,8 +243,9 @@ def test_continuation_command(case: dict[str, Path], tmp_path: Path, capsys) -> 
     model, d0 = case["model"], case["data0"]
     out = tmp_path / "cont"
     code, stdout, _ = _run(
-        capsys, "--model", model, "--data", d0, "--continuation", 3, "--out", out, "--quiet"
-    )
+        capsys, "--model", model, "--data", d0, "--continuation", 3, "--out", out, "--quiet",
+        "--free", "parasitic", "--prior", "0",  # the exact answer: no prior (test_prior.py)
+    )  # fmt: skip
     assert code == 0, stdout
     res = json.loads((out / "fit.json").read_text())
     assert res["settings"]["continuation"] == 3

@@ -203,6 +203,7 @@ def test_diagnose_counts_effects(cluster, fleet, tmp_path):
         (["--free", "no_such.stiffness"], "no_such.stiffness"),
         (["--bound", "stiffness"], "--bound 'stiffness'"),
         (["--points", "40"], "--points: only with --diagnose"),
+        (["--prior", "-1"], "--prior: -1.0 is not a prior width"),
     ],
 )
 def test_bad_input_exits_2_naming_the_item(tmp_path, capsys, extra, words):
@@ -212,6 +213,15 @@ def test_bad_input_exits_2_naming_the_item(tmp_path, capsys, extra, words):
     assert fleet_main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and words in err[0]
+
+
+def test_fit_options_pass_the_prior_through(tmp_path):
+    from bondid.fleet.cli import build_parser, fit_argv
+
+    base = ["--model", str(NOMINAL), "--machines", str(tmp_path), "--out", str(tmp_path / "o")]
+    argv = fit_argv(build_parser().parse_args([*base, "--prior", "0.1"]))
+    assert argv[argv.index("--prior") + 1] == "0.1"
+    assert "--prior" not in fit_argv(build_parser().parse_args(base))
 
 
 def test_no_machine_is_bad_input(tmp_path, capsys):

@@ -6,8 +6,11 @@ Relative bounds are ``value · (1 ± rel)`` around the model's value, with these
 * ``com``: ``c ± rel · max(|c|, 0.1 ℓ)`` with ``ℓ`` the diagonal (m) of the link hull's bounding
   box — a CoM near the link origin still gets room proportional to the body's size (without
   geometry ``ℓ`` is taken as 0.1 m).
-* ``inertia``: ``I ± rel · max(|I|, 0.1 Ī)`` with ``Ī`` the mean principal moment of that link,
-  so that a product of inertia near 0 still gets room (the diagonal entries are ``I (1 ± rel)``).
+* ``inertia``: the diagonal entries ``I (1 ± rel)`` (``I ± rel · max(|I|, 0.1 Ī)``, ``Ī`` the
+  link's mean principal moment); a product of inertia ``I_ab ± rel · √(Σ_aa Σ_bb)`` with
+  ``Σ = ½ tr(I) 𝟙 − I`` the link's second moment about its CoM: ``√(Σ_aa Σ_bb)`` is the largest
+  magnitude the product can have for a physically consistent body, so a product near 0 gets
+  room in proportion to the body's extent in both directions (a thin body little across it).
 * ``stiffness`` / ``damping``: ``v (1 ± rel)`` and never below 0. A value of 0 has nothing to
   be relative to; its bounds are ``[0, K_MAX]`` and ``[0, D_MAX]`` with
   ``K_MAX = STIFF_FACTOR · M_jj · (2π f_max)²`` and ``D_MAX = DAMP_FACTOR · M_jj · 2π f_max``:
@@ -37,7 +40,7 @@ from ..model.parameters import ParameterInfo, get_parameter, link_inertial, para
 
 #: Default relative half-width of the bounds, per parameter kind.
 DEFAULT_REL: dict[str, float] = {
-    "mass": 0.2,
+    "mass": 0.5,
     "com": 0.5,
     "inertia": 0.5,
     "stiffness": 0.5,
@@ -46,6 +49,7 @@ DEFAULT_REL: dict[str, float] = {
 }
 
 _DEFAULT_LENGTH = 0.1  # m, length scale of a link without geometry
+_AXES = {"x": 0, "y": 1, "z": 2}
 #: see the module docstring: the joint's own mode at 10 f_max, and critical damping there
 STIFF_FACTOR = 100.0
 DAMP_FACTOR = 20.0
@@ -171,7 +175,13 @@ def default_bounds(
         elif info.kind == "inertia":
             _, _, I_c = link_inertial(doc, info.owner)
             mean = float(np.trace(I_c)) / 3.0
-            half = r * max(abs(v), 0.1 * abs(mean))
+            comp = str(info.component)  # ixx … izz
+            ia, ib = _AXES[comp[1]], _AXES[comp[2]]
+            if ia != ib:  # a product: relative to the largest it can be (module docstring)
+                S = 0.5 * float(np.trace(I_c)) * np.eye(3) - I_c  # second moment about the CoM
+                half = r * max(abs(v), float(np.sqrt(max(S[ia, ia], 0.0) * max(S[ib, ib], 0.0))))
+            else:
+                half = r * max(abs(v), 0.1 * abs(mean))
             lo[j], hi[j] = v - half, v + half
         elif info.kind == "gain":  # relative r: a factor 1 + r either way (sign kept)
             lo[j], hi[j] = sorted((v / (1.0 + r), v * (1.0 + r)))

@@ -32,6 +32,8 @@ from ..data.measurement import FrfData
 from ..exceptions import ConfigError, DependencyError, SolverError
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameters, parameter_infos, select_parameters
+from .defaults import expand_default_free
+from .headline import headline_lines
 from .options import build_parser, resolve_settings
 from .study import (
     KINDS,
@@ -68,7 +70,7 @@ def resolve_names(
     doc: UrdfDocument, datasets: list[FrfData], s: StudySettings, options: CostOptions
 ) -> list[str]:
     """Free parameter names from ``free``/``fixed`` (``auto`` asks bondid.sensitivity)."""
-    free = list(s.free)
+    free = expand_default_free(doc, list(s.free))
     if "auto" in free:
         try:
             from ..sensitivity import recommend_subset
@@ -190,22 +192,7 @@ def summary(result: Any, content: dict[str, Any] | None, extra: dict[str, Any]) 
             f" (from start {extra['multistart']['best_start']}; at the model's values {cm:.6g})"
         )
     if content is not None:
-        db = content["db_rms"]
-        if db["initial"] is not None:
-            lines.append(
-                f"db_rms ({db['weighting']}-weighted): {db['initial']:.3f} dB →"
-                f" {db['final']:.3f} dB"
-            )
-            uw = db["unweighted"]
-            lines.append(
-                f"db_rms unweighted: {uw['initial']:.3f} dB → {uw['final']:.3f} dB (all points)"
-            )
-            c = db.get("coherent") or {}
-            if c.get("final") is not None and c["fraction"] < 1.0:
-                lines.append(
-                    f"db_rms where coherence ≥ {c['min_coherence']}: {c['initial']:.3f} dB →"
-                    f" {c['final']:.3f} dB ({100 * c['fraction']:.0f} % of the points)"
-                )
+        lines[1:1] = headline_lines(content["db_rms"])
     ms = extra.get("multistart")
     if ms and ms["n_runs"] > 1:
         lines.append(
@@ -284,7 +271,7 @@ def _search(s: StudySettings, w: dict[str, Any], quiet: bool) -> Any:
 
     strategy = Strategy(
         staged=s.staged, continuation=s.continuation, stage_bands=s.stage_bands or None,
-        presolve_iter=s.presolve, max_iter=s.max_iter,
+        presolve_iter=s.presolve, max_iter=s.max_iter, prior_width=s.prior,
     )  # fmt: skip
     ms = run_multistart(
         w["doc"], w["datasets"], w["names"], lower=w["lower"], upper=w["upper"],

@@ -152,7 +152,10 @@ def _problem(job: _Job, base: FitProblem | None = None) -> FitProblem:
     from ..optim.problem import FitProblem
 
     doc, datasets, names, options, lo, hi = job.problem_args
-    return FitProblem(doc, datasets, names, options=options, lower=lo, upper=hi, start=job.start)
+    return FitProblem(
+        doc, datasets, names, options=options, lower=lo, upper=hi, start=job.start,
+        extra_rows=job.strategy.extra_rows(doc),
+    )  # fmt: skip
 
 
 def _run_job(
@@ -172,7 +175,7 @@ def _run_job(
         problem = _problem(job, base)
         st = run_search(
             problem, job.strategy.steps(problem), max_iter=job.strategy.max_iter,
-            progress=progress,
+            progress=progress, ipopt_options=job.strategy.ipopt_options(),
         )  # fmt: skip
         return RunOutcome(
             job.index, job.start, st.result, stages=st.stages, wall_s=time.perf_counter() - t0

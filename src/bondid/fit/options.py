@@ -21,6 +21,7 @@ from ..cli import (
 )
 from ..cost.residuals import NORMS, RESIDUAL_KINDS
 from ..exceptions import ConfigError
+from .defaults import add_prior_arg, check_prior
 from .study import (
     STAGES,
     StudySettings,
@@ -50,11 +51,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--free", nargs="+", action="extend",
         help="parameters to fit: names, globs (x_stage.*, *.stiffness), groups (inertial,"
-        " parasitic, joints, all) or auto; default parasitic",
+        " parasitic, joints, all), auto, or default: every inertial parameter and every"
+        " non-zero stiffness and damping (the default; with --prior, what the data cannot"
+        " determine stays near the model's value)",
     )  # fmt: skip
     p.add_argument(
         "--fixed", nargs="+", action="extend", help="parameters to hold (wins over --free)"
     )
+    add_prior_arg(p)
     p.add_argument(
         "--bound", action="append", metavar="KEY=REL|KEY=LO:HI",
         help="bound for a kind (mass, com, inertia, stiffness, damping), name or glob: relative"
@@ -126,6 +130,8 @@ def resolve_settings(args: argparse.Namespace) -> StudySettings:
         s.free = split_names(args.free)
     if args.fixed:
         s.fixed = split_names(args.fixed)
+    if args.prior is not None:
+        s.prior = check_prior(args.prior, "--prior")
     for text in args.bound or ():
         add_bound(s, *parse_bound_option(text))
     if args.band:

@@ -137,6 +137,7 @@ class _Errors:
     def __init__(self) -> None:
         self.E: dict[str, list[np.ndarray]] = {"initial": [], "final": []}
         self.W: list[np.ndarray] = []
+        self.noise: list[np.ndarray] = []  # expected squared dB error of an exact model
         self.coh: dict[str, list[np.ndarray]] = {"initial": [], "final": []}
         self.per_ch: dict[str, dict[str, list[np.ndarray]]] = {}
         self.n_all = 0
@@ -204,25 +205,31 @@ def db_rms_report(
         "by_channel": {ch: {"initial", "final", "initial_unweighted", "final_unweighted"}},
         "by_dataset": [{"file", "initial", "final", "initial_unweighted",
         "final_unweighted", "by_channel"}], "coherent": {"initial", "final", "fraction",
-        "min_coherence"}}`` (dB). ``initial``/``final`` are ``sqrt(Σ w e² / Σ w)`` with ``w``
+        "min_coherence"}, "noise_level"}`` (dB). ``noise_level``: the weighted figure an exact
+        model would score on these data (:mod:`bondid.cost.noise_level`; whatever the cost
+        the fit minimised: ``db_rms`` is always the complex-log figure).
+        ``initial``/``final`` are ``sqrt(Σ w e² / Σ w)`` with ``w``
         the information weight of :attr:`CostOptions.effective_weighting` (so noise-only
         points barely count); ``coherent`` is the unweighted figure over the points whose
         measured coherence is at least :data:`COHERENT` (all points without coherence).
     """
+    from ..cost.noise_level import expected_sq_db, weighted_level
     from ..data.weights import information_weights
 
     weighting = options.effective_weighting
     frfs = model_frfs or [(model_frf(initial, ds), model_frf(fitted, ds)) for ds in datasets]
     acc = _Errors()
-    by_ds = [
-        acc.add(ds, H01, used_points(ds, options),
-                np.nan_to_num(information_weights(ds, weighting), nan=0.0))
-        for ds, H01 in zip(datasets, frfs, strict=True)
-    ]  # fmt: skip
+    by_ds = []
+    for ds, H01 in zip(datasets, frfs, strict=True):
+        mask = used_points(ds, options)
+        acc.noise.append(expected_sq_db(ds, options.use_coherence)[mask])
+        w = np.nan_to_num(information_weights(ds, weighting), nan=0.0)
+        by_ds.append(acc.add(ds, H01, mask, w))
     n_good = sum(x.size for x in acc.coh["final"])
     return {
         "initial": _wrms(acc.E["initial"], acc.W),
         "final": _wrms(acc.E["final"], acc.W),
+        "noise_level": weighted_level(acc.noise, acc.W),
         "weighting": weighting,
         "definition": DB_RMS_DEFINITION,
         "unweighted": {"initial": _rms(acc.E["initial"]), "final": _rms(acc.E["final"])},

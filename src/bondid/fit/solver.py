@@ -74,6 +74,7 @@ def fit(
     constraint_hessian: str = "convexified",
     ipopt_options: dict[str, Any] | None = None,
     presolve_iter: int = PRESOLVE_ITER,
+    prior_width: float = 0.0,
 ) -> FitResult:
     """Fit the named parameters of ``doc`` to measured FRFs (see the module docstring).
 
@@ -91,6 +92,9 @@ def fit(
         presolve_iter: for a log cost, the IPOPT iterations of the presolve on the normalised
             complex error from which a second fit runs when the direct one did not succeed
             without phase walls (:data:`PRESOLVE_ITER`, :data:`WALL_SHARE`); 0 = none.
+        prior_width: relative width τ of a weak prior toward ``doc``'s values, scaled by
+            the data's noise (:mod:`bondid.fit.prior`; log costs with the l2 norm, so not the
+            normalised-complex presolve); 0 = none. The reported costs are the data's alone.
 
     Returns:
         :class:`FitResult`. IPOPT's iteration/time limits and similar stops that leave a usable
@@ -105,14 +109,16 @@ def fit(
     from ..optim.problem import FitProblem
     from ..optim.schedules import direct
     from ..optim.search import run_search
+    from .prior import prior_rows, with_prior_ipopt
 
     problem = FitProblem(
         doc, datasets, names, options=options, lower=lower, upper=upper, start=start,
-        use_hull=use_hull,
+        use_hull=use_hull, extra_rows=prior_rows(doc, prior_width),
     )  # fmt: skip
     search = run_search(
         problem, direct(presolve_iter), max_iter=max_iter, tol=tol, progress=progress,
-        ipopt_options=ipopt_options, constraint_hessian=constraint_hessian,
+        ipopt_options=with_prior_ipopt(prior_width, ipopt_options),
+        constraint_hessian=constraint_hessian,
     )  # fmt: skip
     sol = search.solution
     if sol is not None and sol.failed and sol.kept == "start":

@@ -10,6 +10,7 @@ Every section and key is optional::
     [parameters]
     free = ["parasitic", "x_stage.mass"]     # --free (names, globs, groups, "auto")
     fixed = ["*.damping"]                    # --fixed (wins over free)
+    prior = 0.25                             # --prior (relative width; 0 = none)
 
     [bounds]                                 # --bound KEY=VALUE
     mass = 0.3                               # a number: relative fraction of |value|
@@ -71,6 +72,7 @@ from ..cost.residuals import NORMS, RESIDUAL_KINDS
 from ..data.weights import WEIGHTINGS
 from ..exceptions import ConfigError
 from ..model.points import Point
+from .defaults import DEFAULT_FREE, DEFAULT_WIDTH, check_prior
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..modes.bands import Span as Band
@@ -85,7 +87,7 @@ _TOP_KEYS = (
     "package_path", "floating_base", "uff_map",
 )  # fmt: skip
 _SECTION_KEYS = {
-    "parameters": ("free", "fixed"),
+    "parameters": ("free", "fixed", "prior"),
     "cost": ("kind", "norm", "bands", "channels", "coherence", "weighting", "channel_weights"),
     "search": (
         "multistart",
@@ -108,6 +110,8 @@ class StudySettings:
         model: URDF path, or None (then ``--model`` must give it).
         data: measured-data paths.
         free, fixed: parameter names, globs or groups (``fixed`` wins).
+        prior: relative width τ of the prior toward the model's values
+            (:mod:`bondid.fit.prior`); 0 = none.
         rel_bounds: key (kind, name or glob) -> relative fraction of |value|.
         abs_bounds: key (name or glob) -> (lo, hi), SI units.
         cost, norm: residual kind and norm (see :mod:`bondid.cost.residuals`).
@@ -136,8 +140,9 @@ class StudySettings:
 
     model: Path | None = None
     data: list[Path] = field(default_factory=list)
-    free: list[str] = field(default_factory=lambda: ["parasitic"])
+    free: list[str] = field(default_factory=lambda: list(DEFAULT_FREE))
     fixed: list[str] = field(default_factory=list)
+    prior: float = DEFAULT_WIDTH
     rel_bounds: dict[str, float] = field(default_factory=dict)
     abs_bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
     cost: str = "complex_log"
@@ -171,6 +176,7 @@ class StudySettings:
             "data": [str(p) for p in self.data],
             "free": list(self.free),
             "fixed": list(self.fixed),
+            "prior": self.prior,
             "bounds_relative": dict(self.rel_bounds),
             "bounds_absolute": {k: list(v) for k, v in self.abs_bounds.items()},
             "cost": self.cost,
@@ -380,6 +386,8 @@ def _read_parameters(doc: Mapping[str, Any], s: StudySettings, where: str) -> No
             raise _fail(where, "parameters.free", "empty; give names, globs or groups")
     if "fixed" in par:
         s.fixed = check_names(par["fixed"], where, "parameters.fixed")
+    if "prior" in par:
+        s.prior = check_prior(par["prior"], f"{where}: parameters.prior")
     bounds = _table(doc.get("bounds", {}), where, "bounds")
     for key, value in bounds.items():
         add_bound(s, key, check_bound(value, where, f"bounds.{key}"))

@@ -22,6 +22,7 @@ from typing import Any
 
 from ..cli import EXIT_FAILED, EXIT_OK, make_parser, parse_band, run, split_names
 from ..exceptions import ComputationError, ConfigError
+from ..fit.defaults import add_prior_arg, check_prior, expand_default_free
 from .machines import Machine
 
 LOCK_NAME = ".fleet.lock"
@@ -63,6 +64,7 @@ def build_parser() -> argparse.ArgumentParser:
     g = p.add_argument_group("fit options (passed to bondid.fit for every machine)")
     g.add_argument("--free", nargs="+", action="extend", help="parameters to fit")
     g.add_argument("--fixed", nargs="+", action="extend", help="parameters to hold")
+    add_prior_arg(g)
     g.add_argument("--bound", action="append", metavar="KEY=REL|KEY=LO:HI", help="bounds")
     g.add_argument("--band", action="append", metavar="F_LO:F_HI", help="band, Hz")
     g.add_argument("--weight", action="append", metavar="OUT.IN=W", help="channel weight")
@@ -87,6 +89,8 @@ def fit_argv(args: argparse.Namespace) -> list[str]:
         argv += ["--free", *split_names(args.free)]
     if args.fixed:
         argv += ["--fixed", *split_names(args.fixed)]
+    if args.prior is not None:
+        argv += ["--prior", repr(args.prior)]
     for b in args.bound or ():
         argv += ["--bound", b]
     for b in args.band or ():
@@ -141,6 +145,8 @@ def check_options(args: argparse.Namespace) -> None:
         value = getattr(args, opt[2:].replace("-", "_"))
         if value is not None and value < minimum:
             raise ConfigError(f"{opt} {value}: give an integer >= {minimum}")
+    if args.prior is not None:
+        check_prior(args.prior, "--prior")
     for text in args.band or ():
         try:
             parse_band(text)
@@ -153,7 +159,7 @@ def check_options(args: argparse.Namespace) -> None:
         if getattr(args, opt) is not None and not args.diagnose:
             raise ConfigError(f"--{opt.replace('_', '-')}: only with --diagnose")
     doc = UrdfDocument.load(args.model)
-    free = [n for n in split_names(args.free) if n != "auto"]
+    free = [n for n in expand_default_free(doc, split_names(args.free)) if n != "auto"]
     if free:
         select_parameters(doc, free, split_names(args.fixed))
     if args.diagnose_free:

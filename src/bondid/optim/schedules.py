@@ -43,13 +43,15 @@ parameters free).
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from ..exceptions import ConfigError
 from ..fit.study import STAGES
+from ..model.document import UrdfDocument
 from ..modes.bands import Span, clip_spans, model_resonances, stage_bands
 from .problem import FitProblem
 from .search import PRESOLVE_ITER, PRESOLVE_KIND, Step
@@ -179,6 +181,8 @@ class Strategy:
         continuation: the band continuation with this many bands (0 = off).
         presolve_iter: the presolve of the last step.
         max_iter: IPOPT iterations of the last step (band stages: see :func:`staged`).
+        prior_width: relative width of the prior toward the model's values
+            (:mod:`bondid.fit.prior`) in every step of every schedule; 0 = none.
     """
 
     staged: bool = False
@@ -186,6 +190,20 @@ class Strategy:
     stage_bands: Mapping[str, Sequence[Span]] | None = None
     presolve_iter: int = PRESOLVE_ITER
     max_iter: int = 200
+    prior_width: float = 0.0
+
+    def extra_rows(self, nominal: UrdfDocument) -> Callable[[FitProblem], Any] | None:
+        """The ``extra_rows`` of the search's :class:`FitProblem`: the prior toward
+        ``nominal``'s values (None without one)."""
+        from ..fit.prior import prior_rows
+
+        return prior_rows(nominal, self.prior_width)
+
+    def ipopt_options(self, options: dict[str, Any] | None = None) -> dict[str, Any] | None:
+        """IPOPT options of the search (``options`` plus the prior's, when it is on)."""
+        from ..fit.prior import with_prior_ipopt
+
+        return with_prior_ipopt(self.prior_width, options)
 
     def steps(self, problem: FitProblem) -> list[Step]:
         """The schedule for ``problem``."""
