@@ -38,9 +38,9 @@ from ..exceptions import ConfigError, DataError
 from ..interrupt import ignore_in_worker, kill_workers
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameter, select_parameters
-from . import scoring
 from .effects import Candidate, get_effects
 from .runner import Job, JobResult, run_job
+from .search import Context, Step, search
 from .split import decimate, holdout_split, limit_bands
 from .variables import nominal_variables
 
@@ -66,6 +66,11 @@ class Settings:
     n_starts: int = 3
     modes: bool = True
     weighting: str = "auto"
+    #: candidates refitted fully after the screening, at the first and at later steps
+    n_refit: int = 4
+    n_refit_later: int = 3
+    #: most effects accepted one after the other
+    max_effects: int = 3
 
 
 @dataclass
@@ -91,6 +96,8 @@ class Diagnosis:
     wall_s: float
     notes: list[str] = field(default_factory=list)
     weighting: dict[str, Any] = field(default_factory=dict)
+    #: the search's steps (:mod:`.search`); ``results``/``scores``/``winner`` are the first's
+    steps: list[Step] = field(default_factory=list)
 
 
 def used_channels(datasets: Sequence[FrfData], requested: Sequence[str] | None) -> list[str]:
@@ -284,8 +291,14 @@ def diagnose(
         "n_train_points": [int(d.freq_hz.size) for d in train],
         "n_heldout_points": [int(d.freq_hz.size) for d in held],
     }
-    total = len(candidates) + 1
     pool = _Pool(max(1, s.workers))
+    count = [0]
+
+    def say(label: str) -> None:
+        count[0] += 1
+        if progress:
+            progress(count[0], count[0] + 1, label)
+
     try:
         fut = pool.submit(
             _baseline_task, doc.to_string(), names, train, held, full, options, s.use_ipopt,
@@ -296,57 +309,28 @@ def diagnose(
             from ..exceptions import ComputationError
 
             raise ComputationError(f"the parameter refit failed: {baseline.error}")
-        if progress:
-            progress(1, total, "parameter refit")
-        nom_vars = baseline.extra.pop("nominal_variables")
+        say("parameter refit")
+        baseline.extra.pop("nominal_variables")
         modes, by_ds, anti, bands = _where(doc, full, baseline, channels, s.modes)
-        hints = missing_mode_hints(by_ds)
-        # second origin of every candidate refit: the nominal model (see .runner)
-        alt_vars = nominal_variables(doc, names)
-        futures = [
-            pool.submit(
-                run_job,
-                Job(baseline.urdf, nom_vars, train, held, full, c, options,
-                    max_nfev_all=s.max_nfev, n_starts=s.n_starts, alt_urdf=doc.to_string(),
-                    alt_nominal=alt_vars, hints_hz=hints),
-            )
-            for c in sorted(candidates, key=_expected_work, reverse=True)
-        ]  # fmt: skip
+        ctx = Context(
+            doc, names, train, held, full, options, candidates, missing_mode_hints(by_ds),
+            s.max_nfev, s.n_starts, (s.n_refit, s.n_refit_later), s.max_effects,
+        )  # fmt: skip
+        steps = search(ctx, pool, baseline, say)
         nominal_H = [model_frf(doc, d) for d in full]
-        results: list[JobResult] = []
-        from concurrent.futures import as_completed
-
-        for f in as_completed(futures):
-            r = f.result()
-            results.append(r)
-            if progress:
-                progress(len(results) + 1, total, r.label)
     except BaseException:
         pool.kill()
         raise
     finally:
         pool.close()
-    scores = [scoring.score(r.heldout_rms, r.n_train, r.n_new) for r in results]
-    order = scoring.rank(scores)
-    results = [results[i] for i in order]
-    scores = [scores[i] for i in order]
-    base_score = scoring.score(baseline.heldout_rms, baseline.n_train, 0)
-    winner = None
-    if results and scoring.clearly_better(scores[0], base_score):
-        winner = results[0]
+    first = steps[0]
     return Diagnosis(
         nominal=doc, datasets=full, channels=channels, names=names, baseline=baseline,
-        results=results, scores=scores, baseline_score=base_score, winner=winner,
-        nominal_H=nominal_H, bands=bands, modes=modes, modes_by_dataset=by_ds,
-        antiresonances=anti, fit_info=fit_info, split_info=split_info,
-        wall_s=time.perf_counter() - t0, weighting=w_info,
+        results=first.results, scores=first.scores, baseline_score=first.base_score,
+        winner=first.winner, nominal_H=nominal_H, bands=bands, modes=modes,
+        modes_by_dataset=by_ds, antiresonances=anti, fit_info=fit_info, split_info=split_info,
+        wall_s=time.perf_counter() - t0, weighting=w_info, steps=steps,
     )  # fmt: skip
-
-
-def _expected_work(c: Candidate) -> int:
-    """Rough relative cost of a candidate's job: the longest go to the workers first, so
-    that no long job starts last (parameters × screened variants)."""
-    return len(c.parameters) * (1 + len(c.variants))
 
 
 def missing_mode_hints(
@@ -385,6 +369,7 @@ def _where(
     res_f: list[float] = []
     for k, (d, H) in enumerate(zip(full, baseline.full_H, strict=True)):
         rows: list[dict[str, Any]] = []
+        error: dict[str, Any] | None = None
         if do_modes:
             from .modal_id import identify_modes, model_modes, pair_modes
 
@@ -392,7 +377,7 @@ def _where(
                 meas = identify_modes(d)
             except Exception as exc:
                 meas = []
-                rows.append({"error": f"modal identification failed: {exc}"})
+                error = {"error": f"modal identification failed: {exc}"}
             lm = build_affine_model(refit_doc, d.operating_point, outputs=d.outputs)
             mask = np.array([[f"{o}.{i}" in channels for i in lm.inputs] for o in lm.outputs])
             mod = model_modes(lm.linear_model(), freq_hz=d.freq_hz, channel_mask=mask)
@@ -400,6 +385,8 @@ def _where(
             for m in mod:
                 m.residues = m.residues[:, cols]
             rows = pair_modes(meas, mod, f_band=(float(d.freq_hz[0]), float(d.freq_hz[-1])))
+            if error is not None:  # kept: the pairing must not hide why no mode was measured
+                rows.insert(0, error)
             if k == 0:
                 res_f = [float(m.f_hz) for m in meas]
         by_ds.append(rows)
