@@ -63,6 +63,8 @@ class Screening:
         error: why it failed ("" if it did not).
         variant: the candidate or variant (variants cleared) with the lowest figure: the one
             a full refit then uses.
+        start: its new parameters (log units) where the figure was taken: the full refit's
+            start.
     """
 
     label: str
@@ -73,6 +75,7 @@ class Screening:
     wall_s: float
     error: str = ""
     variant: Candidate | None = None
+    start: tuple = ()
 
 
 def predicted_cost(refit: Refit, u: np.ndarray, damping: float = LM_DAMPING) -> float:
@@ -91,9 +94,10 @@ def predicted_cost(refit: Refit, u: np.ndarray, damping: float = LM_DAMPING) -> 
     return min(c0, float(res @ res))
 
 
-def _figure(job: Job, n_starts: int, pick: int | None) -> tuple[float, float, int | None]:
-    """(cost after the new-only solve, screening figure, start option of the second origin)
-    of ``job``'s candidate; ``pick``: the only start option the second origin tries."""
+def _figure(job: Job, n_starts: int, pick: int | None) -> tuple[float, float, int | None, tuple]:
+    """(cost after the new-only solve, screening figure, start option of the second origin,
+    the new parameters (log units) where the figure was taken) of ``job``'s candidate;
+    ``pick``: the only start option the second origin tries."""
     cand = job.candidate
     assert cand is not None
     aug = build(job.urdf, job.nominal, job.train, job.options, job.accepted, cand)
@@ -113,12 +117,16 @@ def _figure(job: Job, n_starts: int, pick: int | None) -> tuple[float, float, in
         if best is None or out.cost < best[0]:
             best = (out.cost, u)
     assert best is not None
-    figure = predicted_cost(refit, best[1])
+    figure, new = predicted_cost(refit, best[1]), tuple(best[1][n_fix:])
     if job.alt_urdf is None or job.alt_nominal is None:
-        return best[0], figure, None
+        return best[0], figure, None, new
     alt = build(job.alt_urdf, job.alt_nominal, job.train, job.options, job.accepted, cand)
-    u_a, _, k = _alt_start(job, alt.refit, alt.n_nominal + alt.n_accepted, [best[1][n_fix:]], pick)
-    return best[0], min(figure, predicted_cost(alt.refit, u_a)), k
+    n_alt = alt.n_nominal + alt.n_accepted
+    u_a, _, k = _alt_start(job, alt.refit, n_alt, [best[1][n_fix:]], pick)
+    fig_a = predicted_cost(alt.refit, u_a)
+    if fig_a < figure:
+        figure, new = fig_a, tuple(u_a[n_alt:])
+    return best[0], figure, k, new
 
 
 def screen(job: Job) -> Screening:
@@ -129,21 +137,24 @@ def screen(job: Job) -> Screening:
     assert cand is not None
     best = (math.inf, math.inf)
     chosen: Candidate | None = None
+    start: tuple = ()
     error = ""
     pick: int | None = None
     for k, option in enumerate((cand, *cand.variants)):
         sub = replace(job, candidate=replace(option, variants=()))
         try:
-            *fig, pick = _figure(sub, N_STARTS if k == 0 else 1, pick)
+            c_new, c_fig, pick, new = _figure(sub, N_STARTS if k == 0 else 1, pick)
         except (BondidError, np.linalg.LinAlgError, ValueError) as exc:
             error = error or f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
             continue
-        if fig[1] < best[1]:
-            best, chosen = (fig[0], fig[1]), sub.candidate
+        if c_fig < best[1]:
+            best, chosen, start = (c_new, c_fig), sub.candidate, new
     if math.isfinite(best[1]):
         error = ""
     wall = time.perf_counter() - t0
-    return Screening(cand.label, cand.effect, cand.location, best[0], best[1], wall, error, chosen)
+    return Screening(
+        cand.label, cand.effect, cand.location, best[0], best[1], wall, error, chosen, start
+    )
 
 
 def select(screenings: list[Screening], n_refit: int) -> list[int]:

@@ -78,7 +78,9 @@ class Step:
 Progress = Callable[[str], None]
 
 
-def _job(ctx: Context, base: JobResult, cand: Candidate | None) -> Job:
+def _job(
+    ctx: Context, base: JobResult, cand: Candidate | None, start: tuple[float, ...] = ()
+) -> Job:
     """A job on top of ``base`` (its model text, values and accepted effects)."""
     doc = UrdfDocument.from_string(base.urdf, source="refit model")
     nom: list[Variable] = nominal_variables(doc, ctx.names, reference=ctx.nominal)
@@ -86,7 +88,7 @@ def _job(ctx: Context, base: JobResult, cand: Candidate | None) -> Job:
         base.urdf, nom, ctx.train, ctx.heldout, ctx.full, cand, ctx.options,
         max_nfev_all=ctx.max_nfev, n_starts=ctx.n_starts, alt_urdf=ctx.nominal.to_string(),
         alt_nominal=nominal_variables(ctx.nominal, ctx.names), hints_hz=ctx.hints_hz,
-        accepted=base.chain,
+        accepted=base.chain, start_new=start,
     )  # fmt: skip
 
 
@@ -115,8 +117,8 @@ def _step(
     done = [s for s in screenings if s is not None]
     chosen = select(done, ctx.n_refit[0 if index == 0 else 1])
     step = Step(index, base, base_score, done, chosen)
-    futs = {pool.submit(run_job, _job(ctx, base, _refit_candidate(done[i], cands[i]))): i
-            for i in chosen}  # fmt: skip
+    futs = {pool.submit(run_job, _job(ctx, base, _refit_candidate(done[i], cands[i]),
+                                      done[i].start)): i for i in chosen}  # fmt: skip
     results = []
     for f in as_completed(futs):
         r = f.result()
