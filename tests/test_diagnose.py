@@ -89,10 +89,10 @@ def test_joint_compliance_candidates_cover_missing_axes(doc):
 
 
 def test_refit_jacobian_matches_finite_differences(doc):
+    from bondid.diagnose.augmented import ComposedModifier
     from bondid.diagnose.effects import get_effect
     from bondid.diagnose.engine import Refit
     from bondid.diagnose.pipeline import default_names
-    from bondid.diagnose.augmented import ComposedModifier
     from bondid.diagnose.variables import Variable, nominal_variables
 
     data = _data(doc, n=40)

@@ -14,15 +14,15 @@
 3. Where the gap lies: :func:`.gap.gap_report` of the nominal and the refitted model (total,
    per channel, per automatic band), measured modes (:func:`.modal_id.identify_modes`) paired
    with the refitted model's, anti-resonance shifts.
-4. Every candidate of every chosen effect (:mod:`.effects`) is refitted from the baseline
-   (:mod:`.runner`, its scans seeded with the frequencies of the missing modes of step 3) in
-   worker processes, scored on held-out data and ranked; the verdict
-   follows :mod:`.scoring`.
+4. The search for missing effects (:mod:`.search`): every candidate of every chosen effect
+   (:mod:`.effects`) is screened cheaply (:mod:`.screen`, seeded with the frequencies of the
+   missing modes of step 3), the best few are refitted fully (:mod:`.runner`) in worker
+   processes, scored on held-out data and ranked; the best is accepted by the rule of
+   :mod:`.scoring`, and the search repeats from the model with it until nothing passes.
 """
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -30,15 +30,14 @@ from typing import Any
 
 import numpy as np
 
-from ..blas import THREAD_VARS
 from ..cost.problem import CostOptions
 from ..data.measurement import FrfData
 from ..data.weights import check_weighting
 from ..exceptions import ConfigError, DataError
-from ..interrupt import ignore_in_worker, kill_workers
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameter, select_parameters
 from .effects import Candidate, get_effects
+from .pool import WorkerPool
 from .runner import Job, JobResult, run_job
 from .search import Context, Step, search
 from .split import decimate, holdout_split, limit_bands
@@ -196,53 +195,51 @@ def _baseline_task(
     return res, info
 
 
-class _Pool:
-    """Worker processes (spawned with single-threaded BLAS) or in-process execution."""
+@dataclass
+class Prepared:
+    """The data and choices of a diagnosis, ready for the refits (step 1 of the module
+    docstring): data sets (weights in ``coherence``), channels, cost options, free names,
+    candidates, the training / held-out split and what to report about it."""
 
-    def __init__(self, workers: int):
-        self.workers = workers
-        self.ex = None
-        if workers > 1:
-            import multiprocessing as mp
-            from concurrent.futures import ProcessPoolExecutor
+    full: list[FrfData]
+    channels: list[str]
+    options: CostOptions
+    names: list[str]
+    candidates: list[Candidate]
+    train: list[FrfData]
+    held: list[FrfData]
+    split_info: dict[str, Any]
+    weighting: dict[str, Any]
 
-            saved = {k: os.environ.get(k) for k in THREAD_VARS}
-            for k in THREAD_VARS:
-                os.environ[k] = "1"
-            try:
-                self.ex = ProcessPoolExecutor(
-                    workers, mp_context=mp.get_context("spawn"), initializer=ignore_in_worker
-                )
-                self.ex.submit(int, 0).result()  # start the workers with this environment
-                for _ in range(workers - 1):
-                    self.ex.submit(time.sleep, 0.0)
-            except BaseException:  # Ctrl-C while the workers start: stop them now
-                kill_workers(self.ex)
-                raise
-            finally:
-                for k, v in saved.items():
-                    if v is None:
-                        os.environ.pop(k, None)
-                    else:
-                        os.environ[k] = v
 
-    def submit(self, fn: Callable[..., Any], *args: Any) -> Any:
-        if self.ex is not None:
-            return self.ex.submit(fn, *args)
-        from concurrent.futures import Future
+def prepare_data(doc: UrdfDocument, datasets: Sequence[FrfData], s: Settings) -> Prepared:
+    """Step 1 of the module docstring. Raises ConfigError/DataError on bad choices or data."""
+    if not datasets:
+        raise DataError("no measured data given")
+    from ..data.weights import weighting_summary, with_weights_as_coherence
 
-        fut: Future[Any] = Future()
-        fut.set_result(fn(*args))
-        return fut
-
-    def close(self) -> None:
-        if self.ex is not None:
-            self.ex.shutdown(cancel_futures=True)
-
-    def kill(self) -> None:
-        """Stop now (Ctrl-C, an error): cancel the queue and terminate the workers."""
-        kill_workers(self.ex)
-        self.ex = None
+    check_weighting(s.weighting, "--weighting")
+    w_info = weighting_summary(list(datasets), s.weighting)
+    weighted = [with_weights_as_coherence(d, s.weighting) for d in datasets]
+    full = [limit_bands(d, s.bands) for d in weighted]
+    channels = used_channels(full, s.channels)
+    # the data's coherence now holds the information weights: weigh by it as it is
+    options = CostOptions(channels=channels, weighting="coherence")
+    names = default_names(doc, s.free)
+    if not names:
+        raise ConfigError("no parameter to refit; check --free")
+    candidates = [c for e in get_effects(s.effects) for c in e.candidates(doc)]
+    dec = [decimate(d, s.n_points) for d in full]
+    train, held = holdout_split(dec, s.n_holdout_bands)
+    split_info = {
+        "scheme": "checkerboard: data set k trains on log-frequency bands of parity k, "
+        "holds out the others",
+        "n_bands": s.n_holdout_bands,
+        "n_points_per_dataset": [int(d.freq_hz.size) for d in dec],
+        "n_train_points": [int(d.freq_hz.size) for d in train],
+        "n_heldout_points": [int(d.freq_hz.size) for d in held],
+    }
+    return Prepared(full, channels, options, names, candidates, train, held, split_info, w_info)
 
 
 def diagnose(
@@ -265,33 +262,8 @@ def diagnose(
     """
     t0 = time.perf_counter()
     s = settings or Settings()
-    if not datasets:
-        raise DataError("no measured data given")
-    from ..data.weights import weighting_summary, with_weights_as_coherence
-
-    check_weighting(s.weighting, "--weighting")
-    w_info = weighting_summary(list(datasets), s.weighting)
-    weighted = [with_weights_as_coherence(d, s.weighting) for d in datasets]
-    full = [limit_bands(d, s.bands) for d in weighted]
-    channels = used_channels(full, s.channels)
-    # the data's coherence now holds the information weights: weigh by it as it is
-    options = CostOptions(channels=channels, weighting="coherence")
-    names = default_names(doc, s.free)
-    if not names:
-        raise ConfigError("no parameter to refit; check --free")
-    effects = get_effects(s.effects)
-    candidates: list[Candidate] = [c for e in effects for c in e.candidates(doc)]
-    dec = [decimate(d, s.n_points) for d in full]
-    train, held = holdout_split(dec, s.n_holdout_bands)
-    split_info = {
-        "scheme": "checkerboard: data set k trains on log-frequency bands of parity k, "
-        "holds out the others",
-        "n_bands": s.n_holdout_bands,
-        "n_points_per_dataset": [int(d.freq_hz.size) for d in dec],
-        "n_train_points": [int(d.freq_hz.size) for d in train],
-        "n_heldout_points": [int(d.freq_hz.size) for d in held],
-    }
-    pool = _Pool(max(1, s.workers))
+    p = prepare_data(doc, datasets, s)
+    pool = WorkerPool(max(1, s.workers))
     count = [0]
 
     def say(label: str) -> None:
@@ -301,8 +273,8 @@ def diagnose(
 
     try:
         fut = pool.submit(
-            _baseline_task, doc.to_string(), names, train, held, full, options, s.use_ipopt,
-            s.ipopt_iter, s.max_nfev,
+            _baseline_task, doc.to_string(), p.names, p.train, p.held, p.full, p.options,
+            s.use_ipopt, s.ipopt_iter, s.max_nfev,
         )  # fmt: skip
         baseline, fit_info = fut.result()
         if baseline.error:
@@ -311,13 +283,14 @@ def diagnose(
             raise ComputationError(f"the parameter refit failed: {baseline.error}")
         say("parameter refit")
         baseline.extra.pop("nominal_variables")
-        modes, by_ds, anti, bands = _where(doc, full, baseline, channels, s.modes)
+        modes, by_ds, anti, bands = _where(doc, p.full, baseline, p.channels, s.modes)
         ctx = Context(
-            doc, names, train, held, full, options, candidates, missing_mode_hints(by_ds),
-            s.max_nfev, s.n_starts, (s.n_refit, s.n_refit_later), s.max_effects,
+            doc, p.names, p.train, p.held, p.full, p.options, p.candidates,
+            missing_mode_hints(by_ds), s.max_nfev, s.n_starts, (s.n_refit, s.n_refit_later),
+            s.max_effects,
         )  # fmt: skip
         steps = search(ctx, pool, baseline, say)
-        nominal_H = [model_frf(doc, d) for d in full]
+        nominal_H = [model_frf(doc, d) for d in p.full]
     except BaseException:
         pool.kill()
         raise
@@ -325,11 +298,12 @@ def diagnose(
         pool.close()
     first = steps[0]
     return Diagnosis(
-        nominal=doc, datasets=full, channels=channels, names=names, baseline=baseline,
+        nominal=doc, datasets=p.full, channels=p.channels, names=p.names, baseline=baseline,
         results=first.results, scores=first.scores, baseline_score=first.base_score,
         winner=first.winner, nominal_H=nominal_H, bands=bands, modes=modes,
-        modes_by_dataset=by_ds, antiresonances=anti, fit_info=fit_info, split_info=split_info,
-        wall_s=time.perf_counter() - t0, weighting=w_info, steps=steps,
+        modes_by_dataset=by_ds, antiresonances=anti, fit_info=fit_info,
+        split_info=p.split_info, wall_s=time.perf_counter() - t0, weighting=p.weighting,
+        steps=steps,
     )  # fmt: skip
 
 

@@ -168,19 +168,10 @@ def effect_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
     return out
 
 
-def to_json_dict(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, Any]:
-    """The content of ``diagnosis.json`` (module docstring)."""
-    before = reports["refit"].db_rms
-    nominal = reports["nominal"].db_rms
-    cands = candidate_entries(diag, before)
-    gap = _gap_dict(reports["refit"], reports.get("refit_unweighted"))
-    gap["weighting"] = diag.weighting.get("weighting")
-    gap["modes"] = [
-        {k: row.get(k) for k in ("f_measured_hz", "f_model_hz", "status", "mac", "df_rel",
-                                 "zeta_measured", "zeta_model")}
-        for row in diag.modes if "status" in row
-    ]  # fmt: skip
-    gap["antiresonances"] = diag.antiresonances
+def _verdict(
+    diag: Diagnosis, reports: dict[str, GapReport], before: float, nominal: float
+) -> dict[str, Any]:
+    """``verdict`` of diagnosis.json: the first accepted effect, or ``none`` and why."""
     w = diag.winner
     if w is not None:
         vals, std = _new_params(w)
@@ -205,6 +196,24 @@ def to_json_dict(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, An
             f" {best:.3f} dB vs {diag.baseline_score:.3f} dB; needs ≥ {REL_MARGIN:.0%} and"
             f" ≥ {ABS_MARGIN_DB} dB lower)",
         }
+    return verdict
+
+
+def to_json_dict(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, Any]:
+    """The content of ``diagnosis.json`` (module docstring)."""
+    before = reports["refit"].db_rms
+    nominal = reports["nominal"].db_rms
+    cands = candidate_entries(diag, before)
+    gap = _gap_dict(reports["refit"], reports.get("refit_unweighted"))
+    gap["weighting"] = diag.weighting.get("weighting")
+    gap["modes"] = [
+        {k: row.get(k) for k in ("f_measured_hz", "f_model_hz", "status", "mac", "df_rel",
+                                 "zeta_measured", "zeta_model")}
+        for row in diag.modes if "status" in row
+    ]  # fmt: skip
+    gap["antiresonances"] = diag.antiresonances
+    w = diag.winner
+    verdict = _verdict(diag, reports, before, nominal)
     stages = {
         "nominal": _gap_dict(reports["nominal"], reports.get("nominal_unweighted")),
         "refit": _gap_dict(reports["refit"], reports.get("refit_unweighted")),
