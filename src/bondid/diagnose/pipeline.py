@@ -67,7 +67,7 @@ class Settings:
     weighting: str = "auto"
     #: candidates refitted fully after the screening, at the first and at later steps
     n_refit: int = 4
-    n_refit_later: int = 3
+    n_refit_later: int = 2
     #: most effects accepted one after the other
     max_effects: int = 3
 

@@ -17,14 +17,15 @@ accepted so far), with the nominal (and accepted) parameters held at their refit
    nominal parameter follow — which matters, because the parameter refit has already bent
    nominal parameters toward what the missing effect does.
 
-The same figure is also taken from a second origin, the nominal model (with the effects
-accepted so far), after the short start of the full refit's second origin
-(:func:`.runner._alt_start`: new parameters alone, then a few evaluations of all together),
+At the first step of a search the same figure is also taken from a second origin, the
+nominal model, after the short start of the full refit's second origin
+(:func:`.runner._alt_start` from the new parameters the first origin found: new parameters
+alone, then a few evaluations of all together),
 and the lower of the two counts: the parameter refit may have bent nominal parameters so far
 toward the missing effect that the true candidate, added to it, first makes the fit worse
 (measured: a withheld z-guide compliance ranked 10th of 11 from the parameter refit alone).
 A candidate with variants (e.g. the pivots of a rotational DOF) gets the lowest figure of its
-variants (one start each; the second origin tries only the start option the first chose).
+variants (one start each).
 The figure is a training cost, so screening never looks at the held-out data that decide the
 verdict.
 """
@@ -139,7 +140,7 @@ def screen(job: Job) -> Screening:
     chosen: Candidate | None = None
     start: tuple = ()
     error = ""
-    pick: int | None = None
+    pick: int | None = 0  # the second origin starts from the first origin's best only
     for k, option in enumerate((cand, *cand.variants)):
         sub = replace(job, candidate=replace(option, variants=()))
         try:

@@ -47,7 +47,7 @@ class Context:
     max_nfev: int = 30
     n_starts: int = 3
     #: candidates refitted fully at the first step and at the later ones
-    n_refit: tuple[int, int] = (4, 3)
+    n_refit: tuple[int, int] = (4, 2)
     max_effects: int = 3
 
 
@@ -79,15 +79,19 @@ Progress = Callable[[str], None]
 
 
 def _job(
-    ctx: Context, base: JobResult, cand: Candidate | None, start: tuple[float, ...] = ()
-) -> Job:
-    """A job on top of ``base`` (its model text, values and accepted effects)."""
+    ctx: Context, base: JobResult, cand: Candidate | None, start: tuple[float, ...] = (),
+    alt: bool = True,
+) -> Job:  # fmt: skip
+    """A job on top of ``base`` (its model text, values and accepted effects); ``alt``: with
+    the nominal model as second origin."""
     doc = UrdfDocument.from_string(base.urdf, source="refit model")
     nom: list[Variable] = nominal_variables(doc, ctx.names, reference=ctx.nominal)
     return Job(
         base.urdf, nom, ctx.train, ctx.heldout, ctx.full, cand, ctx.options,
-        max_nfev_all=ctx.max_nfev, n_starts=ctx.n_starts, alt_urdf=ctx.nominal.to_string(),
-        alt_nominal=nominal_variables(ctx.nominal, ctx.names), hints_hz=ctx.hints_hz,
+        max_nfev_all=ctx.max_nfev, n_starts=ctx.n_starts,
+        alt_urdf=ctx.nominal.to_string() if alt else None,
+        alt_nominal=nominal_variables(ctx.nominal, ctx.names) if alt else None,
+        hints_hz=ctx.hints_hz,
         accepted=base.chain, start_new=start,
     )  # fmt: skip
 
@@ -108,7 +112,10 @@ def _step(
     ctx: Context, pool: Any, index: int, base: JobResult, base_score: float, progress: Progress
 ) -> Step:
     cands = _open(ctx, base)
-    futures = {pool.submit(screen, _job(ctx, base, c)): i for i, c in enumerate(cands)}
+    # later steps screen from their base alone: it is the first effect's refit, which the
+    # full refits also ran from the nominal model
+    futures = {pool.submit(screen, _job(ctx, base, c, alt=index == 0)): i
+               for i, c in enumerate(cands)}  # fmt: skip
     screenings: list[Screening | None] = [None] * len(cands)
     for f in as_completed(futures):
         s = f.result()
