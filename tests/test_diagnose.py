@@ -89,10 +89,10 @@ def test_joint_compliance_candidates_cover_missing_axes(doc):
 
 
 def test_refit_jacobian_matches_finite_differences(doc):
+    from bondid.diagnose.augmented import ComposedModifier
     from bondid.diagnose.effects import get_effect
     from bondid.diagnose.engine import Refit
     from bondid.diagnose.pipeline import default_names
-    from bondid.diagnose.runner import _modifier
     from bondid.diagnose.variables import Variable, nominal_variables
 
     data = _data(doc, n=40)
@@ -102,7 +102,7 @@ def test_refit_jacobian_matches_finite_differences(doc):
     p = c.parameters[0]
     variables = [*nominal_variables(doc, names), Variable("T", p.initial, p.lower, p.upper,
                                                           modifier=0)]  # fmt: skip
-    R = Refit(doc, data, variables, modifier=_modifier(e, c))
+    R = Refit(doc, data, variables, modifier=ComposedModifier([c]))
     u = R.u0 + 0.01
     _, J = R.residual_and_jacobian(u)
     for k in range(len(u)):
@@ -130,8 +130,8 @@ def compliance_case(doc):
     c = next(c for c in e.candidates(doc) if c.location == "y_stage->z_stage:tz")
     truth = _with_values(e, doc, c, scale=5.0)
     data = _data(truth)
-    diag = diagnose(doc, data, _settings(effects=["joint_compliance", "sensor_delay"]))
-    return diag
+    s = _settings(effects=["joint_compliance", "sensor_delay"], free=FEW, use_ipopt=True)
+    return diagnose(doc, data, s)
 
 
 def test_withheld_joint_compliance_is_found_first(compliance_case):
@@ -146,8 +146,9 @@ def test_none_case_gives_verdict_none(doc):
     from bondid.diagnose import diagnose
 
     data = _data(doc, seed=5)
-    diag = diagnose(doc, data, _settings(effects=["joint_compliance", "actuator_lag"]))
-    assert diag.winner is None
+    s = _settings(effects=["joint_compliance", "actuator_lag"], free=FEW, use_ipopt=True)
+    diag = diagnose(doc, data, s)
+    assert diag.winner is None and len(diag.steps) == 1
 
 
 def test_diagnosis_json_has_the_spec_keys(compliance_case, tmp_path):
@@ -161,8 +162,16 @@ def test_diagnosis_json_has_the_spec_keys(compliance_case, tmp_path):
     for c in d["candidates"]:
         assert {"effect", "location", "parameters", "db_rms_after", "gap_closed",
                 "heldout_db_rms_after", "score"} <= set(c)  # fmt: skip
-    scores = [c["score"] for c in d["candidates"] if c["score"] is not None]
-    assert scores == sorted(scores)
+    first = [c for c in d["candidates"] if c["step"] == 1]
+    scores = [c["score"] for c in first if c["score"] is not None]
+    assert scores == sorted(scores) and len(scores) == sum(c["refitted"] for c in first)
+    # every candidate screened; the refitted ones come first, the others by screening figure
+    assert len(first) == len(compliance_case.steps[0].screenings)
+    rest = [c["screening_db"] for c in first if not c["refitted"]]
+    assert rest == sorted(rest) and all(c["screening_db"] is not None for c in first)
+    assert [(e["effect"], e["location"]) for e in d["effects"]] == [
+        ("joint_compliance", "y_stage->z_stage:tz")
+    ]
     assert {"effect", "location", "gap_closed"} <= set(d["verdict"])
     assert d["verdict"]["effect"] == "joint_compliance"
     g = d["verdict"]["gap_closed"]
@@ -235,3 +244,108 @@ def test_screening_picks_the_pivot_that_made_the_data(doc):
         if v.spec["pivot"] != target.spec["pivot"]:
             other = _screen_variants(replace(job, candidate=replace(v, variants=())))[1]
             assert other > 1.2 * cost, (v.description, other, cost)
+
+
+def _lagged(data: list, cand, T: float) -> list:  # type: ignore[no-untyped-def]
+    """``data`` with the actuator lag ``cand`` of time constant ``T`` applied (known answer)."""
+    from bondid.diagnose.effects import get_effect
+
+    e = get_effect(cand.effect)
+    for d in data:
+        G, _ = e.modifier(cand, np.array([T]), d.freq_hz, tuple(d.outputs), tuple(d.inputs))
+        d.H = d.H * G
+    return data
+
+
+def test_composed_modifier_derivatives_match_finite_differences(doc):
+    from bondid.diagnose.augmented import ComposedModifier
+    from bondid.diagnose.effects import get_effect
+
+    sd = next(c for c in get_effect("sensor_delay").candidates(doc) if c.location == "x")
+    al = next(c for c in get_effect("actuator_lag").candidates(doc) if c.location == "all")
+    mod = ComposedModifier([sd, al])
+    f = np.geomspace(10.0, 3000.0, 7)
+    outs, ins = ("x", "y", "z"), ("x", "y", "z")
+    v = np.array([4e-5, 7e-5])
+    G, dG = mod(v, f, outs, ins)
+    g1, _ = get_effect("sensor_delay").modifier(sd, v[:1], f, outs, ins)
+    g2, _ = get_effect("actuator_lag").modifier(al, v[1:], f, outs, ins)
+    np.testing.assert_allclose(G, g1 * g2, rtol=1e-14)
+    for k in range(2):
+        h = 1e-6 * v[k]
+        vp, vm = v.copy(), v.copy()
+        vp[k] += h
+        vm[k] -= h
+        fd = (mod(vp, f, outs, ins)[0] - mod(vm, f, outs, ins)[0]) / (2 * h)
+        np.testing.assert_allclose(dG[..., k], fd, rtol=1e-6, atol=1e-9 * np.abs(fd).max())
+
+
+FEW = ["x_stage.mass", "y_stage.mass", "z_stage.mass", "x_guide_ry.stiffness"]
+
+
+def test_screening_keeps_the_withheld_effect(doc):
+    """Known answer: every candidate screened from the nominal model on data of the nominal
+    model plus one joint compliance; the true one is among the candidates refitted."""
+    from bondid.cost.problem import CostOptions
+    from bondid.diagnose.effects import get_effect, get_effects
+    from bondid.diagnose.runner import Job
+    from bondid.diagnose.screen import screen, select
+    from bondid.diagnose.variables import nominal_variables
+
+    e = get_effect("joint_compliance")
+    c = next(c for c in e.candidates(doc) if c.location == "x_stage->y_stage:tz")
+    data = _data(_with_values(e, doc, c, scale=2.0), n=120)
+    nom = nominal_variables(doc, FEW)
+    text = doc.to_string()
+    cands = [
+        c for e in get_effects(["joint_compliance", "actuator_lag"]) for c in e.candidates(doc)
+    ]
+    jobs = [Job(text, nom, data, data, data, k, CostOptions()) for k in cands]
+    screens = [screen(j) for j in jobs]
+    kept = [screens[i].label for i in select(screens, 4)]
+    assert c.label in kept, sorted((s.cost, s.label) for s in screens)
+    # the figure predicts a joint step: never above the new-only cost it starts from
+    assert all(np.isfinite(s.cost) and s.cost <= s.cost_new_only + 1e-12 for s in screens)
+
+
+def test_two_withheld_effects_are_found_in_order(doc, tmp_path):
+    """Known answer: a joint compliance and an actuator lag withheld together; the search
+    accepts both (class and location), one per step, and no third."""
+    from bondid.diagnose import diagnose, write_outputs
+    from bondid.diagnose.effects import get_effect
+    from bondid.diagnose.report import gaps, summary, to_json_dict
+
+    e = get_effect("joint_compliance")
+    c = next(c for c in e.candidates(doc) if c.location == "y_stage->z_stage:tz")
+    al = next(k for k in get_effect("actuator_lag").candidates(doc) if k.location == "y")
+    data = _lagged(_data(_with_values(e, doc, c, scale=3.0), n=150), al, 2e-4)
+    s = _settings(effects=["joint_compliance", "actuator_lag"], free=FEW, use_ipopt=True)
+    diag = diagnose(doc, data, s)
+    content = to_json_dict(diag, gaps(diag))
+    got = [(x["effect"], x["location"]) for x in content["effects"]]
+    assert sorted(got) == sorted([(c.effect, c.location), (al.effect, al.location)]), got
+    assert content["verdict"]["effect"] == content["effects"][0]["effect"]
+    after = [x["db_rms_after"] for x in content["effects"]]
+    assert after[1] < after[0] < content["gap"]["db_rms"]
+    steps = {x["step"] for x in content["candidates"]}
+    assert steps == {1, 2, 3}  # the third step ran and accepted nothing
+    assert all("refitted" in x and "screening_db" in x for x in content["candidates"])
+    assert "→ +" in summary(diag, content)
+    written = write_outputs(diag, tmp_path, plots=False)
+    assert (tmp_path / "augmented_all.urdf") in written
+
+
+def test_a_modal_identification_error_reaches_the_report(doc, monkeypatch):
+    """The error row of a failed modal identification is kept next to the model's modes."""
+    from bondid.diagnose import diagnose, modal_id
+
+    def fail(*_a, **_k):  # type: ignore[no-untyped-def]
+        raise ValueError("no poles")
+
+    monkeypatch.setattr(modal_id, "identify_modes", fail)
+    data = _data(doc, n=60)
+    s = _settings(effects=["sensor_delay"], free=FEW[:1], modes=True, n_points=60)
+    diag = diagnose(doc, data, s)
+    for rows in diag.modes_by_dataset:
+        assert rows[0] == {"error": "modal identification failed: no poles"}
+        assert any("status" in r for r in rows[1:])  # the model's modes are still listed

@@ -55,12 +55,14 @@ def _names(text: str | None, valid: tuple[str, ...] | list[str], what: str) -> l
 
 
 def select(args: argparse.Namespace) -> list[Case]:
-    """The cases named by ``--cases`` (else ``--quick``'s or all), kept to ``--designs`` and
+    """The cases named by ``--cases`` (in the order named, so that a run stopped early has
+    the broadest subset first; else ``--quick``'s or all), kept to ``--designs`` and
     ``--regimes``."""
     cases = all_cases()
     if args.cases:
         wanted = _names(args.cases, [c.name for c in cases], "case")
-        cases = [c for c in cases if c.name in wanted]
+        by_name = {c.name: c for c in cases}
+        cases = [by_name[n] for n in dict.fromkeys(wanted)]
     elif args.quick:
         cases = [c for c in cases if c.name in QUICK]
     designs = _names(args.designs, list(DESIGNS), "design")
@@ -82,6 +84,7 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--effects", help="diagnose --effects subset (for quick checks only)")
     p.add_argument("--no-fit", action="store_true", help="do not time bondid.fit")
     p.add_argument("--out", type=Path, help="write the rows as JSON")
+    p.add_argument("--tables", type=Path, help="print the tables of a rows JSON (--out) and stop")
     args = p.parse_args(argv)
     if args.jobs < 1:
         p.error(f"--jobs {args.jobs}: give 1 or more")
@@ -90,6 +93,10 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse(argv)
+    if args.tables:  # e.g. the rows a long run wrote before it was stopped
+        rows = json.loads(args.tables.read_text())
+        print(case_table(rows) + "\n\n" + summary_table(rows))
+        return 0
     cases = select(args)
     if args.list:
         for c in cases:

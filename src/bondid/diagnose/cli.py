@@ -47,7 +47,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 #: the names ``bondid.diagnose`` may write under ``--out``
-OUT_PATTERNS = ("diagnosis.json", "refit.urdf", "augmented.urdf", "residual_map.png", "bode_*.png")
+OUT_PATTERNS = (
+    "diagnosis.json", "refit.urdf", "augmented.urdf", "augmented_all.urdf", "residual_map.png",
+    "bode_*.png",
+)  # fmt: skip
 
 
 def absolute_mesh_paths(doc, base: Path) -> None:

@@ -14,15 +14,15 @@
 3. Where the gap lies: :func:`.gap.gap_report` of the nominal and the refitted model (total,
    per channel, per automatic band), measured modes (:func:`.modal_id.identify_modes`) paired
    with the refitted model's, anti-resonance shifts.
-4. Every candidate of every chosen effect (:mod:`.effects`) is refitted from the baseline
-   (:mod:`.runner`, its scans seeded with the frequencies of the missing modes of step 3) in
-   worker processes, scored on held-out data and ranked; the verdict
-   follows :mod:`.scoring`.
+4. The search for missing effects (:mod:`.search`): every candidate of every chosen effect
+   (:mod:`.effects`) is screened cheaply (:mod:`.screen`, seeded with the frequencies of the
+   missing modes of step 3), the best few are refitted fully (:mod:`.runner`) in worker
+   processes, scored on held-out data and ranked; the best is accepted by the rule of
+   :mod:`.scoring`, and the search repeats from the model with it until nothing passes.
 """
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -30,17 +30,16 @@ from typing import Any
 
 import numpy as np
 
-from ..blas import THREAD_VARS
 from ..cost.problem import CostOptions
 from ..data.measurement import FrfData
 from ..data.weights import check_weighting
 from ..exceptions import ConfigError, DataError
-from ..interrupt import ignore_in_worker, kill_workers
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameter, select_parameters
-from . import scoring
 from .effects import Candidate, get_effects
+from .pool import WorkerPool
 from .runner import Job, JobResult, run_job
+from .search import Context, Step, search
 from .split import decimate, holdout_split, limit_bands
 from .variables import nominal_variables
 
@@ -66,6 +65,11 @@ class Settings:
     n_starts: int = 3
     modes: bool = True
     weighting: str = "auto"
+    #: candidates refitted fully after the screening, at the first and at later steps
+    n_refit: int = 4
+    n_refit_later: int = 2
+    #: most effects accepted one after the other
+    max_effects: int = 3
 
 
 @dataclass
@@ -91,6 +95,8 @@ class Diagnosis:
     wall_s: float
     notes: list[str] = field(default_factory=list)
     weighting: dict[str, Any] = field(default_factory=dict)
+    #: the search's steps (:mod:`.search`); ``results``/``scores``/``winner`` are the first's
+    steps: list[Step] = field(default_factory=list)
 
 
 def used_channels(datasets: Sequence[FrfData], requested: Sequence[str] | None) -> list[str]:
@@ -189,53 +195,51 @@ def _baseline_task(
     return res, info
 
 
-class _Pool:
-    """Worker processes (spawned with single-threaded BLAS) or in-process execution."""
+@dataclass
+class Prepared:
+    """The data and choices of a diagnosis, ready for the refits (step 1 of the module
+    docstring): data sets (weights in ``coherence``), channels, cost options, free names,
+    candidates, the training / held-out split and what to report about it."""
 
-    def __init__(self, workers: int):
-        self.workers = workers
-        self.ex = None
-        if workers > 1:
-            import multiprocessing as mp
-            from concurrent.futures import ProcessPoolExecutor
+    full: list[FrfData]
+    channels: list[str]
+    options: CostOptions
+    names: list[str]
+    candidates: list[Candidate]
+    train: list[FrfData]
+    held: list[FrfData]
+    split_info: dict[str, Any]
+    weighting: dict[str, Any]
 
-            saved = {k: os.environ.get(k) for k in THREAD_VARS}
-            for k in THREAD_VARS:
-                os.environ[k] = "1"
-            try:
-                self.ex = ProcessPoolExecutor(
-                    workers, mp_context=mp.get_context("spawn"), initializer=ignore_in_worker
-                )
-                self.ex.submit(int, 0).result()  # start the workers with this environment
-                for _ in range(workers - 1):
-                    self.ex.submit(time.sleep, 0.0)
-            except BaseException:  # Ctrl-C while the workers start: stop them now
-                kill_workers(self.ex)
-                raise
-            finally:
-                for k, v in saved.items():
-                    if v is None:
-                        os.environ.pop(k, None)
-                    else:
-                        os.environ[k] = v
 
-    def submit(self, fn: Callable[..., Any], *args: Any) -> Any:
-        if self.ex is not None:
-            return self.ex.submit(fn, *args)
-        from concurrent.futures import Future
+def prepare_data(doc: UrdfDocument, datasets: Sequence[FrfData], s: Settings) -> Prepared:
+    """Step 1 of the module docstring. Raises ConfigError/DataError on bad choices or data."""
+    if not datasets:
+        raise DataError("no measured data given")
+    from ..data.weights import weighting_summary, with_weights_as_coherence
 
-        fut: Future[Any] = Future()
-        fut.set_result(fn(*args))
-        return fut
-
-    def close(self) -> None:
-        if self.ex is not None:
-            self.ex.shutdown(cancel_futures=True)
-
-    def kill(self) -> None:
-        """Stop now (Ctrl-C, an error): cancel the queue and terminate the workers."""
-        kill_workers(self.ex)
-        self.ex = None
+    check_weighting(s.weighting, "--weighting")
+    w_info = weighting_summary(list(datasets), s.weighting)
+    weighted = [with_weights_as_coherence(d, s.weighting) for d in datasets]
+    full = [limit_bands(d, s.bands) for d in weighted]
+    channels = used_channels(full, s.channels)
+    # the data's coherence now holds the information weights: weigh by it as it is
+    options = CostOptions(channels=channels, weighting="coherence")
+    names = default_names(doc, s.free)
+    if not names:
+        raise ConfigError("no parameter to refit; check --free")
+    candidates = [c for e in get_effects(s.effects) for c in e.candidates(doc)]
+    dec = [decimate(d, s.n_points) for d in full]
+    train, held = holdout_split(dec, s.n_holdout_bands)
+    split_info = {
+        "scheme": "checkerboard: data set k trains on log-frequency bands of parity k, "
+        "holds out the others",
+        "n_bands": s.n_holdout_bands,
+        "n_points_per_dataset": [int(d.freq_hz.size) for d in dec],
+        "n_train_points": [int(d.freq_hz.size) for d in train],
+        "n_heldout_points": [int(d.freq_hz.size) for d in held],
+    }
+    return Prepared(full, channels, options, names, candidates, train, held, split_info, w_info)
 
 
 def diagnose(
@@ -258,95 +262,49 @@ def diagnose(
     """
     t0 = time.perf_counter()
     s = settings or Settings()
-    if not datasets:
-        raise DataError("no measured data given")
-    from ..data.weights import weighting_summary, with_weights_as_coherence
+    p = prepare_data(doc, datasets, s)
+    pool = WorkerPool(max(1, s.workers))
+    count = [0]
 
-    check_weighting(s.weighting, "--weighting")
-    w_info = weighting_summary(list(datasets), s.weighting)
-    weighted = [with_weights_as_coherence(d, s.weighting) for d in datasets]
-    full = [limit_bands(d, s.bands) for d in weighted]
-    channels = used_channels(full, s.channels)
-    # the data's coherence now holds the information weights: weigh by it as it is
-    options = CostOptions(channels=channels, weighting="coherence")
-    names = default_names(doc, s.free)
-    if not names:
-        raise ConfigError("no parameter to refit; check --free")
-    effects = get_effects(s.effects)
-    candidates: list[Candidate] = [c for e in effects for c in e.candidates(doc)]
-    dec = [decimate(d, s.n_points) for d in full]
-    train, held = holdout_split(dec, s.n_holdout_bands)
-    split_info = {
-        "scheme": "checkerboard: data set k trains on log-frequency bands of parity k, "
-        "holds out the others",
-        "n_bands": s.n_holdout_bands,
-        "n_points_per_dataset": [int(d.freq_hz.size) for d in dec],
-        "n_train_points": [int(d.freq_hz.size) for d in train],
-        "n_heldout_points": [int(d.freq_hz.size) for d in held],
-    }
-    total = len(candidates) + 1
-    pool = _Pool(max(1, s.workers))
+    def say(label: str) -> None:
+        count[0] += 1
+        if progress:
+            progress(count[0], count[0] + 1, label)
+
     try:
         fut = pool.submit(
-            _baseline_task, doc.to_string(), names, train, held, full, options, s.use_ipopt,
-            s.ipopt_iter, s.max_nfev,
+            _baseline_task, doc.to_string(), p.names, p.train, p.held, p.full, p.options,
+            s.use_ipopt, s.ipopt_iter, s.max_nfev,
         )  # fmt: skip
         baseline, fit_info = fut.result()
         if baseline.error:
             from ..exceptions import ComputationError
 
             raise ComputationError(f"the parameter refit failed: {baseline.error}")
-        if progress:
-            progress(1, total, "parameter refit")
-        nom_vars = baseline.extra.pop("nominal_variables")
-        modes, by_ds, anti, bands = _where(doc, full, baseline, channels, s.modes)
-        hints = missing_mode_hints(by_ds)
-        # second origin of every candidate refit: the nominal model (see .runner)
-        alt_vars = nominal_variables(doc, names)
-        futures = [
-            pool.submit(
-                run_job,
-                Job(baseline.urdf, nom_vars, train, held, full, c, options,
-                    max_nfev_all=s.max_nfev, n_starts=s.n_starts, alt_urdf=doc.to_string(),
-                    alt_nominal=alt_vars, hints_hz=hints),
-            )
-            for c in sorted(candidates, key=_expected_work, reverse=True)
-        ]  # fmt: skip
-        nominal_H = [model_frf(doc, d) for d in full]
-        results: list[JobResult] = []
-        from concurrent.futures import as_completed
-
-        for f in as_completed(futures):
-            r = f.result()
-            results.append(r)
-            if progress:
-                progress(len(results) + 1, total, r.label)
+        say("parameter refit")
+        baseline.extra.pop("nominal_variables")
+        modes, by_ds, anti, bands = _where(doc, p.full, baseline, p.channels, s.modes)
+        ctx = Context(
+            doc, p.names, p.train, p.held, p.full, p.options, p.candidates,
+            missing_mode_hints(by_ds), s.max_nfev, s.n_starts, (s.n_refit, s.n_refit_later),
+            s.max_effects,
+        )  # fmt: skip
+        steps = search(ctx, pool, baseline, say)
+        nominal_H = [model_frf(doc, d) for d in p.full]
     except BaseException:
         pool.kill()
         raise
     finally:
         pool.close()
-    scores = [scoring.score(r.heldout_rms, r.n_train, r.n_new) for r in results]
-    order = scoring.rank(scores)
-    results = [results[i] for i in order]
-    scores = [scores[i] for i in order]
-    base_score = scoring.score(baseline.heldout_rms, baseline.n_train, 0)
-    winner = None
-    if results and scoring.clearly_better(scores[0], base_score):
-        winner = results[0]
+    first = steps[0]
     return Diagnosis(
-        nominal=doc, datasets=full, channels=channels, names=names, baseline=baseline,
-        results=results, scores=scores, baseline_score=base_score, winner=winner,
-        nominal_H=nominal_H, bands=bands, modes=modes, modes_by_dataset=by_ds,
-        antiresonances=anti, fit_info=fit_info, split_info=split_info,
-        wall_s=time.perf_counter() - t0, weighting=w_info,
+        nominal=doc, datasets=p.full, channels=p.channels, names=p.names, baseline=baseline,
+        results=first.results, scores=first.scores, baseline_score=first.base_score,
+        winner=first.winner, nominal_H=nominal_H, bands=bands, modes=modes,
+        modes_by_dataset=by_ds, antiresonances=anti, fit_info=fit_info,
+        split_info=p.split_info, wall_s=time.perf_counter() - t0, weighting=p.weighting,
+        steps=steps,
     )  # fmt: skip
-
-
-def _expected_work(c: Candidate) -> int:
-    """Rough relative cost of a candidate's job: the longest go to the workers first, so
-    that no long job starts last (parameters × screened variants)."""
-    return len(c.parameters) * (1 + len(c.variants))
 
 
 def missing_mode_hints(
@@ -385,6 +343,7 @@ def _where(
     res_f: list[float] = []
     for k, (d, H) in enumerate(zip(full, baseline.full_H, strict=True)):
         rows: list[dict[str, Any]] = []
+        error: dict[str, Any] | None = None
         if do_modes:
             from .modal_id import identify_modes, model_modes, pair_modes
 
@@ -392,7 +351,7 @@ def _where(
                 meas = identify_modes(d)
             except Exception as exc:
                 meas = []
-                rows.append({"error": f"modal identification failed: {exc}"})
+                error = {"error": f"modal identification failed: {exc}"}
             lm = build_affine_model(refit_doc, d.operating_point, outputs=d.outputs)
             mask = np.array([[f"{o}.{i}" in channels for i in lm.inputs] for o in lm.outputs])
             mod = model_modes(lm.linear_model(), freq_hz=d.freq_hz, channel_mask=mask)
@@ -400,6 +359,8 @@ def _where(
             for m in mod:
                 m.residues = m.residues[:, cols]
             rows = pair_modes(meas, mod, f_band=(float(d.freq_hz[0]), float(d.freq_hz[-1])))
+            if error is not None:  # kept: the pairing must not hide why no mode was measured
+                rows.insert(0, error)
             if k == 0:
                 res_f = [float(m.f_hz) for m in meas]
         by_ds.append(rows)

@@ -76,46 +76,86 @@ def _gap_dict(g: GapReport, plain: GapReport | None = None) -> dict[str, Any]:
 
 
 def _new_params(r: Any) -> tuple[dict[str, float], dict[str, float]]:
-    k = len(r.names) - r.n_new
+    """The candidate's own parameters (the last ``n_own``) and their std."""
+    k = len(r.names) - r.n_own
     vals = {n: float(v) for n, v in zip(r.names[k:], r.values[k:], strict=True)}
     std = {n: float(v) for n, v in zip(r.names[k:], r.std[k:], strict=True)} if len(r.std) else {}
     return vals, std
 
 
-def to_json_dict(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, Any]:
-    """The content of ``diagnosis.json`` (module docstring)."""
-    before = reports["refit"].db_rms
-    nominal = reports["nominal"].db_rms
-    cands = []
-    for r, sc in zip(diag.results, diag.scores, strict=True):
-        vals, std = _new_params(r) if not r.error else ({}, {})
-        cands.append(
-            {
-                "effect": r.effect,
-                "location": r.location,
-                "parameters": vals,
-                "db_rms_after": r.db_rms,
-                "db_rms_unweighted_after": r.db_rms_unweighted,
-                "gap_closed": gap_closed(before, r.db_rms),
-                "heldout_db_rms_after": r.heldout_db_rms,
-                "score": sc,
-                "parameters_std": std,
-                "heldout_weighted_rms": r.heldout_rms,
-                "train_weighted_rms": r.train_rms,
-                "n_parameters": r.n_new,
-                "detail": r.extra.get("variant"),
-                "wall_s": r.wall_s,
-                "error": r.error or None,
-            }
-        )
-    gap = _gap_dict(reports["refit"], reports.get("refit_unweighted"))
-    gap["weighting"] = diag.weighting.get("weighting")
-    gap["modes"] = [
-        {k: row.get(k) for k in ("f_measured_hz", "f_model_hz", "status", "mac", "df_rel",
-                                 "zeta_measured", "zeta_model")}
-        for row in diag.modes if "status" in row
-    ]  # fmt: skip
-    gap["antiresonances"] = diag.antiresonances
+def _refit_entry(r: Any, sc: float, before: float) -> dict[str, Any]:
+    """The figures of one fully refitted candidate."""
+    vals, std = _new_params(r) if not r.error else ({}, {})
+    return {
+        "parameters": vals,
+        "db_rms_after": r.db_rms,
+        "db_rms_unweighted_after": r.db_rms_unweighted,
+        "gap_closed": gap_closed(before, r.db_rms),
+        "heldout_db_rms_after": r.heldout_db_rms,
+        "score": sc,
+        "parameters_std": std,
+        "heldout_weighted_rms": r.heldout_rms,
+        "train_weighted_rms": r.train_rms,
+        "n_parameters": r.n_own,
+        "detail": r.extra.get("variant"),
+        "wall_s": r.wall_s,
+        "error": r.error or None,
+    }
+
+
+def candidate_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
+    """``candidates`` of diagnosis.json: per search step (``step``, 1 = the verdict's), the
+    refitted candidates by held-out score, then the others by screening figure; each with
+    its screening figures (``screening_db``: the predicted training RMS [dB];
+    ``screening_new_only_db``: after its new parameters alone) and ``refitted``."""
+    out: list[dict[str, Any]] = []
+    for step in diag.steps:
+        by_label = {r.label: (r, sc) for r, sc in zip(step.results, step.scores, strict=True)}
+        screened = sorted(step.screenings, key=lambda s: s.cost)
+        refitted = [s for s in screened if s.label in by_label]
+        refitted.sort(key=lambda s: step.results.index(by_label[s.label][0]))
+        for s in refitted + [s for s in screened if s.label not in by_label]:
+            entry: dict[str, Any] = {
+                "effect": s.effect, "location": s.location, "step": step.index + 1,
+                "screening_db": math.sqrt(s.cost) if math.isfinite(s.cost) else None,
+                "screening_new_only_db": math.sqrt(s.cost_new_only)
+                if math.isfinite(s.cost_new_only) else None,
+                "screening_wall_s": s.wall_s, "refitted": s.label in by_label,
+            }  # fmt: skip
+            if s.label in by_label:
+                entry.update(_refit_entry(*by_label[s.label], before))
+            else:
+                entry.update({"parameters": {}, "db_rms_after": None, "gap_closed": None,
+                              "heldout_db_rms_after": None, "score": None,
+                              "error": s.error or None})  # fmt: skip
+            out.append(entry)
+    return out
+
+
+def effect_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
+    """``effects`` of diagnosis.json (spec extension): the accepted effects in the order
+    added, each with its parameters and the gap after it (all effects up to it in the model)."""
+    out = []
+    for step in diag.steps:
+        w = step.winner
+        if w is None:
+            continue
+        vals, std = _new_params(w)
+        out.append({
+            "step": step.index + 1, "effect": w.effect, "location": w.location,
+            "detail": w.extra.get("variant"),
+            "parameters": {n: {"value": v, "std": std.get(n)} for n, v in vals.items()},
+            "db_rms_after": w.db_rms, "heldout_db_rms_after": w.heldout_db_rms,
+            "gap_closed": gap_closed(before, w.db_rms), "score": step.scores[0],
+            "score_before": step.base_score,
+        })  # fmt: skip
+    return out
+
+
+def _verdict(
+    diag: Diagnosis, reports: dict[str, GapReport], before: float, nominal: float
+) -> dict[str, Any]:
+    """``verdict`` of diagnosis.json: the first accepted effect, or ``none`` and why."""
     w = diag.winner
     if w is not None:
         vals, std = _new_params(w)
@@ -140,6 +180,24 @@ def to_json_dict(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, An
             f" {best:.3f} dB vs {diag.baseline_score:.3f} dB; needs ≥ {REL_MARGIN:.0%} and"
             f" ≥ {ABS_MARGIN_DB} dB lower)",
         }
+    return verdict
+
+
+def to_json_dict(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, Any]:
+    """The content of ``diagnosis.json`` (module docstring)."""
+    before = reports["refit"].db_rms
+    nominal = reports["nominal"].db_rms
+    cands = candidate_entries(diag, before)
+    gap = _gap_dict(reports["refit"], reports.get("refit_unweighted"))
+    gap["weighting"] = diag.weighting.get("weighting")
+    gap["modes"] = [
+        {k: row.get(k) for k in ("f_measured_hz", "f_model_hz", "status", "mac", "df_rel",
+                                 "zeta_measured", "zeta_model")}
+        for row in diag.modes if "status" in row
+    ]  # fmt: skip
+    gap["antiresonances"] = diag.antiresonances
+    w = diag.winner
+    verdict = _verdict(diag, reports, before, nominal)
     stages = {
         "nominal": _gap_dict(reports["nominal"], reports.get("nominal_unweighted")),
         "refit": _gap_dict(reports["refit"], reports.get("refit_unweighted")),
@@ -165,6 +223,7 @@ def to_json_dict(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, An
         "gap": gap,
         "candidates": cands,
         "verdict": verdict,
+        "effects": effect_entries(diag, before),
         "stages": stages,
         "refit": refit,
         "channels": diag.channels,
@@ -199,6 +258,9 @@ def write_outputs(
     written.append(write_text_atomic(out_dir / "refit.urdf", diag.baseline.urdf))
     if diag.winner is not None and diag.winner.urdf:
         written.append(write_text_atomic(out_dir / "augmented.urdf", diag.winner.urdf))
+    chain = [s.winner for s in diag.steps if s.winner is not None]
+    if len(chain) > 1 and chain[-1].urdf:  # every accepted effect built in
+        written.append(write_text_atomic(out_dir / "augmented_all.urdf", chain[-1].urdf))
     if plots:
         written += _plots(diag, reports, out_dir)
     return written
@@ -263,9 +325,14 @@ def summary(diag: Diagnosis, content: dict[str, Any]) -> str:
             + (", ".join(f"{m['f_model_hz']:.0f}" for m in spur) or "-")
             + " Hz"
         )
-    lines.append("candidates (held-out score, dB; lower is better):")
+    first = [c for c in content["candidates"] if c.get("step") == 1]
+    n_ref = sum(1 for c in first if c.get("refitted"))
+    lines.append(
+        f"candidates: {len(first)} screened, {n_ref} refitted (held-out score, dB; lower is"
+        " better):"
+    )
     lines.append(f"  {'parameter refit only':42s} {diag.baseline_score:8.3f}")
-    for c in content["candidates"][:5]:
+    for c in [c for c in first if c.get("refitted")][:5]:
         lab = f"{c['effect']}@{c['location']}" if c["location"] else c["effect"]
         sc = c["score"]
         lines.append(f"  {lab:42s} {sc if sc is not None else float('nan'):8.3f}")
@@ -278,5 +345,18 @@ def summary(diag: Diagnosis, content: dict[str, Any]) -> str:
             f"verdict: {v['effect']} at {v['location']} ({pars}); gap {g['db_rms']:.2f} ->"
             f" {st['effect']['db_rms']:.2f} dB, gap_closed {v['gap_closed']:.2f}"
         )
+    if content.get("effects"):
+        lines.append("effects: " + steps_line(g["db_rms"], content["effects"]))
     lines.append(f"time {diag.wall_s:.1f} s")
     return "\n".join(lines)
+
+
+def steps_line(refit_db: float, effects: Sequence[dict[str, Any]]) -> str:
+    """``parameters 7.80 → +joint compliance 3.10 → +actuator lag 1.90 dB`` (the weighted
+    gap after the parameter refit and after each accepted effect)."""
+    parts = [f"parameters {refit_db:.2f}"]
+    for e in effects:
+        name = str(e["effect"]).replace("_", " ")
+        at = f" at {e['location']}" if e.get("location") else ""
+        parts.append(f"+{name}{at} {e['db_rms_after']:.2f}")
+    return " → ".join(parts) + " dB"

@@ -1,0 +1,165 @@
+"""The search for missing effects, one step at a time (:func:`search`).
+
+A step starts from a *base* model — the parameter refit, then the model with the effects
+accepted so far — and
+
+1. screens every candidate not yet accepted (:func:`.screen.screen`: a cheap training-cost
+   figure each, in worker processes);
+2. refits the best :attr:`Context.n_refit` of them fully (:func:`.runner.run_job`: every
+   nominal, accepted and new parameter together, from the base and from the nominal model);
+3. scores them on held-out data (:mod:`.scoring`) and accepts the best only if it beats the
+   base's score clearly (the same rule at every step).
+
+The search stops at the first step that accepts nothing, or after
+:attr:`Context.max_effects` accepted effects. The first accepted effect is the verdict; the
+list of accepted effects, each with the gap after it, is ``effects`` in ``diagnosis.json``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from concurrent.futures import as_completed
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+from ..cost.problem import CostOptions
+from ..data.measurement import FrfData
+from ..model.document import UrdfDocument
+from . import scoring
+from .effects import Candidate
+from .runner import Job, JobResult, run_job
+from .screen import Screening, screen, select
+from .variables import Variable, nominal_variables
+
+
+@dataclass
+class Context:
+    """What every step of a search shares (data, options, the nominal model)."""
+
+    nominal: UrdfDocument
+    names: list[str]
+    train: list[FrfData]
+    heldout: list[FrfData]
+    full: list[FrfData]
+    options: CostOptions
+    candidates: list[Candidate]
+    hints_hz: tuple[float, ...] = ()
+    max_nfev: int = 30
+    n_starts: int = 3
+    #: candidates refitted fully at the first step and at the later ones
+    n_refit: tuple[int, int] = (4, 2)
+    max_effects: int = 3
+
+
+@dataclass
+class Step:
+    """One step of the search (module docstring).
+
+    Attributes:
+        index: 0 for the first step.
+        base: the model the step starts from (its refit result) and ``base_score`` its
+            held-out score.
+        screenings: every candidate's screening, in the order screened.
+        refitted: indices into ``screenings`` of the candidates refitted fully.
+        results, scores: the full refits, best score first.
+        winner: the accepted effect's refit, or None.
+    """
+
+    index: int
+    base: JobResult
+    base_score: float
+    screenings: list[Screening]
+    refitted: list[int]
+    results: list[JobResult] = field(default_factory=list)
+    scores: list[float] = field(default_factory=list)
+    winner: JobResult | None = None
+
+
+Progress = Callable[[str], None]
+
+
+def _job(
+    ctx: Context, base: JobResult, cand: Candidate | None, start: tuple[float, ...] = (),
+    alt: bool = True,
+) -> Job:  # fmt: skip
+    """A job on top of ``base`` (its model text, values and accepted effects); ``alt``: with
+    the nominal model as second origin."""
+    doc = UrdfDocument.from_string(base.urdf, source="refit model")
+    nom: list[Variable] = nominal_variables(doc, ctx.names, reference=ctx.nominal)
+    return Job(
+        base.urdf, nom, ctx.train, ctx.heldout, ctx.full, cand, ctx.options,
+        max_nfev_all=ctx.max_nfev, n_starts=ctx.n_starts,
+        alt_urdf=ctx.nominal.to_string() if alt else None,
+        alt_nominal=nominal_variables(ctx.nominal, ctx.names) if alt else None,
+        hints_hz=ctx.hints_hz,
+        accepted=base.chain, start_new=start,
+    )  # fmt: skip
+
+
+def _open(ctx: Context, base: JobResult) -> list[Candidate]:
+    """Candidates not yet accepted at their location (an effect is added once per place)."""
+    taken = {c.label for c in base.chain}
+    return [c for c in ctx.candidates if c.label not in taken]
+
+
+def _refit_candidate(s: Screening, cand: Candidate) -> Candidate:
+    """What a full refit tries: the variant the screening kept (the variants of a candidate
+    differ in a detail the refit does not vary, e.g. a pivot), else the candidate."""
+    return s.variant if s.variant is not None else cand
+
+
+def _step(
+    ctx: Context, pool: Any, index: int, base: JobResult, base_score: float, progress: Progress
+) -> Step:
+    cands = _open(ctx, base)
+    # later steps screen from their base alone: it is the first effect's refit, which the
+    # full refits also ran from the nominal model
+    futures = {pool.submit(screen, _job(ctx, base, c, alt=index == 0)): i
+               for i, c in enumerate(cands)}  # fmt: skip
+    screenings: list[Screening | None] = [None] * len(cands)
+    for f in as_completed(futures):
+        s = f.result()
+        screenings[futures[f]] = s
+        progress(f"step {index + 1} screened {s.label}")
+    done = [s for s in screenings if s is not None]
+    chosen = select(done, ctx.n_refit[0 if index == 0 else 1])
+    step = Step(index, base, base_score, done, chosen)
+    futs = {pool.submit(run_job, _job(ctx, base, _refit_candidate(done[i], cands[i]),
+                                      done[i].start)): i for i in chosen}  # fmt: skip
+    results = []
+    for f in as_completed(futs):
+        r = f.result()
+        if cands[futs[f]].variants and done[futs[f]].variant is not None:
+            r.extra["variant"] = done[futs[f]].variant.description  # type: ignore[union-attr]
+        results.append(r)
+        progress(f"step {index + 1} refitted {r.label}")
+    scores = [scoring.score(r.heldout_rms, r.n_train, r.n_new) for r in results]
+    order = scoring.rank(scores)
+    step.results = [results[i] for i in order]
+    step.scores = [scores[i] for i in order]
+    if step.results and scoring.clearly_better(step.scores[0], base_score):
+        step.winner = step.results[0]
+    return step
+
+
+def search(
+    ctx: Context, pool: Any, baseline: JobResult, progress: Progress | None = None
+) -> list[Step]:
+    """Steps of the search from the parameter refit ``baseline`` (module docstring); the
+    last step is the one that accepted nothing (unless ``max_effects`` were accepted)."""
+    say = progress or (lambda _label: None)
+    base = replace(baseline, chain=())
+    base_score = scoring.score(base.heldout_rms, base.n_train, 0)
+    steps: list[Step] = []
+    for index in range(ctx.max_effects):
+        step = _step(ctx, pool, index, base, base_score, say)
+        steps.append(step)
+        if step.winner is None or not _open(ctx, step.winner):
+            break
+        base, base_score = step.winner, step.scores[0]
+    return steps
+
+
+def accepted(steps: Sequence[Step]) -> list[JobResult]:
+    """The accepted effects' refits, in order."""
+    return [s.winner for s in steps if s.winner is not None]
