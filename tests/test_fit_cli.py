@@ -84,6 +84,13 @@ def _sha(path: Path) -> str:
 def case(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """The model file and two noise-free data files (two operating points) of the truth."""
     d = tmp_path_factory.mktemp("fitcase")
+    model, files = write_chain_case(d)
+    return {"dir": d, "model": model, "data0": files[0], "data1": files[1]}
+
+
+def write_chain_case(d: Path) -> tuple[Path, list[Path]]:
+    """Write the chain model (``MODEL_XML``) and two noise-free data files of its truth
+    (``TRUTH``, 40 frequencies 2–300 Hz, operating points a = 0 and 0.1) into ``d``."""
     model = d / "chain.urdf"
     model.write_text(MODEL_XML, encoding="utf-8")
     truth = UrdfDocument.from_string(MODEL_XML)
@@ -93,10 +100,9 @@ def case(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     files = []
     for i, op in enumerate(({}, {"a": 0.1})):
         H = build_affine_model(truth, op).linear_model().frf(f)
-        files.append(
-            write_csv(FrfData(f, ("a", "b"), ("a", "b"), H, operating_point=op), d / f"pose{i}.csv")
-        )
-    return {"dir": d, "model": model, "data0": files[0], "data1": files[1]}
+        ds = FrfData(f, ("a", "b"), ("a", "b"), H, operating_point=op)
+        files.append(write_csv(ds, d / f"pose{i}.csv"))
+    return model, files
 
 
 def _run(capsys: pytest.CaptureFixture[str], *args: object) -> tuple[int, str, str]:

@@ -24,7 +24,7 @@ from bondid.model import UrdfDocument, get_parameter, get_parameters, select_par
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from test_fit import synth
-from test_fit_cli import MODEL_XML, TRUTH, _run
+from test_fit_cli import MODEL_XML, TRUTH, _run, write_chain_case
 
 URDF = "urdf/bonder.urdf"
 MC_SAMPLES = 400_000
@@ -230,21 +230,7 @@ def test_default_command_fits_all_and_keeps_unseen_parameters(tmp_path: Path, ca
     model in one spring and damper only: it frees every inertial parameter too, recovers the
     joint's values, leaves the inertia (which these prismatic-x data cannot see) where the
     model has it, and its summary leads with the weighted db_rms."""
-    from bondid.data import FrfData, write_csv
-    from bondid.linear import build_affine_model
-    from bondid.model import set_parameter
-
-    model = tmp_path / "chain.urdf"
-    model.write_text(MODEL_XML, encoding="utf-8")
-    truth = UrdfDocument.from_string(MODEL_XML)
-    for n, v in TRUTH.items():
-        set_parameter(truth, n, v)
-    f = np.geomspace(2.0, 300.0, 40)
-    files = []
-    for i, op in enumerate(({}, {"a": 0.1})):
-        H = build_affine_model(truth, op).linear_model().frf(f)
-        ds = FrfData(f, ("a", "b"), ("a", "b"), H, operating_point=op)
-        files.append(write_csv(ds, tmp_path / f"pose{i}.csv"))
+    model, files = write_chain_case(tmp_path)
     out = tmp_path / "res"
     code, stdout, _ = _run(capsys, "--model", model, "--data", *files, "--out", out, "--quiet")
     assert code == 0, stdout

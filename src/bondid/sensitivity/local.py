@@ -32,8 +32,7 @@ from ..cost import CostOptions
 from ..data.measurement import FrfData
 from ..exceptions import ComputationError
 from ..model.document import UrdfDocument
-from ._common import KIND_GROUPS, Setup, kind_group, label_masks, make_setup
-from .bands import (
+from ..modes.bands import (
     BAND_CLASSES,
     Band,
     Feature,
@@ -42,6 +41,7 @@ from .bands import (
     classify_bands,
     model_features,
 )
+from ._common import KIND_GROUPS, Setup, kind_group, label_masks, make_setup
 
 
 @dataclass
