@@ -16,6 +16,7 @@ The residual map (:attr:`GapReport.residual_db`) is the signed magnitude error
 
 from __future__ import annotations
 
+import itertools
 import json
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -26,30 +27,35 @@ import numpy as np
 from ..cost.residuals import DB, residual
 from ..data.measurement import FrfData
 from ..exceptions import DataError
+from ..modes.bands import Feature, Span, automatic_bands
 
 WEIGHTINGS: tuple[str, ...] = ("none", "coherence")
+#: smallest relative half-width of a gap band around a feature
+GAP_BAND_HALFWIDTH = 0.15
+#: fewest frequencies a gap band may hold (so that it can be scored)
+GAP_BAND_MIN_POINTS = 3
 
 
-def automatic_bands(
+def gap_bands(
     freq_hz: np.ndarray,
-    resonances_hz: Sequence[float],
-    antiresonances_hz: Sequence[float],
+    features: Sequence[Feature],
     *,
-    width: float = 0.15,
-    min_points: int = 3,
-) -> list[tuple[float, float]]:
-    """Frequency bands around each resonance and anti-resonance, and the regions in between.
+    min_halfwidth: float = GAP_BAND_HALFWIDTH,
+    min_points: int = GAP_BAND_MIN_POINTS,
+) -> list[Span]:
+    """The ``by_band`` bands of the gap: :func:`bondid.modes.bands.automatic_bands` around
+    the ``features`` (measured resonances with their damping, anti-resonances) as plain spans.
 
-    Each feature at ``f`` gets the band ``[f·(1 − width), f·(1 + width)]`` (clipped to the
-    data range); overlapping bands are merged; the gaps between them become bands of their
-    own. A band holding fewer than ``min_points`` frequencies of ``freq_hz`` is merged into
-    its lower neighbour (the first one into its upper neighbour), so every band can be scored.
+    Each feature at ``f`` gets the window ``[f/(1+h), f·(1+h)]``, ``h = max(2ζ,
+    min_halfwidth, 1.5 grid steps)``; overlapping windows merge, the gaps between them are
+    bands of their own, and a band holding fewer than ``min_points`` frequencies is merged
+    into a neighbour, so every band can be scored.
 
     Args:
         freq_hz: measured frequencies ``(n_freq,)`` [Hz], increasing.
-        resonances_hz: resonance frequencies [Hz] (those outside the data range are ignored).
-        antiresonances_hz: anti-resonance frequencies [Hz].
-        width: half-width of a feature band, relative to its frequency (0 < width < 1).
+        features: :class:`~bondid.modes.bands.Feature` list (those outside the data range
+            are ignored).
+        min_halfwidth: smallest relative half-width ``h`` of a feature window.
         min_points: fewest frequencies a band may hold.
 
     Returns:
@@ -57,52 +63,15 @@ def automatic_bands(
         ``freq_hz[0]`` to ``freq_hz[-1]``.
 
     Raises:
-        DataError: empty or non-increasing ``freq_hz``, or ``width`` outside (0, 1).
+        DataError: empty or non-increasing ``freq_hz``.
     """
     f = np.asarray(freq_hz, dtype=float)
     if f.ndim != 1 or f.size == 0 or np.any(np.diff(f) <= 0):
-        raise DataError("automatic_bands: freq_hz must be 1-D, non-empty and increasing (Hz)")
-    if not 0.0 < width < 1.0:
-        raise DataError(f"automatic_bands: width {width!r} must be in (0, 1)")
-    lo, hi = float(f[0]), float(f[-1])
-    if f.size == 1:
-        return [(lo, hi)]
-    feats = sorted(
-        float(x) for x in [*resonances_hz, *antiresonances_hz] if np.isfinite(x) and x > 0
-    )
-    merged: list[list[float]] = []
-    for x in feats:
-        a, b = max(x * (1.0 - width), lo), min(x * (1.0 + width), hi)
-        if a >= b:
-            continue
-        if merged and a <= merged[-1][1]:
-            merged[-1][1] = max(merged[-1][1], b)
-        else:
-            merged.append([a, b])
-    edges = [lo]
-    for a, b in merged:
-        edges.extend([a, b])
-    edges.append(hi)
-    edges = sorted(set(edges))  # drops zero-width pieces at the range ends
-    bands = [[edges[k], edges[k + 1]] for k in range(len(edges) - 1)]
-
-    def count(band: list[float], last: bool) -> int:
-        right = f <= band[1] if last else f < band[1]
-        return int(np.count_nonzero((f >= band[0]) & right))
-
-    k = 0
-    while len(bands) > 1 and k < len(bands):
-        if count(bands[k], k == len(bands) - 1) >= min_points:
-            k += 1
-            continue
-        if k == 0:
-            bands[1][0] = bands[0][0]
-            del bands[0]
-        else:
-            bands[k - 1][1] = bands[k][1]
-            del bands[k]
-            k -= 1
-    return [(float(a), float(b)) for a, b in bands]
+        raise DataError("gap_bands: freq_hz must be 1-D, non-empty and increasing (Hz)")
+    bands = automatic_bands(features, f, min_halfwidth=min_halfwidth, min_points=min_points)
+    # tile the range: a band left out for holding no frequency leaves no hole
+    edges = [float(f[0]), *(b.f_hi_hz for b in bands[:-1]), float(f[-1])]
+    return list(itertools.pairwise(edges))
 
 
 def band_mask(freq_hz: np.ndarray, band: tuple[float, float], last: bool) -> np.ndarray:
@@ -184,7 +153,7 @@ def gap_report(
         data: one measured data set or several (e.g. several operating points).
         model_H: the model FRF of each data set, ``(n_out, n_in, n_freq)`` complex, aligned
             with that data set's ``outputs``, ``inputs`` and ``freq_hz`` and in its quantity.
-        bands: ``[(f_lo, f_hi), ...]`` [Hz] for ``by_band`` (e.g. :func:`automatic_bands`);
+        bands: ``[(f_lo, f_hi), ...]`` [Hz] for ``by_band`` (e.g. :func:`gap_bands`);
             default one band over the whole range.
         channels: ``OUT.IN`` names to use (default every channel present in the data).
         weighting: ``"none"`` (the spec's figure) or ``"coherence"``.
@@ -288,4 +257,4 @@ def gap_report(
     )
 
 
-__all__ = ["DB", "WEIGHTINGS", "GapReport", "automatic_bands", "band_mask", "gap_report"]
+__all__ = ["DB", "WEIGHTINGS", "GapReport", "band_mask", "gap_bands", "gap_report"]

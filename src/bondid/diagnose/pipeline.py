@@ -334,13 +334,14 @@ def _where(
 ) -> tuple[list[dict[str, Any]], list[list[dict[str, Any]]], list[dict[str, Any]], list]:
     """Modes (measured vs refitted model), anti-resonance shifts and automatic bands."""
     from ..linear.affine import build_affine_model
+    from ..modes.bands import Feature
     from .antiresonance import antiresonance_shifts
-    from .gap import automatic_bands
+    from .gap import gap_bands
 
     refit_doc = UrdfDocument.from_string(baseline.urdf, source="refit model")
     by_ds: list[list[dict[str, Any]]] = []
     anti: list[dict[str, Any]] = []
-    res_f: list[float] = []
+    feats: list[Feature] = []
     for k, (d, H) in enumerate(zip(full, baseline.full_H, strict=True)):
         rows: list[dict[str, Any]] = []
         error: dict[str, Any] | None = None
@@ -362,11 +363,15 @@ def _where(
             if error is not None:  # kept: the pairing must not hide why no mode was measured
                 rows.insert(0, error)
             if k == 0:
-                res_f = [float(m.f_hz) for m in meas]
+                feats = [Feature(float(m.f_hz), float(m.zeta), "resonance") for m in meas]
         by_ds.append(rows)
         for row in antiresonance_shifts(d, H, channels=channels):
             anti.append({"dataset": k, **row})
-    a_f = [float(r["f_measured_hz"]) for r in anti if r["dataset"] == 0 and r["f_measured_hz"]]
-    bands = automatic_bands(full[0].freq_hz, res_f, a_f)
+    feats += [
+        Feature(float(r["f_measured_hz"]), 0.0, "anti-resonance", r.get("channel"))
+        for r in anti
+        if r["dataset"] == 0 and r["f_measured_hz"]
+    ]
+    bands = gap_bands(full[0].freq_hz, feats)
     modes = by_ds[0] if by_ds else []
     return modes, by_ds, anti, bands
