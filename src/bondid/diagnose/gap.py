@@ -164,79 +164,133 @@ def gap_report(
     Raises:
         DataError: model and data shapes differ, unknown weighting, or no usable point.
     """
-    sets = [data] if isinstance(data, FrfData) else list(data)
-    models = [model_H] if isinstance(model_H, np.ndarray) and model_H.ndim == 3 else model_H
-    models = [np.asarray(m, dtype=complex) for m in models]
-    if not sets or len(models) != len(sets):
-        raise DataError(f"gap_report: {len(sets)} data set(s) but {len(models)} model FRF array(s)")
+    sets, models = _paired(data, model_H)
     if weighting not in WEIGHTINGS:
         raise DataError(f"gap_report: unknown weighting {weighting!r}; valid: none, coherence")
     f_map = sets[0].freq_hz
     if bands is None:
-        lo = min(float(d.freq_hz[0]) for d in sets)
-        hi = max(float(d.freq_hz[-1]) for d in sets)
-        bands = [(lo, hi)]
-    bands = [(float(a), float(b)) for a, b in bands]
-    names_all: list[str] = []
-    for d in sets:
-        names_all += [c for c in d.channels if c not in names_all]
-    use = list(channels) if channels is not None else names_all
+        bands = [(min(float(d.freq_hz[0]) for d in sets), max(float(d.freq_hz[-1]) for d in sets))]
+    bands = [(float(lo), float(hi)) for lo, hi in bands]
+    use = list(channels) if channels is not None else _all_channels(sets)
 
-    sq_all, w_all, mag_all = [], [], []
-    per_channel: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {c: [] for c in use}
-    per_band: list[list[tuple[np.ndarray, np.ndarray]]] = [[] for _ in bands]
+    points: list[_Points] = []
+    per_channel: dict[str, list[_Points]] = {c: [] for c in use}
     rows, labels = [], []
     for k, (d, Hs) in enumerate(zip(sets, models, strict=True)):
-        where = d.source or f"data set {k + 1}"
+        for c in use:
+            pts = _channel_points(d, Hs, c, weighting)
+            if pts is None:
+                continue
+            points.append(pts)
+            per_channel[c].append(pts)
+            rows.append(_on_grid(pts.mag, d.freq_hz, f_map))
+            labels.append(c if len(sets) == 1 else f"{c} #{k + 1}")
+    if not points or float(np.sum(np.concatenate([p.w for p in points]))) == 0.0:
+        raise DataError("gap_report: no channel has a usable (finite, non-zero) point")
+    w_cat = np.concatenate([p.w for p in points])
+    return GapReport(
+        db_rms=_pooled_rms(points),
+        by_channel={c: _pooled_rms(v) for c, v in per_channel.items() if v},
+        by_band=_band_table(points, bands),
+        residual_db=np.vstack(rows),
+        channels=labels,
+        freq_hz=f_map.copy(),
+        mag_db_rms=_rms(np.concatenate([p.mag_sq for p in points]), w_cat),
+        n_points=int(np.count_nonzero(w_cat)),
+        weighting=weighting,
+    )
+
+
+@dataclass
+class _Points:
+    """The gap's points of one channel of one data set, each ``(n_freq,)``: squared complex-log
+    error ``sq`` and squared magnitude error ``mag_sq`` [dB²] (0 where unused), weight ``w``
+    (0 where unused), signed magnitude error ``mag`` [dB] (NaN where unused), at ``freq_hz``."""
+
+    sq: np.ndarray
+    w: np.ndarray
+    mag_sq: np.ndarray
+    mag: np.ndarray
+    freq_hz: np.ndarray
+
+
+def _paired(
+    data: FrfData | Sequence[FrfData], model_H: np.ndarray | Sequence[np.ndarray]
+) -> tuple[list[FrfData], list[np.ndarray]]:
+    """The data sets and their model FRFs as two lists of one length, each model FRF of its
+    data set's shape (DataError otherwise)."""
+    sets = [data] if isinstance(data, FrfData) else list(data)
+    models = [model_H] if isinstance(model_H, np.ndarray) and model_H.ndim == 3 else model_H
+    arrays = [np.asarray(m, dtype=complex) for m in models]
+    if not sets or len(arrays) != len(sets):
+        raise DataError(f"gap_report: {len(sets)} data set(s) but {len(arrays)} model FRF array(s)")
+    for k, (d, Hs) in enumerate(zip(sets, arrays, strict=True)):
         if Hs.shape != d.H.shape:
             raise DataError(
-                f"gap_report: {where}: model FRF has shape {Hs.shape}, expected {d.H.shape}"
+                f"gap_report: {d.source or f'data set {k + 1}'}: model FRF has shape "
+                f"{Hs.shape}, expected {d.H.shape}"
             )
-        for c in use:
-            out, _, inp = c.rpartition(".")
-            if out not in d.outputs or inp not in d.inputs:
-                continue
-            a, b = d.outputs.index(out), d.inputs.index(inp)
-            hm, hs = d.H[a, b], Hs[a, b]
-            ok = np.isfinite(hm) & np.isfinite(hs) & (hm != 0) & (hs != 0)
-            r = np.full((2, hm.size), np.nan)
-            if np.any(ok):
-                r[:, ok] = residual("complex_log", hs[ok], hm[ok])
-            sq = np.where(ok, r[0] ** 2 + r[1] ** 2, 0.0)
-            w = ok.astype(float)
-            if weighting == "coherence" and d.coherence is not None:
-                coh = d.coherence[a, b]
-                w = w * np.where(np.isfinite(coh), np.clip(coh, 0.0, 1.0), 1.0)
-            sq_all.append(sq)
-            w_all.append(w)
-            mag_all.append(np.where(ok, r[0] ** 2, 0.0))
-            per_channel[c].append((sq, w))
-            for j, band in enumerate(bands):
-                m = band_mask(d.freq_hz, band, j == len(bands) - 1)
-                per_band[j].append((sq[m], w[m]))
-            mag = np.where(ok, r[0], np.nan)  # r[0] = DB·ln|Hs/Hm|: model above data > 0
-            if d.freq_hz.shape != f_map.shape or not np.allclose(d.freq_hz, f_map):
-                good = np.isfinite(mag)
-                mag = (
-                    np.interp(np.log(f_map), np.log(d.freq_hz[good]), mag[good])
-                    if np.count_nonzero(good) > 1
-                    else np.full(f_map.shape, np.nan)
-                )
-            rows.append(mag)
-            labels.append(c if len(sets) == 1 else f"{c} #{k + 1}")
-    if not sq_all or float(np.sum(np.concatenate(w_all))) == 0.0:
-        raise DataError("gap_report: no channel has a usable (finite, non-zero) point")
-    sq_cat, w_cat = np.concatenate(sq_all), np.concatenate(w_all)
-    by_channel = {
-        c: _rms(np.concatenate([s for s, _ in v]), np.concatenate([w for _, w in v]))
-        for c, v in per_channel.items()
-        if v
-    }
-    by_band = []
-    for band, parts in zip(bands, per_band, strict=True):
-        s = np.concatenate([p for p, _ in parts]) if parts else np.zeros(0)
-        w = np.concatenate([q for _, q in parts]) if parts else np.zeros(0)
-        by_band.append(
+    return sets, arrays
+
+
+def _all_channels(sets: Sequence[FrfData]) -> list[str]:
+    """Every channel present in any of ``sets``, in order of first appearance."""
+    names: list[str] = []
+    for d in sets:
+        names += [c for c in d.channels if c not in names]
+    return names
+
+
+def _channel_points(d: FrfData, Hs: np.ndarray, channel: str, weighting: str) -> _Points | None:
+    """The points of ``channel`` (``OUT.IN``) in data set ``d`` against the model FRF ``Hs``
+    (None when ``d`` lacks the channel). A point is used when both values are finite and
+    non-zero; with ``weighting="coherence"`` its weight is the measured coherence."""
+    out, _, inp = channel.rpartition(".")
+    if out not in d.outputs or inp not in d.inputs:
+        return None
+    a, b = d.outputs.index(out), d.inputs.index(inp)
+    hm, hs = d.H[a, b], Hs[a, b]
+    ok = np.isfinite(hm) & np.isfinite(hs) & (hm != 0) & (hs != 0)
+    r = np.full((2, hm.size), np.nan)
+    if np.any(ok):
+        r[:, ok] = residual("complex_log", hs[ok], hm[ok])
+    w = ok.astype(float)
+    if weighting == "coherence" and d.coherence is not None:
+        coh = d.coherence[a, b]
+        w = w * np.where(np.isfinite(coh), np.clip(coh, 0.0, 1.0), 1.0)
+    return _Points(
+        sq=np.where(ok, r[0] ** 2 + r[1] ** 2, 0.0),
+        w=w,
+        mag_sq=np.where(ok, r[0] ** 2, 0.0),
+        mag=np.where(ok, r[0], np.nan),  # r[0] = DB·ln|Hs/Hm|: model above data > 0
+        freq_hz=d.freq_hz,
+    )
+
+
+def _on_grid(mag: np.ndarray, freq_hz: np.ndarray, f_map: np.ndarray) -> np.ndarray:
+    """``mag`` (at ``freq_hz``) on the map's grid ``f_map``: as is when the grids agree, else
+    interpolated in log-frequency over its finite points (all NaN with fewer than two)."""
+    if freq_hz.shape == f_map.shape and np.allclose(freq_hz, f_map):
+        return mag
+    good = np.isfinite(mag)
+    if np.count_nonzero(good) < 2:
+        return np.full(f_map.shape, np.nan)
+    return np.interp(np.log(f_map), np.log(freq_hz[good]), mag[good])
+
+
+def _pooled_rms(points: Sequence[_Points]) -> float:
+    """Weighted RMS of the complex-log error over every point of ``points``."""
+    return _rms(np.concatenate([p.sq for p in points]), np.concatenate([p.w for p in points]))
+
+
+def _band_table(points: Sequence[_Points], bands: Sequence[Span]) -> list[dict[str, float]]:
+    """``by_band`` rows: per band (half-open, the last closed) its RMS and used points."""
+    table = []
+    for j, band in enumerate(bands):
+        masks = [band_mask(p.freq_hz, band, j == len(bands) - 1) for p in points]
+        s = np.concatenate([p.sq[m] for p, m in zip(points, masks, strict=True)])
+        w = np.concatenate([p.w[m] for p, m in zip(points, masks, strict=True)])
+        table.append(
             {
                 "f_lo_hz": band[0],
                 "f_hi_hz": band[1],
@@ -244,17 +298,7 @@ def gap_report(
                 "n_points": int(np.count_nonzero(w)),
             }
         )
-    return GapReport(
-        db_rms=_rms(sq_cat, w_cat),
-        by_channel=by_channel,
-        by_band=by_band,
-        residual_db=np.vstack(rows),
-        channels=labels,
-        freq_hz=f_map.copy(),
-        mag_db_rms=_rms(np.concatenate(mag_all), w_cat),
-        n_points=int(np.count_nonzero(w_cat)),
-        weighting=weighting,
-    )
+    return table
 
 
 __all__ = ["DB", "WEIGHTINGS", "GapReport", "band_mask", "gap_bands", "gap_report"]
