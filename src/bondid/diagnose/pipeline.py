@@ -346,7 +346,8 @@ def _where(
         rows: list[dict[str, Any]] = []
         error: dict[str, Any] | None = None
         if do_modes:
-            from .modal_id import identify_modes, model_modes, pair_modes
+            from .modal_id import identify_modes, model_modes
+            from .pairing import pair_modes
 
             try:
                 meas = identify_modes(d)
