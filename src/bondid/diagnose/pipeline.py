@@ -264,25 +264,10 @@ def diagnose(
     s = settings or Settings()
     p = prepare_data(doc, datasets, s)
     pool = WorkerPool(max(1, s.workers))
-    count = [0]
-
-    def say(label: str) -> None:
-        count[0] += 1
-        if progress:
-            progress(count[0], count[0] + 1, label)
-
+    say = _announcer(progress)
     try:
-        fut = pool.submit(
-            _baseline_task, doc.to_string(), p.names, p.train, p.held, p.full, p.options,
-            s.use_ipopt, s.ipopt_iter, s.max_nfev,
-        )  # fmt: skip
-        baseline, fit_info = fut.result()
-        if baseline.error:
-            from ..exceptions import ComputationError
-
-            raise ComputationError(f"the parameter refit failed: {baseline.error}")
+        baseline, fit_info = _refit_baseline(pool, doc, p, s)
         say("parameter refit")
-        baseline.extra.pop("nominal_variables")
         modes, by_ds, anti, bands = _where(doc, p.full, baseline, p.channels, s.modes)
         ctx = Context(
             doc, p.names, p.train, p.held, p.full, p.options, p.candidates,
@@ -305,6 +290,40 @@ def diagnose(
         split_info=p.split_info, wall_s=time.perf_counter() - t0, weighting=p.weighting,
         steps=steps,
     )  # fmt: skip
+
+
+def _announcer(progress: Callable[[int, int, str], None] | None) -> Callable[[str], None]:
+    """``say(label)``: counts the finished steps and reports ``progress(done, done + 1,
+    label)`` (nothing without ``progress``)."""
+    count = [0]
+
+    def say(label: str) -> None:
+        count[0] += 1
+        if progress:
+            progress(count[0], count[0] + 1, label)
+
+    return say
+
+
+def _refit_baseline(
+    pool: WorkerPool, doc: UrdfDocument, p: Prepared, s: Settings
+) -> tuple[JobResult, dict[str, Any]]:
+    """Step 2 of the module docstring in a worker: the parameter refit and its info.
+
+    Raises:
+        ComputationError: the refit failed.
+    """
+    fut = pool.submit(
+        _baseline_task, doc.to_string(), p.names, p.train, p.held, p.full, p.options,
+        s.use_ipopt, s.ipopt_iter, s.max_nfev,
+    )  # fmt: skip
+    baseline, fit_info = fut.result()
+    if baseline.error:
+        from ..exceptions import ComputationError
+
+        raise ComputationError(f"the parameter refit failed: {baseline.error}")
+    baseline.extra.pop("nominal_variables")
+    return baseline, fit_info
 
 
 def missing_mode_hints(
