@@ -10,7 +10,7 @@ import pytest
 
 from bondid.cost import db_rms
 from bondid.data import FrfData
-from bondid.diagnose.gap import automatic_bands, band_mask, gap_report
+from bondid.diagnose.gap import band_mask, gap_bands, gap_report
 from bondid.diagnose.modal_id import (
     antiresonance_shifts,
     antiresonances,
@@ -18,9 +18,17 @@ from bondid.diagnose.modal_id import (
     model_modes,
     pair_modes,
 )
+from bondid.modes.bands import Feature
 
 ROOT = Path(__file__).resolve().parents[1]
 NAMES = ("a", "b", "c")
+
+
+def features(res: list[float], anti: list[float]) -> list[Feature]:
+    """Undamped resonances and anti-resonances at the given frequencies [Hz]."""
+    return [Feature(f, 0.0, "resonance") for f in res] + [
+        Feature(f, 0.0, "anti-resonance") for f in anti
+    ]
 
 
 def three_dof() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -187,7 +195,7 @@ def test_gap_report_matches_direct_db_rms(bonder) -> None:
     Hm = noisy(data.H, 0.05, 2)
     meas = FrfData(data.freq_hz, data.outputs, data.inputs, Hm)
     Hs = lm.frf(data.freq_hz)
-    bands = automatic_bands(data.freq_hz, [12.5, 416.0, 558.0], [300.0])
+    bands = gap_bands(data.freq_hz, features([12.5, 416.0, 558.0], [300.0]))
     rep = gap_report(meas, Hs, bands)
     assert rep.db_rms == pytest.approx(db_rms(Hs, Hm), rel=1e-12)
     direct = 20 / np.log(10) * np.abs(np.log(Hm[0, 1] / Hs[0, 1]))
@@ -204,10 +212,10 @@ def test_gap_report_matches_direct_db_rms(bonder) -> None:
     assert gap_report(meas, Hm).db_rms == pytest.approx(0.0, abs=1e-12)
 
 
-def test_automatic_bands_cover_range() -> None:
+def test_gap_bands_cover_range() -> None:
     f = np.geomspace(1.0, 4000.0, 2000)
     res, anti = [12.5, 416.0, 558.0, 591.0, 2066.0, 3990.0], [300.0, 550.0]
-    bands = automatic_bands(f, res, anti, width=0.15)
+    bands = gap_bands(f, features(res, anti))
     assert bands[0][0] == f[0] and bands[-1][1] == f[-1]
     assert all(b[1] == n[0] for b, n in itertools.pairwise(bands))
     assert all(b[0] < b[1] for b in bands)
@@ -217,4 +225,4 @@ def test_automatic_bands_cover_range() -> None:
     assert counts == f.size  # every frequency in exactly one band
     for x in [*res, *anti]:
         assert any(b[0] <= x * 0.9 and x * 1.1 <= b[1] for b in bands) or x > 3400
-    assert automatic_bands(f, [], []) == [(1.0, 4000.0)]
+    assert gap_bands(f, []) == [(1.0, 4000.0)]

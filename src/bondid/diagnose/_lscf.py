@@ -127,17 +127,7 @@ def stable_clusters(
         lam = ps.lam[physical(ps.lam, f_lo, f_hi, zeta_max)]
         f = np.abs(lam) / (2 * np.pi)
         z = -lam.real / np.abs(lam)
-        links: dict[int, tuple[float, int]] = {}  # track -> (distance, pole index)
-        for k in range(f.size):
-            best, best_d = None, np.inf
-            for t, (fp, zp) in open_.items():
-                df, dz = abs(f[k] - fp) / f[k], abs(z[k] - zp) / z[k]
-                if df < tol_f and dz < tol_zeta:
-                    dist = df / tol_f + dz / tol_zeta
-                    if dist < best_d:
-                        best, best_d = t, dist
-            if best is not None and (best not in links or best_d < links[best][0]):
-                links[best] = (best_d, k)
+        links = _links(open_, f, z, tol_f, tol_zeta)
         nxt: dict[int, tuple[float, float]] = {}
         linked = {k for _, k in links.values()}
         for t, (_, k) in links.items():
@@ -148,17 +138,42 @@ def stable_clusters(
                 tracks.append([(float(f[k]), float(z[k]))])
                 nxt[len(tracks) - 1] = (float(f[k]), float(z[k]))
         open_ = nxt
-    result = []
-    for tr in tracks:
-        if len(tr) < min_count:
-            continue
-        tail = tr[len(tr) // 2 :]
-        fm = float(np.median([p[0] for p in tail]))
-        zm = float(np.median([p[1] for p in tail]))
-        w = 2 * np.pi * fm
-        result.append((complex(-zm * w, w * np.sqrt(1.0 - zm * zm)), len(tr)))
+    result = [(_settled_pole(tr), len(tr)) for tr in tracks if len(tr) >= min_count]
     result.sort(key=lambda c: abs(c[0]))
     return result
+
+
+def _links(
+    open_: dict[int, tuple[float, float]],
+    f: np.ndarray,
+    z: np.ndarray,
+    tol_f: float,
+    tol_zeta: float,
+) -> dict[int, tuple[float, int]]:
+    """Which poles (``f`` [Hz], ``z`` damping ratios) continue which open tracks (``open_``:
+    track → its last ``(f, ζ)``): ``{track: (distance, pole index)}``, each pole linked to the
+    nearest track within the tolerances, each track keeping its nearest pole."""
+    links: dict[int, tuple[float, int]] = {}
+    for k in range(f.size):
+        best, best_d = None, np.inf
+        for t, (fp, zp) in open_.items():
+            df, dz = abs(f[k] - fp) / f[k], abs(z[k] - zp) / z[k]
+            if df < tol_f and dz < tol_zeta:
+                dist = df / tol_f + dz / tol_zeta
+                if dist < best_d:
+                    best, best_d = t, dist
+        if best is not None and (best not in links or best_d < links[best][0]):
+            links[best] = (best_d, k)
+    return links
+
+
+def _settled_pole(track: list[tuple[float, float]]) -> complex:
+    """λ of a track of ``(f, ζ)``: the median frequency and damping over its last half."""
+    tail = track[len(track) // 2 :]
+    fm = float(np.median([p[0] for p in tail]))
+    zm = float(np.median([p[1] for p in tail]))
+    w = 2 * np.pi * fm
+    return complex(-zm * w, w * np.sqrt(1.0 - zm * zm))
 
 
 def lsfd(

@@ -16,6 +16,7 @@ The residual map (:attr:`GapReport.residual_db`) is the signed magnitude error
 
 from __future__ import annotations
 
+import itertools
 import json
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -26,30 +27,35 @@ import numpy as np
 from ..cost.residuals import DB, residual
 from ..data.measurement import FrfData
 from ..exceptions import DataError
+from ..modes.bands import Feature, Span, automatic_bands
 
 WEIGHTINGS: tuple[str, ...] = ("none", "coherence")
+#: smallest relative half-width of a gap band around a feature
+GAP_BAND_HALFWIDTH = 0.15
+#: fewest frequencies a gap band may hold (so that it can be scored)
+GAP_BAND_MIN_POINTS = 3
 
 
-def automatic_bands(
+def gap_bands(
     freq_hz: np.ndarray,
-    resonances_hz: Sequence[float],
-    antiresonances_hz: Sequence[float],
+    features: Sequence[Feature],
     *,
-    width: float = 0.15,
-    min_points: int = 3,
-) -> list[tuple[float, float]]:
-    """Frequency bands around each resonance and anti-resonance, and the regions in between.
+    min_halfwidth: float = GAP_BAND_HALFWIDTH,
+    min_points: int = GAP_BAND_MIN_POINTS,
+) -> list[Span]:
+    """The ``by_band`` bands of the gap: :func:`bondid.modes.bands.automatic_bands` around
+    the ``features`` (measured resonances with their damping, anti-resonances) as plain spans.
 
-    Each feature at ``f`` gets the band ``[f·(1 − width), f·(1 + width)]`` (clipped to the
-    data range); overlapping bands are merged; the gaps between them become bands of their
-    own. A band holding fewer than ``min_points`` frequencies of ``freq_hz`` is merged into
-    its lower neighbour (the first one into its upper neighbour), so every band can be scored.
+    Each feature at ``f`` gets the window ``[f/(1+h), f·(1+h)]``, ``h = max(2ζ,
+    min_halfwidth, 1.5 grid steps)``; overlapping windows merge, the gaps between them are
+    bands of their own, and a band holding fewer than ``min_points`` frequencies is merged
+    into a neighbour, so every band can be scored.
 
     Args:
         freq_hz: measured frequencies ``(n_freq,)`` [Hz], increasing.
-        resonances_hz: resonance frequencies [Hz] (those outside the data range are ignored).
-        antiresonances_hz: anti-resonance frequencies [Hz].
-        width: half-width of a feature band, relative to its frequency (0 < width < 1).
+        features: :class:`~bondid.modes.bands.Feature` list (those outside the data range
+            are ignored).
+        min_halfwidth: smallest relative half-width ``h`` of a feature window.
         min_points: fewest frequencies a band may hold.
 
     Returns:
@@ -57,52 +63,15 @@ def automatic_bands(
         ``freq_hz[0]`` to ``freq_hz[-1]``.
 
     Raises:
-        DataError: empty or non-increasing ``freq_hz``, or ``width`` outside (0, 1).
+        DataError: empty or non-increasing ``freq_hz``.
     """
     f = np.asarray(freq_hz, dtype=float)
     if f.ndim != 1 or f.size == 0 or np.any(np.diff(f) <= 0):
-        raise DataError("automatic_bands: freq_hz must be 1-D, non-empty and increasing (Hz)")
-    if not 0.0 < width < 1.0:
-        raise DataError(f"automatic_bands: width {width!r} must be in (0, 1)")
-    lo, hi = float(f[0]), float(f[-1])
-    if f.size == 1:
-        return [(lo, hi)]
-    feats = sorted(
-        float(x) for x in [*resonances_hz, *antiresonances_hz] if np.isfinite(x) and x > 0
-    )
-    merged: list[list[float]] = []
-    for x in feats:
-        a, b = max(x * (1.0 - width), lo), min(x * (1.0 + width), hi)
-        if a >= b:
-            continue
-        if merged and a <= merged[-1][1]:
-            merged[-1][1] = max(merged[-1][1], b)
-        else:
-            merged.append([a, b])
-    edges = [lo]
-    for a, b in merged:
-        edges.extend([a, b])
-    edges.append(hi)
-    edges = sorted(set(edges))  # drops zero-width pieces at the range ends
-    bands = [[edges[k], edges[k + 1]] for k in range(len(edges) - 1)]
-
-    def count(band: list[float], last: bool) -> int:
-        right = f <= band[1] if last else f < band[1]
-        return int(np.count_nonzero((f >= band[0]) & right))
-
-    k = 0
-    while len(bands) > 1 and k < len(bands):
-        if count(bands[k], k == len(bands) - 1) >= min_points:
-            k += 1
-            continue
-        if k == 0:
-            bands[1][0] = bands[0][0]
-            del bands[0]
-        else:
-            bands[k - 1][1] = bands[k][1]
-            del bands[k]
-            k -= 1
-    return [(float(a), float(b)) for a, b in bands]
+        raise DataError("gap_bands: freq_hz must be 1-D, non-empty and increasing (Hz)")
+    bands = automatic_bands(features, f, min_halfwidth=min_halfwidth, min_points=min_points)
+    # tile the range: a band left out for holding no frequency leaves no hole
+    edges = [float(f[0]), *(b.f_hi_hz for b in bands[:-1]), float(f[-1])]
+    return list(itertools.pairwise(edges))
 
 
 def band_mask(freq_hz: np.ndarray, band: tuple[float, float], last: bool) -> np.ndarray:
@@ -184,7 +153,7 @@ def gap_report(
         data: one measured data set or several (e.g. several operating points).
         model_H: the model FRF of each data set, ``(n_out, n_in, n_freq)`` complex, aligned
             with that data set's ``outputs``, ``inputs`` and ``freq_hz`` and in its quantity.
-        bands: ``[(f_lo, f_hi), ...]`` [Hz] for ``by_band`` (e.g. :func:`automatic_bands`);
+        bands: ``[(f_lo, f_hi), ...]`` [Hz] for ``by_band`` (e.g. :func:`gap_bands`);
             default one band over the whole range.
         channels: ``OUT.IN`` names to use (default every channel present in the data).
         weighting: ``"none"`` (the spec's figure) or ``"coherence"``.
@@ -195,79 +164,133 @@ def gap_report(
     Raises:
         DataError: model and data shapes differ, unknown weighting, or no usable point.
     """
-    sets = [data] if isinstance(data, FrfData) else list(data)
-    models = [model_H] if isinstance(model_H, np.ndarray) and model_H.ndim == 3 else model_H
-    models = [np.asarray(m, dtype=complex) for m in models]
-    if not sets or len(models) != len(sets):
-        raise DataError(f"gap_report: {len(sets)} data set(s) but {len(models)} model FRF array(s)")
+    sets, models = _paired(data, model_H)
     if weighting not in WEIGHTINGS:
         raise DataError(f"gap_report: unknown weighting {weighting!r}; valid: none, coherence")
     f_map = sets[0].freq_hz
     if bands is None:
-        lo = min(float(d.freq_hz[0]) for d in sets)
-        hi = max(float(d.freq_hz[-1]) for d in sets)
-        bands = [(lo, hi)]
-    bands = [(float(a), float(b)) for a, b in bands]
-    names_all: list[str] = []
-    for d in sets:
-        names_all += [c for c in d.channels if c not in names_all]
-    use = list(channels) if channels is not None else names_all
+        bands = [(min(float(d.freq_hz[0]) for d in sets), max(float(d.freq_hz[-1]) for d in sets))]
+    bands = [(float(lo), float(hi)) for lo, hi in bands]
+    use = list(channels) if channels is not None else _all_channels(sets)
 
-    sq_all, w_all, mag_all = [], [], []
-    per_channel: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {c: [] for c in use}
-    per_band: list[list[tuple[np.ndarray, np.ndarray]]] = [[] for _ in bands]
+    points: list[_Points] = []
+    per_channel: dict[str, list[_Points]] = {c: [] for c in use}
     rows, labels = [], []
     for k, (d, Hs) in enumerate(zip(sets, models, strict=True)):
-        where = d.source or f"data set {k + 1}"
+        for c in use:
+            pts = _channel_points(d, Hs, c, weighting)
+            if pts is None:
+                continue
+            points.append(pts)
+            per_channel[c].append(pts)
+            rows.append(_on_grid(pts.mag, d.freq_hz, f_map))
+            labels.append(c if len(sets) == 1 else f"{c} #{k + 1}")
+    if not points or float(np.sum(np.concatenate([p.w for p in points]))) == 0.0:
+        raise DataError("gap_report: no channel has a usable (finite, non-zero) point")
+    w_cat = np.concatenate([p.w for p in points])
+    return GapReport(
+        db_rms=_pooled_rms(points),
+        by_channel={c: _pooled_rms(v) for c, v in per_channel.items() if v},
+        by_band=_band_table(points, bands),
+        residual_db=np.vstack(rows),
+        channels=labels,
+        freq_hz=f_map.copy(),
+        mag_db_rms=_rms(np.concatenate([p.mag_sq for p in points]), w_cat),
+        n_points=int(np.count_nonzero(w_cat)),
+        weighting=weighting,
+    )
+
+
+@dataclass
+class _Points:
+    """The gap's points of one channel of one data set, each ``(n_freq,)``: squared complex-log
+    error ``sq`` and squared magnitude error ``mag_sq`` [dB²] (0 where unused), weight ``w``
+    (0 where unused), signed magnitude error ``mag`` [dB] (NaN where unused), at ``freq_hz``."""
+
+    sq: np.ndarray
+    w: np.ndarray
+    mag_sq: np.ndarray
+    mag: np.ndarray
+    freq_hz: np.ndarray
+
+
+def _paired(
+    data: FrfData | Sequence[FrfData], model_H: np.ndarray | Sequence[np.ndarray]
+) -> tuple[list[FrfData], list[np.ndarray]]:
+    """The data sets and their model FRFs as two lists of one length, each model FRF of its
+    data set's shape (DataError otherwise)."""
+    sets = [data] if isinstance(data, FrfData) else list(data)
+    models = [model_H] if isinstance(model_H, np.ndarray) and model_H.ndim == 3 else model_H
+    arrays = [np.asarray(m, dtype=complex) for m in models]
+    if not sets or len(arrays) != len(sets):
+        raise DataError(f"gap_report: {len(sets)} data set(s) but {len(arrays)} model FRF array(s)")
+    for k, (d, Hs) in enumerate(zip(sets, arrays, strict=True)):
         if Hs.shape != d.H.shape:
             raise DataError(
-                f"gap_report: {where}: model FRF has shape {Hs.shape}, expected {d.H.shape}"
+                f"gap_report: {d.source or f'data set {k + 1}'}: model FRF has shape "
+                f"{Hs.shape}, expected {d.H.shape}"
             )
-        for c in use:
-            out, _, inp = c.rpartition(".")
-            if out not in d.outputs or inp not in d.inputs:
-                continue
-            a, b = d.outputs.index(out), d.inputs.index(inp)
-            hm, hs = d.H[a, b], Hs[a, b]
-            ok = np.isfinite(hm) & np.isfinite(hs) & (hm != 0) & (hs != 0)
-            r = np.full((2, hm.size), np.nan)
-            if np.any(ok):
-                r[:, ok] = residual("complex_log", hs[ok], hm[ok])
-            sq = np.where(ok, r[0] ** 2 + r[1] ** 2, 0.0)
-            w = ok.astype(float)
-            if weighting == "coherence" and d.coherence is not None:
-                coh = d.coherence[a, b]
-                w = w * np.where(np.isfinite(coh), np.clip(coh, 0.0, 1.0), 1.0)
-            sq_all.append(sq)
-            w_all.append(w)
-            mag_all.append(np.where(ok, r[0] ** 2, 0.0))
-            per_channel[c].append((sq, w))
-            for j, band in enumerate(bands):
-                m = band_mask(d.freq_hz, band, j == len(bands) - 1)
-                per_band[j].append((sq[m], w[m]))
-            mag = np.where(ok, r[0], np.nan)  # r[0] = DB·ln|Hs/Hm|: model above data > 0
-            if d.freq_hz.shape != f_map.shape or not np.allclose(d.freq_hz, f_map):
-                good = np.isfinite(mag)
-                mag = (
-                    np.interp(np.log(f_map), np.log(d.freq_hz[good]), mag[good])
-                    if np.count_nonzero(good) > 1
-                    else np.full(f_map.shape, np.nan)
-                )
-            rows.append(mag)
-            labels.append(c if len(sets) == 1 else f"{c} #{k + 1}")
-    if not sq_all or float(np.sum(np.concatenate(w_all))) == 0.0:
-        raise DataError("gap_report: no channel has a usable (finite, non-zero) point")
-    sq_cat, w_cat = np.concatenate(sq_all), np.concatenate(w_all)
-    by_channel = {
-        c: _rms(np.concatenate([s for s, _ in v]), np.concatenate([w for _, w in v]))
-        for c, v in per_channel.items()
-        if v
-    }
-    by_band = []
-    for band, parts in zip(bands, per_band, strict=True):
-        s = np.concatenate([p for p, _ in parts]) if parts else np.zeros(0)
-        w = np.concatenate([q for _, q in parts]) if parts else np.zeros(0)
-        by_band.append(
+    return sets, arrays
+
+
+def _all_channels(sets: Sequence[FrfData]) -> list[str]:
+    """Every channel present in any of ``sets``, in order of first appearance."""
+    names: list[str] = []
+    for d in sets:
+        names += [c for c in d.channels if c not in names]
+    return names
+
+
+def _channel_points(d: FrfData, Hs: np.ndarray, channel: str, weighting: str) -> _Points | None:
+    """The points of ``channel`` (``OUT.IN``) in data set ``d`` against the model FRF ``Hs``
+    (None when ``d`` lacks the channel). A point is used when both values are finite and
+    non-zero; with ``weighting="coherence"`` its weight is the measured coherence."""
+    out, _, inp = channel.rpartition(".")
+    if out not in d.outputs or inp not in d.inputs:
+        return None
+    a, b = d.outputs.index(out), d.inputs.index(inp)
+    hm, hs = d.H[a, b], Hs[a, b]
+    ok = np.isfinite(hm) & np.isfinite(hs) & (hm != 0) & (hs != 0)
+    r = np.full((2, hm.size), np.nan)
+    if np.any(ok):
+        r[:, ok] = residual("complex_log", hs[ok], hm[ok])
+    w = ok.astype(float)
+    if weighting == "coherence" and d.coherence is not None:
+        coh = d.coherence[a, b]
+        w = w * np.where(np.isfinite(coh), np.clip(coh, 0.0, 1.0), 1.0)
+    return _Points(
+        sq=np.where(ok, r[0] ** 2 + r[1] ** 2, 0.0),
+        w=w,
+        mag_sq=np.where(ok, r[0] ** 2, 0.0),
+        mag=np.where(ok, r[0], np.nan),  # r[0] = DB·ln|Hs/Hm|: model above data > 0
+        freq_hz=d.freq_hz,
+    )
+
+
+def _on_grid(mag: np.ndarray, freq_hz: np.ndarray, f_map: np.ndarray) -> np.ndarray:
+    """``mag`` (at ``freq_hz``) on the map's grid ``f_map``: as is when the grids agree, else
+    interpolated in log-frequency over its finite points (all NaN with fewer than two)."""
+    if freq_hz.shape == f_map.shape and np.allclose(freq_hz, f_map):
+        return mag
+    good = np.isfinite(mag)
+    if np.count_nonzero(good) < 2:
+        return np.full(f_map.shape, np.nan)
+    return np.interp(np.log(f_map), np.log(freq_hz[good]), mag[good])
+
+
+def _pooled_rms(points: Sequence[_Points]) -> float:
+    """Weighted RMS of the complex-log error over every point of ``points``."""
+    return _rms(np.concatenate([p.sq for p in points]), np.concatenate([p.w for p in points]))
+
+
+def _band_table(points: Sequence[_Points], bands: Sequence[Span]) -> list[dict[str, float]]:
+    """``by_band`` rows: per band (half-open, the last closed) its RMS and used points."""
+    table = []
+    for j, band in enumerate(bands):
+        masks = [band_mask(p.freq_hz, band, j == len(bands) - 1) for p in points]
+        s = np.concatenate([p.sq[m] for p, m in zip(points, masks, strict=True)])
+        w = np.concatenate([p.w[m] for p, m in zip(points, masks, strict=True)])
+        table.append(
             {
                 "f_lo_hz": band[0],
                 "f_hi_hz": band[1],
@@ -275,17 +298,7 @@ def gap_report(
                 "n_points": int(np.count_nonzero(w)),
             }
         )
-    return GapReport(
-        db_rms=_rms(sq_cat, w_cat),
-        by_channel=by_channel,
-        by_band=by_band,
-        residual_db=np.vstack(rows),
-        channels=labels,
-        freq_hz=f_map.copy(),
-        mag_db_rms=_rms(np.concatenate(mag_all), w_cat),
-        n_points=int(np.count_nonzero(w_cat)),
-        weighting=weighting,
-    )
+    return table
 
 
-__all__ = ["DB", "WEIGHTINGS", "GapReport", "automatic_bands", "band_mask", "gap_report"]
+__all__ = ["DB", "WEIGHTINGS", "GapReport", "band_mask", "gap_bands", "gap_report"]

@@ -5,13 +5,32 @@
   residues (see :mod:`bondid.diagnose._lscf` for the estimators).
 * :func:`model_modes` — the same description of a :class:`~bondid.linear.LinearModel`'s
   vibration modes, from :func:`bondid.modes.analysis.modal_analysis`.
-* :func:`pair_modes` — paired / missing / spurious, by frequency and MAC of the residues.
+* :func:`pair_modes` — paired / missing / spurious, by frequency and MAC of the residues
+  (in :mod:`bondid.diagnose.pairing`, re-exported here).
 * :func:`antiresonances`, :func:`antiresonance_shifts` — drive-point anti-resonances.
 
 A mode is described by its pole ``λ`` (``f_hz = |λ|/2π``, ``zeta = −Re λ/|λ|``) and its
 residue matrix ``R`` (n_out, n_in) in ``H(s) ≈ Σ R/(s−λ) + R̄/(s−λ̄)`` (receptance units ×
 1/s). Its ``prominence`` is ``max over channels |R/(s−λ) + R̄/(s−λ̄)| / |H|`` at
 ``s = j·Im λ``: about 1 for a mode that makes its own peak, ≪ 1 for one hidden under others.
+
+Identification (:func:`identify_modes`): the FRF (receptance) is balanced (one scale per
+output and per input, so that channels in m/N and rad/(N·m) weigh alike; this does not move
+poles). The range is cut
+into geometric core bands about ``band_ratio`` wide; each is fitted on itself widened by
+``overlap`` with pLSCF for orders 1..``max_order`` (default 24), each output row weighted
+by ``1/‖H_o(ω)‖`` (a relative error, so log-spaced data and a 140 dB dynamic range are
+treated evenly) times its mean coherence. Poles are tracked from order to order; a track
+that stays within ``tol_f`` / ``tol_zeta`` (relative) for at least max(4, max_order/3)
+orders, is physical (0 < ζ < ``zeta_max``) and lies in the fitted band less an
+``edge_margin`` is a mode (duplicates within 2·``tol_f`` keep the longest track). With
+``refine`` each band's poles are then polished by nonlinear least squares on the FRF
+itself (variable projection over ``ln ω``, ``ln ζ``; error weighted by
+``√(γ²/(1−γ²))/|H|``, γ² the coherence, i.e. by the inverse noise level). Residues come
+from LSFD on each band (all poles near the band, lower residual terms ``1/s, 1/s², 1/s³``
+for the rigid-body mass lines, upper ``1, s``), and modes whose prominence is below
+``min_prominence`` (computational poles) are dropped. Output rows holding a missing
+channel are left out of the pole estimation.
 """
 
 from __future__ import annotations
@@ -28,9 +47,7 @@ from ..exceptions import DataError
 from ..linear.linear_model import LinearModel
 from . import _lscf
 from .antiresonance import antiresonance_shifts, antiresonances
-
-VISIBLE_PROMINENCE = 0.1
-"""A model mode counts as visible (so unpaired = spurious) at this prominence or above."""
+from .pairing import VISIBLE_PROMINENCE, mac_matrix, pair_modes
 
 
 @dataclass
@@ -101,22 +118,7 @@ def identify_modes(
 ) -> list[IdentifiedMode]:
     """Poles and residues of a measured FRF.
 
-    Method: the FRF (receptance) is balanced (one scale per output and per input, so that
-    channels in m/N and rad/(N·m) weigh alike; this does not move poles). The range is cut
-    into geometric core bands about ``band_ratio`` wide; each is fitted on itself widened by
-    ``overlap`` with pLSCF for orders 1..``max_order`` (default 24), each output row weighted
-    by ``1/‖H_o(ω)‖`` (a relative error, so log-spaced data and a 140 dB dynamic range are
-    treated evenly) times its mean coherence. Poles are tracked from order to order; a track
-    that stays within ``tol_f`` / ``tol_zeta`` (relative) for at least max(4, max_order/3)
-    orders, is physical (0 < ζ < ``zeta_max``) and lies in the fitted band less an
-    ``edge_margin`` is a mode (duplicates within 2·``tol_f`` keep the longest track). With
-    ``refine`` each band's poles are then polished by nonlinear least squares on the FRF
-    itself (variable projection over ``ln ω``, ``ln ζ``; error weighted by
-    ``√(γ²/(1−γ²))/|H|``, γ² the coherence, i.e. by the inverse noise level). Residues come
-    from LSFD on each band (all poles near the band, lower residual terms ``1/s, 1/s², 1/s³``
-    for the rigid-body mass lines, upper ``1, s``), and modes whose prominence is below
-    ``min_prominence`` (computational poles) are dropped. Output rows holding a missing
-    channel are left out of the pole estimation.
+    Method: see the module docstring (identification).
 
     Args:
         data: measured FRF (any quantity; converted to receptance).
@@ -135,6 +137,31 @@ def identify_modes(
     Raises:
         DataError: too few frequencies, or no output row with every channel present.
     """
+    f, H, coh, rows = _prepared(data, f_range, use_coherence)
+    n_max = 24 if max_order is None else int(max_order)
+    plan = _lscf.band_plan(f, band_ratio, overlap)
+    Hr, cr = H[rows], coh[rows]
+    cands: list[tuple[complex, int]] = []
+    for lo, hi in plan:
+        cands += _band_poles(
+            f, Hr, cr, (lo, hi), n_max, overlap=overlap, edge_margin=edge_margin,
+            stability=stability, zeta_max=zeta_max, tol_f=tol_f, tol_zeta=tol_zeta,
+        )  # fmt: skip
+    merged = _merge_close(cands, tol_f)
+    if not merged:
+        return []
+    lam = np.array([c[0] for c in merged])
+    cw = np.sqrt(np.clip(coh, 1e-6, 0.999) / (1.0 - np.clip(coh, 1e-6, 0.999)))
+    lam, R = _polished(f, H, lam, cw, plan, overlap=overlap, zeta_max=zeta_max, refine=refine)
+    return _prominent(f, H, coh, lam, R, [c[1] for c in merged], min_prominence)
+
+
+def _prepared(
+    data: FrfData, f_range: tuple[float, float] | None, use_coherence: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(f, H, coh, rows)`` of the receptance in ``f_range``: frequencies ``(n_f,)`` [Hz],
+    FRF and coherence ``(n_out, n_in, n_f)`` (coherence clipped to [1e-3, 1], 1 where unknown
+    or unused) and the indices of the output rows with every channel present."""
     d = data.to_quantity("receptance") if data.quantity != "receptance" else data
     f = d.freq_hz
     m = np.ones(f.size, bool) if f_range is None else (f >= f_range[0]) & (f <= f_range[1])
@@ -149,44 +176,77 @@ def identify_modes(
     rows = np.flatnonzero(np.all(np.isfinite(H), axis=(1, 2)))
     if rows.size == 0:
         raise DataError(f"{where}: identify_modes needs an output with every input present")
-    n_max = 24 if max_order is None else int(max_order)
+    return f, H, coh, rows
 
-    cands: list[tuple[complex, int]] = []
-    plan = _lscf.band_plan(f, band_ratio, overlap)
-    for lo, hi in plan:
-        sel = (f >= lo / overlap) & (f <= hi * overlap)
-        if np.count_nonzero(sel) < 8:
-            continue
-        # keep poles inside the fitted band less a margin (none at the ends of the data)
-        keep_lo = lo if lo <= f[0] else lo / overlap * edge_margin
-        keep_hi = hi if hi >= f[-1] else hi * overlap / edge_margin
-        Hb = H[rows][:, :, sel]
-        r, t = _lscf.balance(np.median(np.abs(Hb), axis=2))
-        Hs = r[:, None, None] * Hb * t[None, :, None]
-        w = np.mean(coh[rows][:, :, sel], axis=1) / np.linalg.norm(Hs, axis=1)
-        poles = _lscf.plscf(f[sel], Hs, w, n_max)
-        if stability:
-            cands += _lscf.stable_clusters(
-                poles, keep_lo, keep_hi, zeta_max=zeta_max, tol_f=tol_f, tol_zeta=tol_zeta,
-                min_count=max(4, n_max // 3),
-            )  # fmt: skip
-        else:
-            last = poles[-1].lam
-            ok = _lscf.physical(last, keep_lo, keep_hi, zeta_max)
-            cands += [(complex(x), 1) for x in last[ok]]
-    cands.sort(key=lambda c: abs(c[0]))
+
+def _band_poles(
+    f: np.ndarray,
+    H: np.ndarray,
+    coh: np.ndarray,
+    band: tuple[float, float],
+    n_max: int,
+    *,
+    overlap: float,
+    edge_margin: float,
+    stability: bool,
+    zeta_max: float,
+    tol_f: float,
+    tol_zeta: float,
+) -> list[tuple[complex, int]]:
+    """``[(λ, n_orders)]`` of one core ``band`` (Hz): pLSCF on the balanced, row-weighted FRF
+    ``H`` (complete output rows only) over the band widened by ``overlap``, then the
+    stabilisation diagram (or the highest order's physical poles without ``stability``)."""
+    lo, hi = band
+    sel = (f >= lo / overlap) & (f <= hi * overlap)
+    if np.count_nonzero(sel) < 8:
+        return []
+    # keep poles inside the fitted band less a margin (none at the ends of the data)
+    keep_lo = lo if lo <= f[0] else lo / overlap * edge_margin
+    keep_hi = hi if hi >= f[-1] else hi * overlap / edge_margin
+    Hb = H[:, :, sel]
+    r, t = _lscf.balance(np.median(np.abs(Hb), axis=2))
+    Hs = r[:, None, None] * Hb * t[None, :, None]
+    w = np.mean(coh[:, :, sel], axis=1) / np.linalg.norm(Hs, axis=1)
+    poles = _lscf.plscf(f[sel], Hs, w, n_max)
+    if stability:
+        return _lscf.stable_clusters(
+            poles, keep_lo, keep_hi, zeta_max=zeta_max, tol_f=tol_f, tol_zeta=tol_zeta,
+            min_count=max(4, n_max // 3),
+        )  # fmt: skip
+    last = poles[-1].lam
+    ok = _lscf.physical(last, keep_lo, keep_hi, zeta_max)
+    return [(complex(x), 1) for x in last[ok]]
+
+
+def _merge_close(cands: list[tuple[complex, int]], tol_f: float) -> list[tuple[complex, int]]:
+    """``cands`` by frequency, poles within ``2·tol_f`` (relative) of the previous kept one
+    merged into it (the one stable over more orders wins)."""
     merged: list[tuple[complex, int]] = []
-    for pole, cnt in cands:
+    for pole, cnt in sorted(cands, key=lambda c: abs(c[0])):
         if merged and abs(abs(pole) - abs(merged[-1][0])) < 2 * tol_f * abs(pole):
             if cnt > merged[-1][1]:
                 merged[-1] = (pole, cnt)
             continue
         merged.append((pole, cnt))
-    if not merged:
-        return []
-    lam = np.array([c[0] for c in merged])
+    return merged
+
+
+def _polished(
+    f: np.ndarray,
+    H: np.ndarray,
+    lam: np.ndarray,
+    cw: np.ndarray,
+    plan: list[tuple[float, float]],
+    *,
+    overlap: float,
+    zeta_max: float,
+    refine: bool,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(λ, R)``: the poles ``lam`` polished band by band (with ``refine``) and their residues
+    ``(n_modes, n_out, n_in)`` by LSFD on each band (on the whole range for poles whose band
+    is too short); ``cw`` ``(n_out, n_in, n_f)`` weighs by the inverse noise level."""
+    lam = lam.copy()
     wn = np.abs(lam) / (2 * np.pi)
-    cw = np.sqrt(np.clip(coh, 1e-6, 0.999) / (1.0 - np.clip(coh, 1e-6, 0.999)))
     R, _ = _lscf.lsfd(f, H, lam, cw)  # fallback for poles whose band is too short
     for lo, hi in plan:
         sel = (f >= lo / overlap) & (f <= hi * overlap)
@@ -201,22 +261,31 @@ def identify_modes(
         Rb, _ = _lscf.lsfd(f[sel], H[:, :, sel], lam[inc], cw[:, :, sel], upper=2)
         R[core] = Rb[core[inc]]
         wn = np.abs(lam) / (2 * np.pi)
-    merged = [(complex(x), c[1]) for x, c in zip(lam, merged, strict=True)]
+    return lam, R
+
+
+def _prominent(
+    f: np.ndarray,
+    H: np.ndarray,
+    coh: np.ndarray,
+    lam: np.ndarray,
+    R: np.ndarray,
+    counts: list[int],
+    min_prominence: float,
+) -> list[IdentifiedMode]:
+    """The modes of poles ``lam`` with residues ``R`` whose prominence in ``H`` is at least
+    ``min_prominence`` (``counts``: orders each pole was stable over)."""
     modes = []
-    for k, (lr, cnt) in enumerate(merged):
+    for k, (lr, cnt) in enumerate(zip(lam, counts, strict=True)):
+        lr = complex(lr)
         prom = _prominence(f, H, lr, R[k], coh)
-        if prom < min_prominence:
-            continue
-        modes.append(
-            IdentifiedMode(
-                f_hz=abs(lr) / (2 * np.pi),
-                zeta=-lr.real / abs(lr),
-                residues=R[k],
-                shape=_shape(R[k]),
-                prominence=prom,
-                n_orders=cnt,
-            )
-        )
+        if prom >= min_prominence:
+            modes.append(
+                IdentifiedMode(
+                    f_hz=abs(lr) / (2 * np.pi), zeta=-lr.real / abs(lr), residues=R[k],
+                    shape=_shape(R[k]), prominence=prom, n_orders=cnt,
+                )
+            )  # fmt: skip
     return modes
 
 
@@ -294,102 +363,6 @@ def model_modes(
             )
         )
     return out
-
-
-def mac_matrix(a: Sequence[IdentifiedMode], b: Sequence[IdentifiedMode]) -> np.ndarray:
-    """MAC ``(len(a), len(b))`` of the vectorised, balanced residue matrices.
-
-    Each output row and input column of every residue matrix is divided by one common scale
-    (from all modes of both lists, so m/N and rad/(N·m) channels weigh alike);
-    MAC = |aᴴb|² / (|a|²|b|²). Non-finite entries count as 0.
-    """
-    allR = [np.nan_to_num(m.residues) for m in [*a, *b]]
-    if not allR:
-        return np.zeros((len(a), len(b)))
-    c = np.sqrt(np.mean(np.abs(np.stack(allR)) ** 2, axis=0))
-    r, t = _lscf.balance(c)
-    va = [(r[:, None] * np.nan_to_num(m.residues) * t[None, :]).ravel() for m in a]
-    vb = [(r[:, None] * np.nan_to_num(m.residues) * t[None, :]).ravel() for m in b]
-    out = np.zeros((len(a), len(b)))
-    for i, x in enumerate(va):
-        for j, y in enumerate(vb):
-            den = np.vdot(x, x).real * np.vdot(y, y).real
-            out[i, j] = abs(np.vdot(x, y)) ** 2 / den if den > 0 else 0.0
-    return out
-
-
-def pair_modes(
-    measured: Sequence[IdentifiedMode],
-    model: Sequence[IdentifiedMode],
-    *,
-    f_tol: float = 0.2,
-    mac_min: float = 0.5,
-    f_band: tuple[float, float] | None = None,
-    min_prominence: float = VISIBLE_PROMINENCE,
-    include_unobserved: bool = False,
-) -> list[dict[str, Any]]:
-    """Pair measured and model modes by frequency and residue MAC.
-
-    A pair needs ``|f_model − f_measured| ≤ f_tol · f_measured`` and MAC ≥ ``mac_min``; among
-    the admissible pairs one-to-one assignment minimises Σ (1 − MAC) + |df_rel| / f_tol.
-    An unpaired measured mode is ``"missing"`` (in the data, not the model). An unpaired
-    model mode is ``"spurious"`` only if the data would have revealed it: its frequency lies in
-    ``f_band`` (the measured range, when given) and its prominence (see
-    :func:`model_modes`) is at least ``min_prominence``; other unpaired model modes are
-    left out, or listed as ``"unobserved"`` with ``include_unobserved``.
-
-    Returns:
-        ``[{f_measured_hz, f_model_hz, status, mac, df_rel, zeta_measured, zeta_model}]``
-        by frequency; ``df_rel = (f_model − f_measured) / f_measured``; absent values None.
-    """
-    from scipy.optimize import linear_sum_assignment
-
-    mac = mac_matrix(measured, model)
-    big = 1e6
-    cost = np.full(mac.shape, big)
-    for i, a in enumerate(measured):
-        for j, b in enumerate(model):
-            df = (b.f_hz - a.f_hz) / a.f_hz
-            if abs(df) <= f_tol and mac[i, j] >= mac_min:
-                cost[i, j] = (1.0 - mac[i, j]) + abs(df) / f_tol
-    pairs: dict[int, int] = {}
-    if cost.size:
-        for i, j in zip(*linear_sum_assignment(cost), strict=True):
-            if cost[i, j] < big:
-                pairs[int(i)] = int(j)
-    used = set(pairs.values())
-    rows: list[dict[str, Any]] = []
-    for i, a in enumerate(measured):
-        if i in pairs:
-            b = model[pairs[i]]
-            rows.append(_row(a, b, "paired", float(mac[i, pairs[i]])))
-        else:
-            rows.append(_row(a, None, "missing", None))
-    for j, b in enumerate(model):
-        if j in used:
-            continue
-        inside = f_band is None or f_band[0] <= b.f_hz <= f_band[1]
-        visible = inside and np.isfinite(b.prominence) and b.prominence >= min_prominence
-        if visible or (inside and not np.isfinite(b.prominence)):
-            rows.append(_row(None, b, "spurious", None))
-        elif include_unobserved:
-            rows.append(_row(None, b, "unobserved", None))
-    rows.sort(key=lambda r: r["f_measured_hz"] or r["f_model_hz"])
-    return rows
-
-
-def _row(
-    a: IdentifiedMode | None, b: IdentifiedMode | None, status: str, mac: float | None
-) -> dict[str, Any]:
-    return {
-        "f_measured_hz": None if a is None else float(a.f_hz),
-        "f_model_hz": None if b is None else float(b.f_hz),
-        "status": status,
-        "mac": mac,
-        "df_rel": None if a is None or b is None else float((b.f_hz - a.f_hz) / a.f_hz),
-        "zeta_measured": None if a is None else float(a.zeta),
-        "zeta_model": None if b is None else float(b.zeta),
-    }
 
 
 def modes_to_json(modes: Sequence[IdentifiedMode]) -> str:

@@ -264,25 +264,10 @@ def diagnose(
     s = settings or Settings()
     p = prepare_data(doc, datasets, s)
     pool = WorkerPool(max(1, s.workers))
-    count = [0]
-
-    def say(label: str) -> None:
-        count[0] += 1
-        if progress:
-            progress(count[0], count[0] + 1, label)
-
+    say = _announcer(progress)
     try:
-        fut = pool.submit(
-            _baseline_task, doc.to_string(), p.names, p.train, p.held, p.full, p.options,
-            s.use_ipopt, s.ipopt_iter, s.max_nfev,
-        )  # fmt: skip
-        baseline, fit_info = fut.result()
-        if baseline.error:
-            from ..exceptions import ComputationError
-
-            raise ComputationError(f"the parameter refit failed: {baseline.error}")
+        baseline, fit_info = _refit_baseline(pool, doc, p, s)
         say("parameter refit")
-        baseline.extra.pop("nominal_variables")
         modes, by_ds, anti, bands = _where(doc, p.full, baseline, p.channels, s.modes)
         ctx = Context(
             doc, p.names, p.train, p.held, p.full, p.options, p.candidates,
@@ -305,6 +290,40 @@ def diagnose(
         split_info=p.split_info, wall_s=time.perf_counter() - t0, weighting=p.weighting,
         steps=steps,
     )  # fmt: skip
+
+
+def _announcer(progress: Callable[[int, int, str], None] | None) -> Callable[[str], None]:
+    """``say(label)``: counts the finished steps and reports ``progress(done, done + 1,
+    label)`` (nothing without ``progress``)."""
+    count = [0]
+
+    def say(label: str) -> None:
+        count[0] += 1
+        if progress:
+            progress(count[0], count[0] + 1, label)
+
+    return say
+
+
+def _refit_baseline(
+    pool: WorkerPool, doc: UrdfDocument, p: Prepared, s: Settings
+) -> tuple[JobResult, dict[str, Any]]:
+    """Step 2 of the module docstring in a worker: the parameter refit and its info.
+
+    Raises:
+        ComputationError: the refit failed.
+    """
+    fut = pool.submit(
+        _baseline_task, doc.to_string(), p.names, p.train, p.held, p.full, p.options,
+        s.use_ipopt, s.ipopt_iter, s.max_nfev,
+    )  # fmt: skip
+    baseline, fit_info = fut.result()
+    if baseline.error:
+        from ..exceptions import ComputationError
+
+        raise ComputationError(f"the parameter refit failed: {baseline.error}")
+    baseline.extra.pop("nominal_variables")
+    return baseline, fit_info
 
 
 def missing_mode_hints(
@@ -334,18 +353,20 @@ def _where(
 ) -> tuple[list[dict[str, Any]], list[list[dict[str, Any]]], list[dict[str, Any]], list]:
     """Modes (measured vs refitted model), anti-resonance shifts and automatic bands."""
     from ..linear.affine import build_affine_model
+    from ..modes.bands import Feature
     from .antiresonance import antiresonance_shifts
-    from .gap import automatic_bands
+    from .gap import gap_bands
 
     refit_doc = UrdfDocument.from_string(baseline.urdf, source="refit model")
     by_ds: list[list[dict[str, Any]]] = []
     anti: list[dict[str, Any]] = []
-    res_f: list[float] = []
+    feats: list[Feature] = []
     for k, (d, H) in enumerate(zip(full, baseline.full_H, strict=True)):
         rows: list[dict[str, Any]] = []
         error: dict[str, Any] | None = None
         if do_modes:
-            from .modal_id import identify_modes, model_modes, pair_modes
+            from .modal_id import identify_modes, model_modes
+            from .pairing import pair_modes
 
             try:
                 meas = identify_modes(d)
@@ -362,11 +383,15 @@ def _where(
             if error is not None:  # kept: the pairing must not hide why no mode was measured
                 rows.insert(0, error)
             if k == 0:
-                res_f = [float(m.f_hz) for m in meas]
+                feats = [Feature(float(m.f_hz), float(m.zeta), "resonance") for m in meas]
         by_ds.append(rows)
         for row in antiresonance_shifts(d, H, channels=channels):
             anti.append({"dataset": k, **row})
-    a_f = [float(r["f_measured_hz"]) for r in anti if r["dataset"] == 0 and r["f_measured_hz"]]
-    bands = automatic_bands(full[0].freq_hz, res_f, a_f)
+    feats += [
+        Feature(float(r["f_measured_hz"]), 0.0, "anti-resonance", r.get("channel"))
+        for r in anti
+        if r["dataset"] == 0 and r["f_measured_hz"]
+    ]
+    bands = gap_bands(full[0].freq_hz, feats)
     modes = by_ds[0] if by_ds else []
     return modes, by_ds, anti, bands
