@@ -27,6 +27,7 @@ import numpy as np
 from ..cost.residuals import DB, residual
 from ..data.measurement import FrfData
 from ..exceptions import DataError
+from ..jsonsafe import number
 from ..modes.bands import Feature, Span, automatic_bands
 
 WEIGHTINGS: tuple[str, ...] = ("none", "coherence")
@@ -113,10 +114,7 @@ class GapReport:
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict with the spec's keys ``db_rms``, ``by_channel``, ``by_band``
         (the map itself is left out: it is drawn as a PNG)."""
-
-        def num(v: float) -> float | None:
-            return None if not np.isfinite(v) else float(v)
-
+        num = number
         return {
             "db_rms": num(self.db_rms),
             "mag_db_rms": num(self.mag_db_rms),
