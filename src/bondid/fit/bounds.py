@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import fnmatch
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -157,45 +158,56 @@ def default_bounds(
         if not np.isfinite(v) or v < 0:
             raise ConfigError(f"bounds: relative width {float(v)!r} for {k!r}: give a value >= 0")
     infos = infos_by_name(doc, names)
-    hull_links = sorted({i.owner for i in infos if i.kind == "com"})
-    hulls = link_hulls(doc, hull_links)
-    lo = np.empty(len(infos))
-    hi = np.empty(len(infos))
+    hulls = link_hulls(doc, sorted({i.owner for i in infos if i.kind == "com"}))
+    f_max = DEFAULT_F_MAX if f_max_hz is None else f_max_hz
     cache: dict = {}
-    for j, info in enumerate(infos):
-        v = get_parameter(doc, info.name)
-        r = _rel_for(info, rel)
-        if info.kind == "mass":
-            lo[j], hi[j] = max(0.0, v - r * abs(v)), v + r * abs(v)
-        elif info.kind == "com":
-            h = hulls[info.owner]
-            ell = h.size if h is not None else _DEFAULT_LENGTH
-            half = r * max(abs(v), 0.1 * ell)
-            lo[j], hi[j] = v - half, v + half
-        elif info.kind == "inertia":
-            _, _, I_c = link_inertial(doc, info.owner)
-            mean = float(np.trace(I_c)) / 3.0
-            comp = str(info.component)  # ixx … izz
-            ia, ib = _AXES[comp[1]], _AXES[comp[2]]
-            if ia != ib:  # a product: relative to the largest it can be (module docstring)
-                S = 0.5 * float(np.trace(I_c)) * np.eye(3) - I_c  # second moment about the CoM
-                half = r * max(abs(v), float(np.sqrt(max(S[ia, ia], 0.0) * max(S[ib, ib], 0.0))))
-            else:
-                half = r * max(abs(v), 0.1 * abs(mean))
-            lo[j], hi[j] = v - half, v + half
-        elif info.kind == "gain":  # relative r: a factor 1 + r either way (sign kept)
-            lo[j], hi[j] = sorted((v / (1.0 + r), v * (1.0 + r)))
-        else:  # stiffness, damping
-            if v == 0.0:
-                f = DEFAULT_F_MAX if f_max_hz is None else f_max_hz
-                lo[j], hi[j] = 0.0, zero_value_upper(doc, info.owner, info.kind, f, cache)
-            else:
-                lo[j], hi[j] = max(0.0, v - r * abs(v)), v + r * abs(v)
-    for key, (a, b) in (absolute or {}).items():
+    pairs = [_relative_bound(doc, info, _rel_for(info, rel), hulls, f_max, cache) for info in infos]
+    lo = np.array([a for a, _ in pairs], dtype=float).reshape(-1)
+    hi = np.array([b for _, b in pairs], dtype=float).reshape(-1)
+    _apply_absolute(infos, absolute or {}, lo, hi)
+    return lo, hi
+
+
+def _relative_bound(
+    doc: UrdfDocument, info: Any, r: float, hulls: Mapping[str, Any], f_max: float, cache: dict
+) -> tuple[float, float]:
+    """``(lo, hi)`` of one parameter for the relative width ``r`` (module docstring)."""
+    v = get_parameter(doc, info.name)
+    if info.kind == "mass":
+        return max(0.0, v - r * abs(v)), v + r * abs(v)
+    if info.kind == "com":
+        h = hulls[info.owner]
+        half = r * max(abs(v), 0.1 * (h.size if h is not None else _DEFAULT_LENGTH))
+        return v - half, v + half
+    if info.kind == "inertia":
+        _, _, I_c = link_inertial(doc, info.owner)
+        comp = str(info.component)  # ixx … izz
+        ia, ib = _AXES[comp[1]], _AXES[comp[2]]
+        if ia != ib:  # a product: relative to the largest it can be (module docstring)
+            S = 0.5 * float(np.trace(I_c)) * np.eye(3) - I_c  # second moment about the CoM
+            half = r * max(abs(v), float(np.sqrt(max(S[ia, ia], 0.0) * max(S[ib, ib], 0.0))))
+        else:
+            half = r * max(abs(v), 0.1 * abs(float(np.trace(I_c)) / 3.0))
+        return v - half, v + half
+    if info.kind == "gain":  # relative r: a factor 1 + r either way (sign kept)
+        a, b = sorted((v / (1.0 + r), v * (1.0 + r)))
+        return a, b
+    if v == 0.0:  # stiffness, damping
+        return 0.0, zero_value_upper(doc, info.owner, info.kind, f_max, cache)
+    return max(0.0, v - r * abs(v)), v + r * abs(v)
+
+
+def _apply_absolute(
+    infos: Sequence[Any],
+    absolute: Mapping[str, tuple[float, float]],
+    lo: np.ndarray,
+    hi: np.ndarray,
+) -> None:
+    """Overwrite ``lo``/``hi`` ``(n,)`` in place with the ``(lo, hi)`` given per name or glob."""
+    for key, (a, b) in absolute.items():
         hits = [j for j, i in enumerate(infos) if fnmatch.fnmatchcase(i.name, key)]
         if not hits:
             raise ConfigError(f"bounds: {key!r} matches none of the fitted parameters")
         if not a <= b:
             raise ConfigError(f"bounds: {key!r} has lower {float(a):g} > upper {float(b):g}")
         lo[hits], hi[hits] = float(a), float(b)
-    return lo, hi
