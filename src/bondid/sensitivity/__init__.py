@@ -2,15 +2,15 @@
 
 * :mod:`.sweep` — the seed report's Algorithm 1 (each parameter alone over 50..150 %).
 * :mod:`.local` — derivative-based sensitivities per frequency band, channel and direction
-  from one exact Jacobian, with automatic bands from the model's modes (:mod:`.bands`).
+  from one exact Jacobian, with automatic bands from the model's modes (:mod:`bondid.modes.bands`).
 * :mod:`.identifiability` — singular values (Fisher information), pinned-down combinations
   and the recommended subset to free (:func:`recommend_subset`, used by ``--free auto``).
 
 Command line: ``python -m bondid.sensitivity --model URDF --data FILE...``.
 """
 
+from ..modes.bands import Band, Feature, automatic_bands, model_features
 from ._common import Setup, make_setup, reference_scales
-from .bands import Band, Feature, automatic_bands, model_features
 from .identifiability import (
     Identifiability,
     analyse_identifiability,

@@ -15,7 +15,7 @@ that match the model (``r = 0``) the set's mean-square cost after a small step `
 a map compares parameters within a band.
 
 Aggregates by parameter kind (stiffness / damping / inertial) per band class (below / at /
-between / above the resonances, see :mod:`bondid.sensitivity.bands`) use the union of the
+between / above the resonances, see :mod:`bondid.modes.bands`) use the union of the
 class's bands: ``share`` is the kind's part of ``Σ_p s_p²``, ``rms`` the RMS of ``s_p`` over
 the kind's parameters (a typical parameter of that kind), ``max`` its strongest parameter.
 """
