@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from pathlib import PurePath
 from typing import Any
 
 import numpy as np
@@ -33,22 +34,23 @@ def number(value: Any, *, finite: bool = True) -> float | None:
 def json_safe(value: Any) -> Any:
     """``value`` with every part made valid for ``json.dump``, structure kept.
 
-    Arrays (any shape) and tuples become (nested) lists, mappings become dicts with the same
-    keys,
-    floats (Python or NumPy) that are NaN or ±inf become None, NumPy integers become ``int``
-    and ``numpy.bool_`` becomes ``bool``; everything else (str, int, bool, None, ...) is
-    returned as it is.
+    Arrays (any shape) and tuples become (nested) lists, mappings become dicts with their
+    keys as strings, paths become strings, floats (Python or NumPy) that are NaN or ±inf
+    become None, NumPy integers become ``int`` and ``numpy.bool_`` becomes ``bool``;
+    everything else (str, int, bool, None, ...) is returned as it is.
     """
     if isinstance(value, np.ndarray):
         return json_safe(value.tolist())
     if isinstance(value, list | tuple):
         return [json_safe(v) for v in value]
     if isinstance(value, Mapping):
-        return {k: json_safe(v) for k, v in value.items()}
+        return {str(k): json_safe(v) for k, v in value.items()}
     if isinstance(value, float | np.floating):
         return number(value)
     if isinstance(value, np.integer):
         return int(value)
     if isinstance(value, np.bool_):
         return bool(value)
+    if isinstance(value, PurePath):
+        return str(value)
     return value

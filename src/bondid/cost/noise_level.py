@@ -33,6 +33,7 @@ import numpy as np
 from ..data.measurement import FrfData
 from ..data.weights import information_weights
 from .residuals import DB
+from .selection import used_points
 
 if TYPE_CHECKING:
     from .problem import FrfProblem
@@ -133,10 +134,7 @@ def noise_level_cost(problem: FrfProblem) -> float | None:
     for b in problem.blocks:
         ds = b.data
         e = expected_sq_db(ds, opt.use_coherence, magnitude=opt.kind != "complex_log")
-        inv = {c: ds.inputs.index(n) for c, n in enumerate(b.affine.inputs) if n in ds.inputs}
-        f_idx = np.searchsorted(ds.freq_hz, b.freq_hz[b.fidx])
-        i_idx = np.array([inv[int(c)] for c in b.cols], dtype=int)
-        sq.append(e[b.rows, i_idx, f_idx])
+        sq.append(e[used_points(ds, opt)])
         ws.append(b.weight)
     level = weighted_level(sq, ws)
     return None if level is None else level**2

@@ -15,7 +15,6 @@ Every file is written atomically (:mod:`bondid.atomic`); no output may be one of
 from __future__ import annotations
 
 import json
-import math
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -29,6 +28,7 @@ from ..cost.residuals import DB
 from ..data.measurement import FrfData
 from ..exceptions import ConfigError
 from ..frf.aligned import model_frf
+from ..jsonsafe import json_safe
 from ..model.document import UrdfDocument
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -73,24 +73,8 @@ def check_out_dir(
     return out
 
 
-def jsonable(value: Any) -> Any:
-    """Plain JSON values: numpy scalars/arrays to Python, NaN and ±inf to None."""
-    if isinstance(value, Mapping):
-        return {str(k): jsonable(v) for k, v in value.items()}
-    if isinstance(value, np.ndarray):
-        return jsonable(value.tolist())
-    if isinstance(value, list | tuple):
-        return [jsonable(v) for v in value]
-    if isinstance(value, np.bool_):
-        return bool(value)
-    if isinstance(value, np.integer):
-        return int(value)
-    if isinstance(value, float | np.floating):
-        v = float(value)
-        return v if math.isfinite(v) else None
-    if isinstance(value, Path):
-        return str(value)
-    return value
+#: plain JSON values for fit.json (the one converter, :func:`bondid.jsonsafe.json_safe`)
+jsonable = json_safe
 
 
 def _units(doc: UrdfDocument, joints: Sequence[str]) -> dict[str, Any]:
