@@ -279,18 +279,13 @@ class FrfProblem:
 
     def residual(self, pmodel: ParameterModel, x: np.ndarray) -> np.ndarray:
         """Scaled residual vector ``(n_residuals,)``; ``cost = ‖r‖²``."""
-        values, gains = pmodel.values(x), _free_gains(pmodel, x)
 
-        theta = self._theta(pmodel, x)[0]
-
-        def one(b: DataSelection) -> np.ndarray:
-            H = _block_frf(b, values, gains)
-            if theta is not None:
-                H = H * self._modifier_at(b, theta)[0]
+        def one(b: DataSelection, H: np.ndarray) -> np.ndarray:
             Hs = H[b.rows, b.cols, b.fidx]
             return self._weighted(b, residual(self.options.kind, Hs, b.Hm, b.scale))[0]
 
-        return np.concatenate(thread_map(one, self.blocks))
+        frfs = self.used_frf(pmodel, x)
+        return np.concatenate([one(b, H) for b, H in zip(self.blocks, frfs, strict=True)])
 
     def residual_and_jacobian(
         self, pmodel: ParameterModel, x: np.ndarray

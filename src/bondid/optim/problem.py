@@ -235,7 +235,12 @@ class FitProblem:
             changes["kind"] = kind
         if norm is not None:
             changes["norm"] = norm
-        frf = self.frf.with_options(dataclasses.replace(self.options, **changes))
+        # the same options keep the point selection (nothing is selected again)
+        frf = (
+            self.frf.with_options(dataclasses.replace(self.options, **changes))
+            if changes
+            else self.frf
+        )
         doc = self.document_at(x)
         frf = frf.moved(self.parameter_map(), x, doc)
         out = object.__new__(FitProblem)
