@@ -78,19 +78,36 @@ class Step:
 Progress = Callable[[str], None]
 
 
+@dataclass(frozen=True)
+class _Origins:
+    """What every job of a step shares: the base model's variables and the nominal model's
+    text and variables (the second origin), worked out once per step."""
+
+    nom: list[Variable]
+    alt_urdf: str
+    alt_nominal: list[Variable]
+
+
+def _origins(ctx: Context, base: JobResult) -> _Origins:
+    doc = UrdfDocument.from_string(base.urdf, source="refit model")
+    return _Origins(
+        nominal_variables(doc, ctx.names, reference=ctx.nominal),
+        ctx.nominal.to_string(),
+        nominal_variables(ctx.nominal, ctx.names),
+    )
+
+
 def _job(
-    ctx: Context, base: JobResult, cand: Candidate | None, start: tuple[float, ...] = (),
-    alt: bool = True,
+    ctx: Context, base: JobResult, origins: _Origins, cand: Candidate | None,
+    start: tuple[float, ...] = (), alt: bool = True,
 ) -> Job:  # fmt: skip
     """A job on top of ``base`` (its model text, values and accepted effects); ``alt``: with
     the nominal model as second origin."""
-    doc = UrdfDocument.from_string(base.urdf, source="refit model")
-    nom: list[Variable] = nominal_variables(doc, ctx.names, reference=ctx.nominal)
     return Job(
-        base.urdf, nom, ctx.train, ctx.heldout, ctx.full, cand, ctx.options,
+        base.urdf, origins.nom, ctx.train, ctx.heldout, ctx.full, cand, ctx.options,
         max_nfev_all=ctx.max_nfev, n_starts=ctx.n_starts,
-        alt_urdf=ctx.nominal.to_string() if alt else None,
-        alt_nominal=nominal_variables(ctx.nominal, ctx.names) if alt else None,
+        alt_urdf=origins.alt_urdf if alt else None,
+        alt_nominal=origins.alt_nominal if alt else None,
         hints_hz=ctx.hints_hz,
         accepted=base.chain, start_new=start,
     )  # fmt: skip
@@ -114,7 +131,8 @@ def _step(
     cands = _open(ctx, base)
     # later steps screen from their base alone: it is the first effect's refit, which the
     # full refits also ran from the nominal model
-    futures = {pool.submit(screen, _job(ctx, base, c, alt=index == 0)): i
+    origins = _origins(ctx, base)
+    futures = {pool.submit(screen, _job(ctx, base, origins, c, alt=index == 0)): i
                for i, c in enumerate(cands)}  # fmt: skip
     screenings: list[Screening | None] = [None] * len(cands)
     for f in as_completed(futures):
@@ -122,9 +140,10 @@ def _step(
         screenings[futures[f]] = s
         progress(f"step {index + 1} screened {s.label}")
     done = [s for s in screenings if s is not None]
+    assert len(done) == len(cands)  # done[i] is the screening of cands[i]
     chosen = select(done, ctx.n_refit[0 if index == 0 else 1])
     step = Step(index, base, base_score, done, chosen)
-    futs = {pool.submit(run_job, _job(ctx, base, _refit_candidate(done[i], cands[i]),
+    futs = {pool.submit(run_job, _job(ctx, base, origins, _refit_candidate(done[i], cands[i]),
                                       done[i].start)): i for i in chosen}  # fmt: skip
     results = []
     for f in as_completed(futs):
