@@ -32,7 +32,6 @@ from ..data.measurement import FrfData
 from ..exceptions import ConfigError, DependencyError, SolverError
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameters, parameter_infos, select_parameters
-from .defaults import expand_default_free
 from .headline import headline_lines
 from .options import build_parser, resolve_settings
 from .study import (
@@ -70,7 +69,7 @@ def resolve_names(
     doc: UrdfDocument, datasets: list[FrfData], s: StudySettings, options: CostOptions
 ) -> list[str]:
     """Free parameter names from ``free``/``fixed`` (``auto`` asks bondid.sensitivity)."""
-    free = expand_default_free(doc, list(s.free))
+    free = list(s.free)
     if "auto" in free:
         try:
             from ..sensitivity import recommend_subset

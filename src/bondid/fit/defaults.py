@@ -47,22 +47,8 @@ def add_prior_arg(p: argparse._ActionsContainer) -> None:
 
 
 def default_free(doc: UrdfDocument) -> list[str]:
-    """The names of ``--free default``: every inertial parameter of every moving body and
-    every joint stiffness and damping whose model value is not 0 (a value the model sets to
-    0 — no spring on a driven axis — is a modelling decision, not an uncertain number; name
-    it to fit it)."""
-    from ..model.parameters import get_parameter, select_parameters
+    """The names of ``--free default`` (the parameter group ``default``, see
+    :mod:`bondid.model.parameters`), model order."""
+    from ..model.parameters import group_members
 
-    names = select_parameters(doc, ["all"])
-    return [
-        n
-        for n in names
-        if not n.endswith((".stiffness", ".damping")) or get_parameter(doc, n) != 0.0
-    ]
-
-
-def expand_default_free(doc: UrdfDocument, free: list[str]) -> list[str]:
-    """``free`` with the token ``default`` replaced by :func:`default_free`'s names."""
-    if "default" not in free:
-        return free
-    return [t for t in free if t != "default"] + default_free(doc)
+    return group_members(doc, "default")

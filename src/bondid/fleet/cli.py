@@ -22,7 +22,7 @@ from typing import Any
 
 from ..cli import EXIT_FAILED, EXIT_OK, make_parser, parse_band, run, split_names
 from ..exceptions import ComputationError, ConfigError
-from ..fit.defaults import add_prior_arg, check_prior, expand_default_free
+from ..fit.defaults import add_prior_arg, check_prior
 from .machines import Machine
 
 LOCK_NAME = ".fleet.lock"
@@ -159,7 +159,7 @@ def check_options(args: argparse.Namespace) -> None:
         if getattr(args, opt) is not None and not args.diagnose:
             raise ConfigError(f"--{opt.replace('_', '-')}: only with --diagnose")
     doc = UrdfDocument.load(args.model)
-    free = [n for n in expand_default_free(doc, split_names(args.free)) if n != "auto"]
+    free = [n for n in split_names(args.free) if n != "auto"]
     if free:
         select_parameters(doc, free, split_names(args.fixed))
     if args.diagnose_free:

@@ -24,7 +24,9 @@ stores the inertial with ``rpy = 0``.
 Groups: ``inertial`` (the 10 parameters of every moving link with an ``<inertial>``),
 ``parasitic`` (stiffness and damping of every movable joint without a transmission),
 ``joints`` (stiffness and damping of every movable joint), ``all`` (``inertial`` + ``joints``),
-``gains`` (the declared transducer gains).
+``gains`` (the declared transducer gains), ``default`` (``inertial`` + every joint stiffness
+and damping whose model value is not 0: ``python -m bondid.fit``'s default free set; a 0 the
+model sets, no spring on a driven axis, is a modelling decision, not an uncertain number).
 """
 
 from __future__ import annotations
@@ -48,7 +50,7 @@ _INERTIA_INDEX = {
     "iyz": (1, 2),
     "izz": (2, 2),
 }
-GROUPS = ("inertial", "parasitic", "joints", "all", "gains")
+GROUPS = ("inertial", "parasitic", "joints", "all", "gains", "default")
 
 
 @dataclass(frozen=True)
@@ -211,6 +213,12 @@ def group_members(doc: UrdfDocument, group: str) -> list[str]:
         return [p.name for p in infos if p.kind != "gain"]
     if group == "gains":
         return [p.name for p in infos if p.kind == "gain"]
+    if group == "default":
+        return [
+            p.name
+            for p in infos
+            if p.is_inertial or (p.kind in joint_kinds and get_parameter(doc, p.name) != 0.0)
+        ]
     raise ParameterError(f"unknown parameter group {group!r}; valid: {', '.join(GROUPS)}")
 
 
