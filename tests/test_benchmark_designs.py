@@ -205,6 +205,19 @@ def test_scores_two_effect_cases_and_screening() -> None:
     assert screening(case, _diag([sm], cands)) is True
 
 
+def test_final_model_at_the_noise_level() -> None:
+    case = next(c for c in all_cases() if c.name == "gantry/sm+al/acc")
+    sm = {"effect": "soft_mounts", "location": "frame", "db_rms_after": 2.5}
+    al = {"effect": "actuator_lag", "location": "gy", "db_rms_after": 2.15}
+    r = score(case, _diag([sm, al]), db_truth=2.0)
+    assert r["final_db"] == 2.15 and r["at_noise"] is True  # 2.15 <= 1.1 * 2.0
+    r = score(case, _diag([sm]), db_truth=2.0)
+    assert r["final_db"] == 2.5 and r["at_noise"] is False
+    none = score(case, _diag([]), db_truth=3.8)  # no effect: the parameter refit's gap, 4.0
+    assert none["final_db"] == 4.0 and none["at_noise"] is True
+    assert score(case, _diag([]), db_truth=None)["at_noise"] is None
+
+
 def test_tables_keep_their_columns_with_failed_cases() -> None:
     from benchmark.tables import case_table, summary_table
 

@@ -1,5 +1,5 @@
 """One case end to end: truth machine, data files, ``python -m bondid.diagnose`` and
-``python -m bondid.fit --free all`` on the same files (subprocesses: they see the nominal URDF
+``python -m bondid.fit`` (its defaults) on the same files (subprocesses: they see the nominal URDF
 and the data files only), and the case's scores."""
 
 from __future__ import annotations
@@ -59,7 +59,7 @@ def diagnose_cmd(model: Path, paths: list[Path], out: Path, s: Settings) -> list
 
 def fit_cmd(model: Path, paths: list[Path], out: Path) -> list[str]:
     return [sys.executable, "-m", "bondid.fit", "--model", str(model), "--data",
-            *map(str, paths), "--out", str(out), "--quiet", "--free", "all"]  # fmt: skip
+            *map(str, paths), "--out", str(out), "--quiet"]  # fmt: skip
 
 
 def run_case(case: Case, s: Settings) -> dict[str, Any]:
@@ -159,8 +159,23 @@ def _gap_closed_final(diag: dict[str, Any], claimed: list[dict[str, Any]]) -> fl
     return float((diag.get("verdict") or {}).get("gap_closed") or 0.0)
 
 
+#: a model is "at the noise level" when its weighted gap is within this factor of the truth's
+AT_NOISE = 1.10
+
+
+def final_db(diag: dict[str, Any], claimed: list[dict[str, Any]]) -> float | None:
+    """The weighted gap of the diagnosis's final model: after its last accepted effect, else
+    the parameter refit's."""
+    if claimed and isinstance(claimed[-1].get("db_rms_after"), int | float):
+        return float(claimed[-1]["db_rms_after"])
+    before = (diag.get("gap") or {}).get("db_rms")
+    return float(before) if isinstance(before, int | float) else None
+
+
 def score(case: Case, diag: dict[str, Any], db_truth: float | None) -> dict[str, Any]:
-    """Class, location, extra claims, gap figures and the ratio to the truth's gap_closed."""
+    """Class, location, extra claims, gap figures, the ratio to the truth's gap_closed and
+    whether the final model is at the noise level (within :data:`AT_NOISE` of the truth's
+    own weighted gap)."""
     v = diag.get("verdict") or {}
     claimed = claimed_effects(diag)
     got = [(c.get("effect"), c.get("location")) for c in claimed]
@@ -181,11 +196,13 @@ def score(case: Case, diag: dict[str, Any], db_truth: float | None) -> dict[str,
     if truth and truth_closed is not None and truth_closed > 0.02:
         ratio = closed / truth_closed
     stages = diag.get("stages") or {}
+    final = final_db(diag, claimed)
+    at_noise = None if final is None or db_truth is None else final <= AT_NOISE * db_truth
     return {
         "claimed": [list(g) for g in got], "verdict": v.get("effect"),
         "location": v.get("location"), "class_ok": class_ok, "location_ok": loc_ok,
         "extra_claims": max(0, len(got) - len(truth)),
         "gap_nominal": (stages.get("nominal") or {}).get("db_rms"), "gap_refit": before,
         "gap_closed": closed, "truth_gap_closed": truth_closed, "ratio": ratio,
-        "screen_ok": screening(case, diag),
+        "screen_ok": screening(case, diag), "final_db": final, "at_noise": at_noise,
     }  # fmt: skip

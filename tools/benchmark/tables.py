@@ -9,7 +9,8 @@ import numpy as np
 
 GOALS = ("goals: class ≥ 90 %, location ≥ 80 %, 0 effects claimed on 'none' cases, median"
          " gap_closed / truth's ≥ 0.8; two-effect: both found ≥ 70 %, no third; diagnosis ≤ 4×"
-         " the fit; screening recall: every case")  # fmt: skip
+         " the fit; screening recall: every case; final model at the noise level (weighted"
+         " gap ≤ 1.1 × the truth's) ≥ 95 %")  # fmt: skip
 
 
 def _f(v: Any, fmt: str = ".2f") -> str:
@@ -39,21 +40,22 @@ def _fit(r: dict[str, Any]) -> str:
 
 def case_table(rows: list[dict[str, Any]]) -> str:
     head = ("| case | truth | truth location | claimed (verdict first) | class | loc | extra"
-            " | gap refit | truth db | gap_closed | truth gap_closed | ratio | screened"
-            " | diagnose s | fit s | diag/fit |")  # fmt: skip
-    lines = [head, "|" + "---|" * 16]
+            " | gap refit | final db | truth db | at noise | gap_closed | truth gap_closed"
+            " | ratio | screened | diagnose s | fit s | diag/fit |")  # fmt: skip
+    lines = [head, "|" + "---|" * 18]
     for r in rows:
         truth = " + ".join(t[0] for t in r["truth"]) or "none"
         where = " + ".join(t[1] for t in r["truth"]) or "–"
         if "error" in r:
             lines.append(f"| {r['case']} | {truth} | {where} | error: {r['error']} |"
-                         + " |" * 12)  # fmt: skip
+                         + " |" * 14)  # fmt: skip
             continue
         got = ", ".join(f"{e}@{loc}" for e, loc in r["claimed"]) or "none"
         lines.append(
             f"| {r['case']} | {truth} | {where} | {got} | {_mark(r['class_ok'])} |"
             f" {_mark(r['location_ok'])} | {r['extra_claims']} | {_f(r['gap_refit'])} |"
-            f" {_f(r['db_truth'])} | {_f(r['gap_closed'])} | {_f(r['truth_gap_closed'])} |"
+            f" {_f(r.get('final_db'))} | {_f(r['db_truth'])} | {_mark(r.get('at_noise'))} |"
+            f" {_f(r['gap_closed'])} | {_f(r['truth_gap_closed'])} |"
             f" {_f(r['ratio'])} | {_mark(r['screen_ok'])} | {_f(r.get('diagnosis_s'), '.0f')} |"
             f" {_fit(r)} | {_f(time_ratio(r), '.1f')} |"
         )
@@ -72,6 +74,7 @@ def _group(rows: list[dict[str, Any]]) -> dict[str, Any]:
     none = [r for r in single if not r["truth"]]
     double = [r for r in ok if len(r["truth"]) > 1]
     screened = [r["screen_ok"] for r in ok if r["screen_ok"] is not None]
+    noise = [r["at_noise"] for r in ok if r.get("at_noise") is not None]
     return {
         "n": len(rows), "failed": len(rows) - len(ok),
         "class": _pct(sum(r["class_ok"] for r in single), len(single)),
@@ -84,6 +87,7 @@ def _group(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "fit_s": _f(_median(r.get("fit_s") for r in ok), ".0f"),
         "t_ratio": _f(_median(time_ratio(r) for r in ok), ".1f"),
         "recall": f"{sum(screened)}/{len(screened)}" if screened else "n/a",
+        "at_noise": _pct(sum(noise), len(noise)),
     }  # fmt: skip
 
 
@@ -91,8 +95,9 @@ def summary_table(rows: list[dict[str, Any]]) -> str:
     """One line per design × regime present, then per design, per regime and overall."""
     head = ("| design | regime | cases (failed) | class right | location right | claimed on"
             " none | two-effect both found | third claimed | median ratio | median diagnose s"
-            " | median fit s | median diag/fit | screening recall |")  # fmt: skip
-    lines = [head, "|" + "---|" * 13]
+            " | median fit s | median diag/fit | screening recall"
+            " | final model at noise |")  # fmt: skip
+    lines = [head, "|" + "---|" * 14]
     designs = list(dict.fromkeys(r["design"] for r in rows))
     regimes = list(dict.fromkeys(r["regime"] for r in rows))
     groups = [((d, g), [r for r in rows if r["design"] == d and r["regime"] == g])
@@ -107,6 +112,6 @@ def summary_table(rows: list[dict[str, Any]]) -> str:
         lines.append(
             f"| {d} | {g} | {s['n']} ({s['failed']}) | {s['class']} | {s['loc']} | {s['none']} |"
             f" {s['both']} | {s['third']} | {s['ratio']} | {s['diag_s']} | {s['fit_s']} |"
-            f" {s['t_ratio']} | {s['recall']} |"
+            f" {s['t_ratio']} | {s['recall']} | {s['at_noise']} |"
         )
     return "\n".join(lines) + "\n\n" + GOALS
