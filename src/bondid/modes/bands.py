@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..linear.affine import AffineModel
+from ..linear.linear_model import state_matrix
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..model.document import UrdfDocument
@@ -101,15 +102,22 @@ def _fmt(f: float) -> str:
     return f"{f:.3g}" if f < 1000 else f"{f / 1000:.3g}k"
 
 
+def state_eigenvalues(M: np.ndarray, K: np.ndarray, D: np.ndarray) -> np.ndarray:
+    """The eigenvalues λ ``(2n,)`` (1/s) of the state matrix of ``M q̈ + D q̇ + K q = 0``
+    (``M``, ``K``, ``D`` ``(n, n)`` in SI units; ``(0,)`` when ``n = 0``).
+
+    Raises:
+        numpy.linalg.LinAlgError: a singular ``M``.
+    """
+    if M.shape[0] == 0:
+        return np.zeros(0, dtype=complex)
+    return np.linalg.eigvals(state_matrix(M, K, D))
+
+
 def underdamped(M: np.ndarray, K: np.ndarray, D: np.ndarray) -> list[tuple[float, float]]:
     """``(f_hz, ζ)`` of the oscillatory eigenvalues of ``M q̈ + D q̇ + K q = 0``, lowest first
     (``M``, ``K``, ``D`` ``(n, n)`` in SI units)."""
-    n = M.shape[0]
-    if n == 0:
-        return []
-    Minv = np.linalg.inv(M)
-    A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ K, -Minv @ D]])
-    lam = np.linalg.eigvals(A)
+    lam = state_eigenvalues(M, K, D)
     return sorted(
         (float(abs(v) / (2.0 * np.pi)), float(-v.real / abs(v))) for v in lam[is_oscillatory(lam)]
     )
