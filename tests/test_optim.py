@@ -191,6 +191,25 @@ def test_staged_schedule_steps(bonder: UrdfDocument) -> None:
         staged(problem, {"springs": [(1.0, 2.0)]})
 
 
+def test_staged_resonances_read_from_the_linearisation_match_a_new_one(
+    bonder: UrdfDocument,
+) -> None:
+    """The staged schedule reads the resonances from the problem's linearisation, moved to a
+    start: they are those of a model linearised anew at that start (rounding only)."""
+    from bondid.modes.bands import model_resonances, resonances
+
+    problem = FitProblem(bonder, synth(bonder, 40), NAMES)
+    moved = problem.restrict(start=problem.initial * np.array([1.3, 0.7, 1.2, 0.8]))
+    driven = {t.joint for t in bonder.transmissions}
+    ours = resonances(moved.frf.affines[0], driven)
+    fresh = model_resonances(moved.doc, OPS[0])
+    assert [r.parasitic for r in ours] == [r.parasitic for r in fresh]
+    np.testing.assert_allclose([r.f_hz for r in ours], [r.f_hz for r in fresh], rtol=SAME)
+    np.testing.assert_allclose([r.zeta for r in ours], [r.zeta for r in fresh], rtol=SAME)
+    start = [r.f_hz for r in resonances(problem.frf.affines[0], driven)]
+    assert not np.allclose(start, [r.f_hz for r in ours], rtol=1e-3)  # the start did move them
+
+
 def _delay(theta, freq_hz, outputs, inputs):  # type: ignore[no-untyped-def]
     """A pure delay ``e^{−jωτ}`` on every channel and its derivative."""
     w = 2 * np.pi * freq_hz

@@ -176,6 +176,21 @@ def run(body: Callable[[], int | None]) -> int:
         interrupt.restore(previous)
 
 
+def parse_and_run(
+    parser: argparse.ArgumentParser,
+    argv: Sequence[str] | None,
+    body: Callable[[argparse.Namespace], int | None],
+) -> int:
+    """Parse ``argv`` and :func:`run` ``body(args)``; ``--help`` or a bad option returns
+    argparse's exit code (0, or 2 with its message printed) instead of raising
+    ``SystemExit``, so that the command can run in-process (a fleet worker)."""
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:
+        return exc.code if isinstance(exc.code, int) else EXIT_BAD_INPUT
+    return run(lambda: body(args))
+
+
 def _run(body: Callable[[], int | None]) -> int:
     try:
         code = body()

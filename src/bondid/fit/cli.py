@@ -20,11 +20,10 @@ from typing import Any
 import numpy as np
 
 from ..cli import (
-    EXIT_BAD_INPUT,
     EXIT_FAILED,
     EXIT_OK,
     Progress,
-    run,
+    parse_and_run,
     warn_lines,
 )
 from ..cost.problem import CostOptions
@@ -353,8 +352,4 @@ def _body(args: argparse.Namespace) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command; returns the exit code (0 ok, 2 bad input, 1 failed)."""
-    try:
-        args = build_parser().parse_args(argv)
-    except SystemExit as exc:  # --help (0) or a bad option (2, message already printed)
-        return exc.code if isinstance(exc.code, int) else EXIT_BAD_INPUT
-    return run(lambda: _body(args))
+    return parse_and_run(build_parser(), argv, _body)

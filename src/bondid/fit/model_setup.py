@@ -11,7 +11,8 @@ from typing import Any
 
 from ..model.document import UrdfDocument
 from ..model.points import apply_declarations, gains_from_table, load_points_file, points_from_table
-from .study import StudySettings, _fail, _path, _table, check_bool
+from .setting_checks import check_bool, check_path, check_table, config_error
+from .study import StudySettings
 
 
 def read_model_keys(doc: Mapping[str, Any], s: StudySettings, where: str, base: Path) -> None:
@@ -22,19 +23,23 @@ def read_model_keys(doc: Mapping[str, Any], s: StudySettings, where: str, base: 
     if "gains" in doc:
         s.gains = gains_from_table(doc["gains"], where)
     if "points_file" in doc:
-        s.points_file = _path(doc["points_file"], base, where, "points_file")
+        s.points_file = check_path(doc["points_file"], base, where, "points_file")
     if "package_path" in doc:
         items = doc["package_path"]
         items = [items] if isinstance(items, str) else items
         if not isinstance(items, list):
-            raise _fail(where, "package_path", f"{items!r} is not a folder or a list of them")
-        s.package_path = [_path(v, base, where, f"package_path[{i}]") for i, v in enumerate(items)]
+            raise config_error(
+                where, "package_path", f"{items!r} is not a folder or a list of them"
+            )
+        s.package_path = [
+            check_path(v, base, where, f"package_path[{i}]") for i, v in enumerate(items)
+        ]
     if "floating_base" in doc:
         s.floating_base = check_bool(doc["floating_base"], where, "floating_base")
-    for name, v in _table(doc.get("uff_map", {}), where, "uff_map").items():
+    for name, v in check_table(doc.get("uff_map", {}), where, "uff_map").items():
         ok = isinstance(v, list) and len(v) == 2 and all(type(x) is int for x in v)
         if not ok or not -6 <= v[1] <= 6 or v[0] < 0:
-            raise _fail(where, f"uff_map.{name}", f"{v!r} is not [NODE, DIRECTION (±1..±6)]")
+            raise config_error(where, f"uff_map.{name}", f"{v!r} is not [NODE, DIRECTION (±1..±6)]")
         s.uff_map[str(name)] = (int(v[0]), int(v[1]))
 
 

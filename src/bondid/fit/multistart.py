@@ -146,9 +146,10 @@ class _Job:
 
 
 def _problem(job: _Job, base: FitProblem | None = None) -> FitProblem:
-    """The job's problem: ``base`` restarted at the job's start, or built from its inputs."""
+    """The job's problem: ``base`` (the problem built for job 0, so used as is by job 0)
+    restarted at the job's start, or built from the job's inputs."""
     if base is not None:
-        return base.restrict(start=job.start)
+        return base if job.index == 0 else base.restrict(start=job.start)
     from ..optim.problem import FitProblem
 
     doc, datasets, names, options, lo, hi = job.problem_args
@@ -190,7 +191,8 @@ def _run_job(
 
 
 def _in_process(jobs: list[_Job], on_run: RunProgress | None, on_iteration: Any) -> list:
-    """Run the jobs here, one after another, on one problem built once."""
+    """Run the jobs here, one after another, on one problem built once (for job 0, which
+    runs on it; the others restart it)."""
     runs = []
     base = _problem(jobs[0]) if len(jobs) > 1 else None
     for k, job in enumerate(jobs):

@@ -22,13 +22,12 @@ from ..cli import (
 from ..cost.residuals import NORMS, RESIDUAL_KINDS
 from ..exceptions import ConfigError
 from .defaults import add_prior_arg, check_prior
+from .setting_checks import check_names, parse_bound_option
 from .study import (
     STAGES,
     StudySettings,
     add_bound,
-    check_names,
     load_study,
-    parse_bound_option,
 )
 
 

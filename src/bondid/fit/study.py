@@ -55,12 +55,12 @@ Every section and key is optional::
     damping = [[350.0, 500.0], [800.0, 950.0]]
     inertia = [[400.0, 4000.0]]
 
-Errors are :class:`~bondid.exceptions.ConfigError` naming the file, the key and what is valid.
+Errors are :class:`~bondid.exceptions.ConfigError` naming the file, the key and what is valid
+(the value checks, shared with the command line, are in :mod:`.setting_checks`).
 """
 
 from __future__ import annotations
 
-import math
 import os
 import tomllib
 from collections.abc import Mapping
@@ -73,6 +73,18 @@ from ..data.weights import WEIGHTINGS
 from ..exceptions import ConfigError
 from ..model.points import Point
 from .defaults import DEFAULT_FREE, DEFAULT_WIDTH, check_prior
+from .setting_checks import (
+    check_bands,
+    check_bool,
+    check_bound,
+    check_choice,
+    check_int,
+    check_keys,
+    check_names,
+    check_path,
+    check_table,
+    config_error,
+)
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..modes.bands import Span as Band
@@ -203,100 +215,6 @@ class StudySettings:
         }
 
 
-# -- value checks (shared with the command line) -----------------------------------------
-def _fail(where: str, key: str, msg: str) -> ConfigError:
-    return ConfigError(f"{where}: {key}: {msg}")
-
-
-def check_band(value: Any, where: str, key: str) -> Band:
-    """A band ``[f_lo, f_hi]`` in Hz with ``0 <= f_lo < f_hi``."""
-    ok = (
-        isinstance(value, list | tuple)
-        and len(value) == 2
-        and all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
-    )
-    if ok:
-        lo, hi = float(value[0]), float(value[1])
-        if math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi:
-            return lo, hi
-    raise _fail(where, key, f"{value!r} is not a band [F_LO, F_HI] in Hz with 0 <= F_LO < F_HI")
-
-
-def check_bands(value: Any, where: str, key: str) -> list[Band]:
-    if not isinstance(value, list) or not value:
-        raise _fail(where, key, f"{value!r} is not a non-empty list of [F_LO, F_HI] bands")
-    # a single band written flat: [1, 100]
-    if len(value) == 2 and all(isinstance(v, int | float) for v in value):
-        return [check_band(value, where, key)]
-    return [check_band(v, where, f"{key}[{i}]") for i, v in enumerate(value)]
-
-
-def check_choice(value: Any, valid: tuple[str, ...], where: str, key: str) -> str:
-    if not isinstance(value, str) or value not in valid:
-        raise _fail(where, key, f"{value!r} is not valid; valid: {', '.join(valid)}")
-    return value
-
-
-def check_int(value: Any, where: str, key: str, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        raise _fail(where, key, f"{value!r} is not an integer >= {minimum}")
-    return int(value)
-
-
-def check_bool(value: Any, where: str, key: str) -> bool:
-    if not isinstance(value, bool):
-        raise _fail(where, key, f"{value!r} is not true or false")
-    return value
-
-
-def check_names(value: Any, where: str, key: str) -> list[str]:
-    """A string (comma/space separated) or a list of strings -> list of tokens."""
-    items = [value] if isinstance(value, str) else value
-    if not isinstance(items, list) or not all(isinstance(v, str) for v in items):
-        raise _fail(where, key, f"{value!r} is not a string or a list of strings")
-    out: list[str] = []
-    for v in items:
-        out += [t for t in v.replace(",", " ").split() if t]
-    return out
-
-
-def check_bound(value: Any, where: str, key: str) -> float | tuple[float, float]:
-    """A relative fraction (> 0) or an absolute pair ``[lo, hi]`` (lo < hi)."""
-    if isinstance(value, int | float) and not isinstance(value, bool):
-        v = float(value)
-        if math.isfinite(v) and v > 0:
-            return v
-    elif (
-        isinstance(value, list | tuple)
-        and len(value) == 2
-        and all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
-    ):
-        lo, hi = float(value[0]), float(value[1])
-        if not (math.isnan(lo) or math.isnan(hi)) and lo < hi:
-            return lo, hi
-    raise _fail(
-        where,
-        key,
-        f"{value!r} is not a bound; valid: a relative fraction > 0 (0.2 = ±20 %) or an"
-        " absolute pair [LO, HI] with LO < HI",
-    )
-
-
-def parse_bound_option(text: str) -> tuple[str, float | tuple[float, float]]:
-    """``KEY=FRACTION`` or ``KEY=LO:HI`` (the ``--bound`` option) -> (key, bound)."""
-    key, sep, value = text.partition("=")
-    key = key.strip()
-    if not sep or not key:
-        raise ConfigError(f"--bound {text!r}: not KEY=FRACTION or KEY=LO:HI")
-    try:
-        parts = [float(v) for v in value.split(":")]
-    except ValueError:
-        raise ConfigError(f"--bound {text!r}: {value!r} is not FRACTION or LO:HI") from None
-    if len(parts) not in (1, 2):
-        raise ConfigError(f"--bound {text!r}: {value!r} is not FRACTION or LO:HI")
-    return key, check_bound(parts[0] if len(parts) == 1 else parts, "--bound", key)
-
-
 def add_bound(settings: StudySettings, key: str, bound: float | tuple[float, float]) -> None:
     """Record a bound (relative or absolute) for ``key``, replacing any earlier one."""
     settings.rel_bounds.pop(key, None)
@@ -305,27 +223,6 @@ def add_bound(settings: StudySettings, key: str, bound: float | tuple[float, flo
         settings.abs_bounds[key] = bound
     else:
         settings.rel_bounds[key] = bound
-
-
-# -- the file -----------------------------------------------------------------------------
-def _table(value: Any, where: str, key: str) -> Mapping[str, Any]:
-    if not isinstance(value, dict):
-        raise _fail(where, key, f"expected a table ([{key}]), got {type(value).__name__}")
-    return value
-
-
-def _check_keys(table: Mapping[str, Any], valid: tuple[str, ...], where: str, prefix: str) -> None:
-    for k in table:
-        if k not in valid:
-            name = f"{prefix}.{k}" if prefix else k
-            raise _fail(where, name, f"unknown key; valid: {', '.join(valid)}")
-
-
-def _path(value: Any, base: Path, where: str, key: str) -> Path:
-    if not isinstance(value, str) or not value:
-        raise _fail(where, key, f"{value!r} is not a file path")
-    p = Path(value)
-    return p if p.is_absolute() else base / p
 
 
 def load_study(path: str | os.PathLike[str]) -> StudySettings:
@@ -357,14 +254,16 @@ def study_from_dict(
     """Validate a parsed study (a TOML mapping) into :class:`StudySettings`."""
     base = Path(".") if base is None else base
     s = StudySettings(source=source)
-    _check_keys(doc, _TOP_KEYS, where, "")
+    check_keys(doc, _TOP_KEYS, where, "")
     if "model" in doc:
-        s.model = _path(doc["model"], base, where, "model")
+        s.model = check_path(doc["model"], base, where, "model")
     if "data" in doc:
         items = [doc["data"]] if isinstance(doc["data"], str) else doc["data"]
         if not isinstance(items, list) or not items:
-            raise _fail(where, "data", f"{doc['data']!r} is not a file path or a list of them")
-        s.data = [_path(v, base, where, f"data[{i}]") for i, v in enumerate(items)]
+            raise config_error(
+                where, "data", f"{doc['data']!r} is not a file path or a list of them"
+            )
+        s.data = [check_path(v, base, where, f"data[{i}]") for i, v in enumerate(items)]
 
     from .model_setup import read_model_keys
 
@@ -378,25 +277,25 @@ def study_from_dict(
 
 def _read_parameters(doc: Mapping[str, Any], s: StudySettings, where: str) -> None:
     """The study's ``[parameters]`` and ``[bounds]`` tables into ``s``."""
-    par = _table(doc.get("parameters", {}), where, "parameters")
-    _check_keys(par, _SECTION_KEYS["parameters"], where, "parameters")
+    par = check_table(doc.get("parameters", {}), where, "parameters")
+    check_keys(par, _SECTION_KEYS["parameters"], where, "parameters")
     if "free" in par:
         s.free = check_names(par["free"], where, "parameters.free")
         if not s.free:
-            raise _fail(where, "parameters.free", "empty; give names, globs or groups")
+            raise config_error(where, "parameters.free", "empty; give names, globs or groups")
     if "fixed" in par:
         s.fixed = check_names(par["fixed"], where, "parameters.fixed")
     if "prior" in par:
         s.prior = check_prior(par["prior"], f"{where}: parameters.prior")
-    bounds = _table(doc.get("bounds", {}), where, "bounds")
+    bounds = check_table(doc.get("bounds", {}), where, "bounds")
     for key, value in bounds.items():
         add_bound(s, key, check_bound(value, where, f"bounds.{key}"))
 
 
 def _read_cost(doc: Mapping[str, Any], s: StudySettings, where: str) -> None:
     """The study's ``[cost]`` table into ``s``."""
-    cost = _table(doc.get("cost", {}), where, "cost")
-    _check_keys(cost, _SECTION_KEYS["cost"], where, "cost")
+    cost = check_table(doc.get("cost", {}), where, "cost")
+    check_keys(cost, _SECTION_KEYS["cost"], where, "cost")
     if "kind" in cost:
         s.cost = check_choice(cost["kind"], RESIDUAL_KINDS, where, "cost.kind")
     if "norm" in cost:
@@ -406,17 +305,19 @@ def _read_cost(doc: Mapping[str, Any], s: StudySettings, where: str) -> None:
     if "channels" in cost:
         s.channels = check_names(cost["channels"], where, "cost.channels")
         if not s.channels:
-            raise _fail(where, "cost.channels", "empty; give OUT.IN names such as x.x")
+            raise config_error(where, "cost.channels", "empty; give OUT.IN names such as x.x")
     if "coherence" in cost:
         s.coherence = check_bool(cost["coherence"], where, "cost.coherence")
     if "weighting" in cost:
         s.weighting = check_choice(cost["weighting"], WEIGHTINGS, where, "cost.weighting")
-    for ch, w in _table(cost.get("channel_weights", {}), where, "cost.channel_weights").items():
+    for ch, w in check_table(
+        cost.get("channel_weights", {}), where, "cost.channel_weights"
+    ).items():
         key = f"cost.channel_weights.{ch}"
         if isinstance(w, bool) or not isinstance(w, int | float) or not 0 <= w < float("inf"):
-            raise _fail(where, key, f"{w!r} is not a finite weight >= 0")
+            raise config_error(where, key, f"{w!r} is not a finite weight >= 0")
         if ch.count(".") != 1:
-            raise _fail(where, key, "not a channel name OUT.IN such as x.y")
+            raise config_error(where, key, "not a channel name OUT.IN such as x.y")
         s.channel_weights[ch] = float(w)
 
 
@@ -427,15 +328,15 @@ _SEARCH_INTS = {"multistart": 1, "seed": 0, "workers": 1, "continuation": 0, "ma
 
 def _read_search(doc: Mapping[str, Any], s: StudySettings, where: str) -> None:
     """The study's ``[search]`` table into ``s``."""
-    search = _table(doc.get("search", {}), where, "search")
-    _check_keys(search, _SECTION_KEYS["search"], where, "search")
+    search = check_table(doc.get("search", {}), where, "search")
+    check_keys(search, _SECTION_KEYS["search"], where, "search")
     for key, minimum in _SEARCH_INTS.items():
         if key in search:
             setattr(s, key, check_int(search[key], where, f"search.{key}", minimum))
     if "staged" in search:
         s.staged = check_bool(search["staged"], where, "search.staged")
     if "stage_bands" in search:
-        table = _table(search["stage_bands"], where, "search.stage_bands")
-        _check_keys(table, STAGES, where, "search.stage_bands")
+        table = check_table(search["stage_bands"], where, "search.stage_bands")
+        check_keys(table, STAGES, where, "search.stage_bands")
         for stage, bands in table.items():
             s.stage_bands[stage] = check_bands(bands, where, f"search.stage_bands.{stage}")

@@ -20,7 +20,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
-from ..cli import EXIT_FAILED, EXIT_OK, make_parser, parse_band, run, split_names
+from ..cli import EXIT_FAILED, EXIT_OK, make_parser, parse_and_run, parse_band, split_names
 from ..exceptions import ComputationError, ConfigError
 from ..fit.defaults import add_prior_arg, check_prior
 from .machines import Machine
@@ -291,11 +291,7 @@ def _body(args: argparse.Namespace) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command; returns the exit code (0 all ok, 1 a machine failed, 2 bad input)."""
-    try:
-        args = build_parser().parse_args(argv)
-    except SystemExit as exc:  # --help (0) or a bad option (2, message already printed)
-        return exc.code if isinstance(exc.code, int) else 2
-    return run(lambda: _body(args))
+    return parse_and_run(build_parser(), argv, _body)
 
 
 if __name__ == "__main__":

@@ -36,10 +36,7 @@ def _task_failed(job: MachineJob, exc: BaseException) -> dict[str, Any]:
     """The status of a machine whose task failed in Dask itself (worker deaths, retries spent);
     written to ``OUT/machines/<id>/status.json`` so the reason stays with the machine."""
     status = {
-        "machine": job.machine_id,
-        "model": job.model,
-        "data": list(job.data),
-        "fingerprint": job.fingerprint,
+        **job.status_header(),
         "status": STATUS_FAILED,
         "reason": f"task failed in Dask: {type(exc).__name__}: {exc}",
         "exit_code": 1,

@@ -47,6 +47,15 @@ class MachineJob:
     diagnose_args: tuple[str, ...] | None
     fingerprint: str
 
+    def status_header(self) -> dict[str, Any]:
+        """The keys every ``status.json`` of the machine starts with (its id and inputs)."""
+        return {
+            "machine": self.machine_id,
+            "model": self.model,
+            "data": list(self.data),
+            "fingerprint": self.fingerprint,
+        }
+
 
 class _Tee(io.TextIOBase):
     """A text stream writing to several streams (the log, and a copy of stderr)."""
@@ -176,10 +185,7 @@ def run_machine(job: MachineJob) -> dict[str, Any]:
     part = mdir / f"{prefix}{where}-{uuid.uuid4().hex[:8]}"
     part.mkdir()
     status: dict[str, Any] = {
-        "machine": job.machine_id,
-        "model": job.model,
-        "data": list(job.data),
-        "fingerprint": job.fingerprint,
+        **job.status_header(),
         "attempt": attempt,
         "worker": where,
         "started": started,

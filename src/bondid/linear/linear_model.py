@@ -7,6 +7,14 @@ from dataclasses import dataclass
 import numpy as np
 
 
+def state_matrix(M: np.ndarray, K: np.ndarray, D: np.ndarray) -> np.ndarray:
+    """The state matrix ``A`` ``(2n, 2n)`` of ``M q̈ + D q̇ + K q = 0`` with ``x = [q, q̇]``
+    (``M``, ``K``, ``D`` ``(n, n)``, SI units; ``M`` invertible)."""
+    n = M.shape[0]
+    Minv = np.linalg.inv(M)
+    return np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ K, -Minv @ D]])
+
+
 @dataclass
 class LinearModel:
     """M δq̈ + D δq̇ + K δq = B u,  y = C δq (velocity coordinates of the model).
@@ -40,9 +48,8 @@ class LinearModel:
     def state_space(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(A (2nv,2nv), B (2nv,n_in), C (n_out,2nv), D (n_out,n_in)) with x = [δq, δq̇]."""
         n = self.nv
-        Minv = np.linalg.inv(self.M)
-        A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ self.K, -Minv @ self.D]])
-        Bs = np.vstack([np.zeros((n, self.B.shape[1])), Minv @ self.B])
+        A = state_matrix(self.M, self.K, self.D)
+        Bs = np.vstack([np.zeros((n, self.B.shape[1])), np.linalg.inv(self.M) @ self.B])
         Cs = np.hstack([self.C, np.zeros((self.C.shape[0], n))])
         Ds = np.zeros((self.C.shape[0], self.B.shape[1]))
         return A, Bs, Cs, Ds

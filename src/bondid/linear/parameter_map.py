@@ -20,19 +20,11 @@ import numpy as np
 from ..consistency.pseudo_inertia import pi_from_urdf, urdf_from_pi
 from ..exceptions import ParameterError
 from ..model.document import UrdfDocument
-from ..model.parameters import COM_AXES, get_parameters, parameter_infos
+from ..model.parameters import COM_AXES, INERTIA_ENTRY, get_parameters, parameter_infos
 from .affine import AffineModel
 
 # position of each URDF inertia component in Pinocchio's π (Ixx, Ixy, Iyy, Ixz, Iyz, Izz)
 _PI_SLOT = {"ixx": 4, "ixy": 5, "iyy": 6, "ixz": 7, "iyz": 8, "izz": 9}
-_I_ENTRY = {
-    "ixx": (0, 0),
-    "ixy": (0, 1),
-    "iyy": (1, 1),
-    "ixz": (0, 2),
-    "iyz": (1, 2),
-    "izz": (2, 2),
-}
 
 
 @dataclass(frozen=True)
@@ -110,7 +102,7 @@ class ParameterMap:
             elif s.kind == "com":
                 inert[s.index][1][COM_AXES.index(str(s.component))] = v
             elif s.kind == "inertia":
-                r, q = _I_ENTRY[str(s.component)]
+                r, q = INERTIA_ENTRY[str(s.component)]
                 inert[s.index][2][r, q] = inert[s.index][2][q, r] = v
         return inert
 

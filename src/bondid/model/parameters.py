@@ -42,7 +42,8 @@ from .document import UrdfDocument, rotation_and_translation
 
 COM_AXES = ("x", "y", "z")
 INERTIA_COMPONENTS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
-_INERTIA_INDEX = {
+#: (row, column) of each URDF inertia component in the 3×3 inertia tensor
+INERTIA_ENTRY = {
     "ixx": (0, 0),
     "ixy": (0, 1),
     "ixz": (0, 2),
@@ -154,7 +155,7 @@ def get_parameter(doc: UrdfDocument, name: str) -> float:
         return m
     if info.kind == "com":
         return float(c[COM_AXES.index(str(info.component))])
-    r, s = _INERTIA_INDEX[str(info.component)]
+    r, s = INERTIA_ENTRY[str(info.component)]
     return float(I[r, s])
 
 
@@ -183,7 +184,7 @@ def set_parameter(doc: UrdfDocument, name: str, value: float) -> None:
     elif info.kind == "com":
         c[COM_AXES.index(str(info.component))] = value
     else:
-        r, s = _INERTIA_INDEX[str(info.component)]
+        r, s = INERTIA_ENTRY[str(info.component)]
         I[r, s] = I[s, r] = value
     set_link_inertial(doc, info.owner, m, c, I)
 

@@ -4,8 +4,9 @@ bands.
 
 Resonances. The oscillatory eigenvalues λ (``Im λ > 0``, :func:`is_oscillatory`) of the state
 matrix of ``M q̈ + D q̇ + K q = B u`` give ``f = |λ|/2π`` and ``ζ = −Re λ/|λ|``
-(:func:`underdamped`). :func:`model_resonances` adds whether a resonance is *parasitic*: most
-of its modal strain energy in springs of joints without a transmission.
+(:func:`underdamped`). :func:`resonances` (:func:`model_resonances` from a URDF) adds whether
+a resonance is *parasitic*: most of its modal strain energy in springs of joints without a
+transmission.
 
 Stage bands (the staged fit, :func:`stage_bands`): ``stiffness`` below the first parasitic
 resonance ``f_p`` (``[f_min, f_p/1.5]``), ``damping`` in ``[f/1.25, f·1.25]`` around every
@@ -31,13 +32,14 @@ which residual entries fall in each.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..linear.affine import AffineModel
+from ..linear.linear_model import state_matrix
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..model.document import UrdfDocument
@@ -101,15 +103,22 @@ def _fmt(f: float) -> str:
     return f"{f:.3g}" if f < 1000 else f"{f / 1000:.3g}k"
 
 
+def state_eigenvalues(M: np.ndarray, K: np.ndarray, D: np.ndarray) -> np.ndarray:
+    """The eigenvalues λ ``(2n,)`` (1/s) of the state matrix of ``M q̈ + D q̇ + K q = 0``
+    (``M``, ``K``, ``D`` ``(n, n)`` in SI units; ``(0,)`` when ``n = 0``).
+
+    Raises:
+        numpy.linalg.LinAlgError: a singular ``M``.
+    """
+    if M.shape[0] == 0:
+        return np.zeros(0, dtype=complex)
+    return np.linalg.eigvals(state_matrix(M, K, D))
+
+
 def underdamped(M: np.ndarray, K: np.ndarray, D: np.ndarray) -> list[tuple[float, float]]:
     """``(f_hz, ζ)`` of the oscillatory eigenvalues of ``M q̈ + D q̇ + K q = 0``, lowest first
     (``M``, ``K``, ``D`` ``(n, n)`` in SI units)."""
-    n = M.shape[0]
-    if n == 0:
-        return []
-    Minv = np.linalg.inv(M)
-    A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ K, -Minv @ D]])
-    lam = np.linalg.eigvals(A)
+    lam = state_eigenvalues(M, K, D)
     return sorted(
         (float(abs(v) / (2.0 * np.pi)), float(-v.real / abs(v))) for v in lam[is_oscillatory(lam)]
     )
@@ -274,21 +283,28 @@ class Resonance:
 def model_resonances(
     doc: UrdfDocument, operating_point: Mapping[str, float] | None = None
 ) -> list[Resonance]:
-    """The vibration modes of ``doc`` at ``operating_point``, lowest first.
+    """The vibration modes of ``doc`` at ``operating_point``, lowest first (linearises the
+    model; :func:`resonances` reads an existing linearisation)."""
+    from ..linear.affine import build_affine_model
+
+    driven = {t.joint for t in doc.transmissions}
+    return resonances(build_affine_model(doc, operating_point), driven)
+
+
+def resonances(affine: AffineModel, driven: Collection[str]) -> list[Resonance]:
+    """The vibration modes of the linearised model ``affine`` (at its current values), lowest
+    first; ``driven``: the joints with a transmission.
 
     The modes of :func:`bondid.modes.analysis.modal_analysis` (rigid-body and real
     eigenvalues left out); the strain energy of a mode shape ``φ`` in a joint spring is
     ``k_j |φ_j|²``.
     """
-    from ..linear.affine import build_affine_model
     from .analysis import modal_analysis
 
-    am = build_affine_model(doc, operating_point)
-    driven = {t.joint for t in doc.transmissions}
-    k = np.asarray(am.stiffness, dtype=float)
-    para = np.array([d not in driven for d in am.dofs])
+    k = np.asarray(affine.stiffness, dtype=float)
+    para = np.array([d not in driven for d in affine.dofs])
     out: list[Resonance] = []
-    for mode in modal_analysis(am.linear_model()).vibration_modes():
+    for mode in modal_analysis(affine.linear_model()).vibration_modes():
         e = k * np.abs(mode.shape) ** 2  # strain energy per joint spring
         total = float(e.sum())
         parasitic = bool(total > 0 and e[para].sum() > 0.5 * total)

@@ -68,7 +68,8 @@ def fit_result(
     from ..fit.result import FitResult, parameter_statistics
 
     z = solution.z
-    r, J = problem.named_residual_and_jacobian(z)
+    doc = problem.document(z)
+    r, J = problem.named_residual_and_jacobian(z, doc)
     std, corr = parameter_statistics(J, r)
     return FitResult(
         status="failed" if solution.failed else solution.status,
@@ -89,7 +90,7 @@ def fit_result(
         wall_s=float(wall_s),
         cost_history=list(solution.history),
         active_constraints=active_constraints(problem, z),
-        document=problem.document(z),
+        document=doc,
         notes=list(notes),
         modifiers=_modifiers(problem, z),
     )

@@ -354,10 +354,13 @@ class FitProblem:
         """The named parameters (with their ties) as a parameter model of ``frf``."""
         return TiedParameters(self.doc, self.frf.affines[0], self.names, self.ties)
 
-    def named_residual_and_jacobian(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def named_residual_and_jacobian(
+        self, z: np.ndarray, doc: UrdfDocument | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Residual ``(n_r,)`` and Jacobian ``(n_r, n)`` in the named parameters (SI units) at
-        the solution ``z`` (what the parameter statistics are computed from)."""
-        doc = self.document(z)
+        the solution ``z`` (what the parameter statistics are computed from); ``doc``: the
+        model at ``z`` when the caller has it (:meth:`document`), else built here."""
+        doc = self.document(z) if doc is None else doc
         frf = self.frf.moved(self.model, np.asarray(z, dtype=float), doc)
         pmap = TiedParameters(doc, frf.affines[0], self.names, self.ties)
         return frf.residual_and_jacobian(pmap, get_parameters(doc, self.names))

@@ -16,7 +16,8 @@ together. Each stage fits a subset of the free parameters on a subset of the fre
 A stage with no free parameter of its kind, or whose bands hold no data, is skipped; a band
 stage gets a quarter of ``max_iter`` (at least :data:`STAGE_MIN_ITER`): it only prepares the
 start of the last one. Bands come from the model's resonances at the first data set's operating
-point (:func:`bondid.modes.bands.stage_bands`) or from the user, within the user's bands.
+point, read from the problem's linearisation (:func:`bondid.modes.bands.resonances`,
+:func:`~bondid.modes.bands.stage_bands`), or from the user, within the user's bands.
 
 Band continuation (:func:`continuation`): a local fit of lightly damped modes from far away
 (±30 % on every parameter) lands in the wrong basin when a model resonance has to move past a
@@ -52,7 +53,7 @@ import numpy as np
 from ..exceptions import ConfigError
 from ..fit.study import STAGES
 from ..model.document import UrdfDocument
-from ..modes.bands import Span, clip_spans, model_resonances, stage_bands
+from ..modes.bands import Span, clip_spans, resonances, stage_bands
 from .problem import FitProblem
 from .search import PRESOLVE_ITER, PRESOLVE_KIND, Step
 
@@ -105,8 +106,8 @@ def staged(
     f_min, f_max = problem.data_span_hz
     auto: dict[str, list[Span]] = {}
     if any(s not in user for s in STAGES):
-        op = problem.frf.datasets[0].operating_point
-        auto = stage_bands(model_resonances(problem.doc, op), f_min, f_max)
+        driven = {t.joint for t in problem.doc.transmissions}
+        auto = stage_bands(resonances(problem.frf.affines[0], driven), f_min, f_max)
     stage_iter = min(max_iter, max(STAGE_MIN_ITER, max_iter // 4))
     steps = []
     for stage in STAGES:

@@ -42,13 +42,11 @@ def limit_warnings(doc: UrdfDocument, op: Mapping[str, float], what: str) -> lis
 def stability_warnings(doc: UrdfDocument, op: Mapping[str, float], what: str) -> list[str]:
     """An eigenvalue of the linearised model with Re λ > 0 (e.g. gravity beats a spring)."""
     from ..linear.affine import build_affine_model
+    from ..modes.bands import state_eigenvalues
 
     try:
         lm = build_affine_model(doc, dict(op)).linear_model()
-        n = lm.nv
-        Minv = np.linalg.inv(lm.M)
-        A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ lm.K, -Minv @ lm.D]])
-        lam = np.linalg.eigvals(A)
+        lam = state_eigenvalues(lm.M, lm.K, lm.D)
     except (BondidError, np.linalg.LinAlgError, ValueError):
         return []
     bad = lam[lam.real > UNSTABLE_TOL * np.maximum(np.abs(lam), 1.0)]
