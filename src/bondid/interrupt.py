@@ -19,6 +19,7 @@ import contextlib
 import signal
 import threading
 from collections.abc import Iterator
+from multiprocessing.context import SpawnContext, SpawnProcess
 from typing import Any
 
 _FLAG = threading.Event()
@@ -58,6 +59,37 @@ def check() -> None:
 def ignore_in_worker(*_: Any) -> None:
     """Pool initializer: the worker ignores SIGINT (its parent stops it)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+class _QuietStartProcess(SpawnProcess):
+    """A spawned process started while the parent ignores SIGINT (see :func:`spawn_context`)."""
+
+    def start(self) -> None:
+        if threading.current_thread() is not threading.main_thread():
+            super().start()
+            return
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            super().start()
+        finally:
+            signal.signal(signal.SIGINT, previous)
+
+
+class _QuietStartContext(SpawnContext):
+    Process = _QuietStartProcess
+
+
+def spawn_context() -> SpawnContext:
+    """A ``multiprocessing`` "spawn" context whose processes start with SIGINT ignored.
+
+    :func:`ignore_in_worker` runs only once a spawned worker has imported what it needs; a
+    Ctrl-C that reaches the process group while a worker is still starting up would otherwise
+    raise ``KeyboardInterrupt`` in its bootstrap and print a traceback (seen under load). An
+    ignored signal stays ignored across ``exec`` and Python then installs no handler of its
+    own, so the parent ignores SIGINT for the moment it starts a process (main thread only;
+    its own handler is put back at once).
+    """
+    return _QuietStartContext()
 
 
 def kill_workers(executor: Any, timeout: float = 1.0) -> None:

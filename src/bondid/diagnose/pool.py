@@ -8,7 +8,7 @@ from collections.abc import Callable
 from typing import Any
 
 from ..blas import THREAD_VARS
-from ..interrupt import ignore_in_worker, kill_workers
+from ..interrupt import ignore_in_worker, kill_workers, spawn_context
 
 
 class WorkerPool:
@@ -18,7 +18,6 @@ class WorkerPool:
         self.workers = workers
         self.ex = None
         if workers > 1:
-            import multiprocessing as mp
             from concurrent.futures import ProcessPoolExecutor
 
             saved = {k: os.environ.get(k) for k in THREAD_VARS}
@@ -26,7 +25,7 @@ class WorkerPool:
                 os.environ[k] = "1"
             try:
                 self.ex = ProcessPoolExecutor(
-                    workers, mp_context=mp.get_context("spawn"), initializer=ignore_in_worker
+                    workers, mp_context=spawn_context(), initializer=ignore_in_worker
                 )
                 self.ex.submit(int, 0).result()  # start the workers with this environment
                 for _ in range(workers - 1):
