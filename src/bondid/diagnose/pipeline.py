@@ -35,6 +35,7 @@ from ..cost.problem import CostOptions
 from ..data.measurement import FrfData
 from ..data.weights import check_weighting
 from ..exceptions import ConfigError, DataError
+from ..frf.aligned import model_frf
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameter, select_parameters
 from .effects import Candidate, get_effects
@@ -129,15 +130,6 @@ def used_channels(datasets: Sequence[FrfData], requested: Sequence[str] | None) 
             "median SNR < 0 dB); name channels with --channels to use them anyway"
         )
     return keep
-
-
-def model_frf(doc: UrdfDocument, ds: FrfData) -> np.ndarray:
-    """Receptance of ``doc`` aligned with ``ds`` ``(n_out, n_in, n_freq)``."""
-    from ..linear.affine import build_affine_model
-
-    am = build_affine_model(doc, ds.operating_point, outputs=ds.outputs)
-    H = am.linear_model().frf(ds.freq_hz)
-    return H[:, [am.inputs.index(i) for i in ds.inputs], :]
 
 
 def default_names(doc: UrdfDocument, free: Sequence[str] | None) -> list[str]:
