@@ -91,13 +91,19 @@ def expected_log_error(v: np.ndarray, magnitude: bool = False) -> np.ndarray:
     return np.where(lv < _LOG_V[0], small, np.where(lv > _LOG_V[-1], big, inner))
 
 
-def expected_sq_db(ds: FrfData, use_coherence: bool = True, magnitude: bool = False) -> np.ndarray:
+def expected_sq_db(
+    ds: FrfData, use_coherence: bool = True, magnitude: bool = False,
+    weighting: str | None = None,
+) -> np.ndarray:  # fmt: skip
     """Expected squared error (dB²) of an exact model at every point of ``ds``,
     ``(n_out, n_in, n_freq)``: ``(20/ln 10)² E|ln(1 + u)|²`` with ``v = N/S`` of the point from
     the data's noise estimate, combined with the file's coherence where there is one (the
-    ``auto`` rule of :mod:`bondid.data.weights`; ``use_coherence=False``: the estimate alone).
-    NaN where ``H`` is NaN."""
-    w = information_weights(ds, "auto" if use_coherence else "estimated")
+    ``auto`` rule of :mod:`bondid.data.weights`; ``use_coherence=False``: the estimate alone;
+    ``weighting="coherence"``: the coherence alone, e.g. when it already holds information
+    weights, as in the diagnosis). NaN where ``H`` is NaN."""
+    if weighting != "coherence":
+        weighting = "auto" if use_coherence else "estimated"
+    w = information_weights(ds, weighting)
     with np.errstate(divide="ignore", invalid="ignore"):
         ns = np.where(w > 0, 1.0 / w - 1.0, np.inf)
     out = DB**2 * expected_log_error(np.where(np.isfinite(w), ns, 0.0), magnitude)
@@ -133,7 +139,10 @@ def noise_level_cost(problem: FrfProblem) -> float | None:
     sq, ws = [], []
     for b in problem.blocks:
         ds = b.data
-        e = expected_sq_db(ds, opt.use_coherence, magnitude=opt.kind != "complex_log")
+        e = expected_sq_db(
+            ds, opt.use_coherence, magnitude=opt.kind != "complex_log",
+            weighting=opt.effective_weighting,
+        )  # fmt: skip
         sq.append(e[used_points(ds, opt)])
         ws.append(b.weight)
     level = weighted_level(sq, ws)

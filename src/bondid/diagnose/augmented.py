@@ -3,10 +3,11 @@
 A diagnosis adds effects one at a time (:mod:`.search`): the candidates of a later step are
 tried on top of the effects accepted before, whose parameters stay free in every refit.
 :func:`build` turns a model text, the nominal refit variables, the accepted effects and an
-optional candidate into what the engine needs: the augmented document (structural effects
-built in, unless the model already has them), the variables (nominal first, then the new
-parameters in the order accepted…, candidate) and one FRF modifier that multiplies the
-factors of every modifier effect among them (:class:`ComposedModifier`).
+optional candidate into a refit over the optimisation core (:class:`~.refit.Refit`): the
+augmented document (structural effects built in, unless the model already has them), the
+parameters (nominal first, then the new ones in the order accepted…, candidate: tied URDF
+parameters or the modifier's) and one FRF modifier that multiplies the factors of every
+modifier effect among them (:class:`ComposedModifier`).
 """
 
 from __future__ import annotations
@@ -18,10 +19,12 @@ import numpy as np
 
 from ..data.measurement import FrfData
 from ..model.document import UrdfDocument
-from ..model.parameters import parameter_infos
+from ..model.parameters import parameter_infos, set_parameter
 from .effects import Candidate, get_effect
-from .engine import Refit
-from .variables import Variable
+from .effects.base import NewParameter
+from .refit import NewVar, Nominal, Refit
+
+_TIEABLE = ("stiffness", "damping")
 
 
 class ComposedModifier:
@@ -66,11 +69,15 @@ class Augmented:
     """One augmented model ready to refit (see :func:`build`)."""
 
     doc: UrdfDocument
-    variables: list[Variable]
     refit: Refit
     modifier: ComposedModifier | None
     n_nominal: int
     n_accepted: int
+
+    @property
+    def names(self) -> list[str]:
+        """Readable names: the nominal parameters, then every new one."""
+        return [*self.refit.nominal.names, *(v.name for v in self.refit.new)]
 
 
 def with_values(cand: Candidate, values: Sequence[float] | np.ndarray) -> Candidate:
@@ -87,9 +94,21 @@ def _has_members(doc: UrdfDocument, cand: Candidate) -> bool:
     return all(m in names for p in cand.parameters for m, _ in p.members)
 
 
+def new_var(p: NewParameter, kinds: dict[str, str], theta: int | None) -> NewVar:
+    """The refit's view of a candidate parameter: a modifier's ``theta``, else its first
+    member as the leader and the others tied (held when a member is not a joint
+    stiffness/damping, which the core cannot tie)."""
+    if theta is not None or not p.members:
+        return NewVar(p.name, p.initial, p.lower, p.upper, theta=theta)
+    (lead, f0), rest = p.members[0], p.members[1:]
+    held = any(kinds.get(m) not in _TIEABLE for m, _ in p.members)
+    ties = tuple((m, f / f0) for m, f in rest)
+    return NewVar(p.name, p.initial, p.lower, p.upper, lead, f0, ties, held=held)
+
+
 def build(
     urdf: str,
-    nominal: Sequence[Variable],
+    nominal: Nominal,
     data: Sequence[FrfData],
     options: object,
     accepted: Sequence[Candidate] = (),
@@ -98,31 +117,37 @@ def build(
     """The augmented model (module docstring) with its refit on ``data``.
 
     Args:
-        urdf: model text; structural effects of ``accepted`` it lacks are built in.
-        nominal: refit variables of the nominal parameters (values of ``urdf``).
+        urdf: model text; structural effects of ``accepted`` it lacks are built in (at
+            their parameters' initial values; the candidate always).
+        nominal: the nominal parameters (:class:`~.refit.Nominal`).
         data: data sets of the refit (receptance).
         options: :class:`bondid.cost.problem.CostOptions`.
         accepted: effects accepted before (parameters starting at their fitted values).
         candidate: the effect tried now, or None.
     """
     doc = UrdfDocument.from_string(urdf, source="refit model")
-    variables = list(nominal)
-    mods: list[Candidate] = []
-    n_acc = 0
-    for k, cand in enumerate([*accepted, *([candidate] if candidate is not None else [])]):
+    chain = [*accepted, *([candidate] if candidate is not None else [])]
+    for cand in chain:
         effect = get_effect(cand.effect)
         if not effect.is_modifier and (candidate is cand or not _has_members(doc, cand)):
             doc = effect.augment(doc, cand)
-        offset = sum(len(m.parameters) for m in mods)
+        elif not effect.is_modifier:
+            for p in cand.parameters:  # accepted and already built in: start at its values
+                for m, fac in p.members:
+                    set_parameter(doc, m, fac * p.initial)
+    kinds = {p.name: p.kind for p in parameter_infos(doc)}
+    new: list[NewVar] = []
+    mods: list[Candidate] = []
+    n_theta = 0
+    for cand in chain:
+        is_mod = get_effect(cand.effect).is_modifier
         for i, p in enumerate(cand.parameters):
-            mod = offset + i if effect.is_modifier else None
-            variables.append(
-                Variable(f"{p.name}", p.initial, p.lower, p.upper, p.members, mod, p.unit)
-            )
-        if effect.is_modifier:
+            new.append(new_var(p, kinds, n_theta + i if is_mod else None))
+        if is_mod:
             mods.append(cand)
-        if k < len(accepted):
-            n_acc += len(cand.parameters)
+            n_theta += len(cand.parameters)
+    n_acc = sum(len(c.parameters) for c in accepted)
     modifier = ComposedModifier(mods) if mods else None
-    refit = Refit(doc, data, variables, modifier=modifier, options=options)  # type: ignore[arg-type]
-    return Augmented(doc, variables, refit, modifier, len(nominal), n_acc)
+    n_own = 0 if candidate is None else len(candidate.parameters)
+    refit = Refit(doc, data, nominal, new, modifier, options, n_own)  # type: ignore[arg-type]
+    return Augmented(doc, refit, modifier, len(nominal.names), n_acc)

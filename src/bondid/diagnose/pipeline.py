@@ -8,9 +8,10 @@
    below :data:`MIN_CHANNEL_COHERENCE` (median SNR below 0 dB: under the noise floor) are left
    out unless the user names channels; decimated to ``n_points`` log-spaced frequencies per
    data set for the refits, and split into training and held-out frequencies (:mod:`.split`).
-2. Parameter refit: :func:`bondid.fit.fit` (IPOPT, physically consistent, bounded) of the
-   nominal parameters on the training data, then the same bounded least squares every
-   candidate uses (:mod:`.engine`) from there — the parameter-only baseline.
+2. Parameter refit: :func:`bondid.fit.fit` (IPOPT, physically consistent, with the default
+   bounds and the noise-scaled prior of ``bondid.fit``) of the nominal parameters on the
+   training data, then the refit every candidate gets (:mod:`.runner` over the core,
+   :mod:`.refit`) from there — the parameter-only baseline.
 3. Where the gap lies: :func:`.gap.gap_report` of the nominal and the refitted model (total,
    per channel, per automatic band), measured modes (:func:`.modal_id.identify_modes`) paired
    with the refitted model's, anti-resonance shifts.
@@ -34,14 +35,15 @@ from ..cost.problem import CostOptions
 from ..data.measurement import FrfData
 from ..data.weights import check_weighting
 from ..exceptions import ConfigError, DataError
+from ..frf.aligned import model_frf
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameter, select_parameters
 from .effects import Candidate, get_effects
 from .pool import WorkerPool
+from .refit import Nominal, nominal_space
 from .runner import Job, JobResult, run_job
 from .search import Context, Step, search
 from .split import decimate, holdout_split, limit_bands
-from .variables import nominal_variables
 
 #: default free parameters of the parameter refit (zero-valued springs/dampers are dropped)
 DEFAULT_FREE = ("all",)
@@ -130,15 +132,6 @@ def used_channels(datasets: Sequence[FrfData], requested: Sequence[str] | None) 
     return keep
 
 
-def model_frf(doc: UrdfDocument, ds: FrfData) -> np.ndarray:
-    """Receptance of ``doc`` aligned with ``ds`` ``(n_out, n_in, n_freq)``."""
-    from ..linear.affine import build_affine_model
-
-    am = build_affine_model(doc, ds.operating_point, outputs=ds.outputs)
-    H = am.linear_model().frf(ds.freq_hz)
-    return H[:, [am.inputs.index(i) for i in ds.inputs], :]
-
-
 def default_names(doc: UrdfDocument, free: Sequence[str] | None) -> list[str]:
     """The refit's free parameters: ``free`` (names, globs, groups) or :data:`DEFAULT_FREE`
     without zero-valued springs and dampers."""
@@ -150,17 +143,18 @@ def default_names(doc: UrdfDocument, free: Sequence[str] | None) -> list[str]:
 
 
 def _parameter_fit(
-    doc: UrdfDocument, train: list[FrfData], names: list[str], options: CostOptions, iters: int
+    doc: UrdfDocument, train: list[FrfData], space: Nominal, options: CostOptions, iters: int
 ) -> tuple[str, dict[str, Any]]:
-    """Stage (i): bondid.fit.fit; returns (URDF text of the fitted model, info)."""
+    """Stage (i): :func:`bondid.fit.fit` with the bounds and prior of every refit; returns
+    (URDF text of the fitted model, info)."""
     from ..exceptions import BondidError
-    from ..fit import default_bounds, fit
+    from ..fit import fit
 
-    lo, hi = default_bounds(
-        doc, names, rel={"mass": 0.5, "inertia": 0.5, "stiffness": 0.67, "damping": 0.8}
-    )
     try:
-        res = fit(doc, train, names, options=options, lower=lo, upper=hi, max_iter=iters)
+        res = fit(
+            doc, train, list(space.names), options=options, lower=space.lower,
+            upper=space.upper, max_iter=iters, prior_width=space.prior_width,
+        )  # fmt: skip
     except BondidError as exc:
         return doc.to_string(), {"status": "failed", "error": str(exc)}
     info = {
@@ -178,21 +172,20 @@ def _parameter_fit(
 
 
 def _baseline_task(
-    urdf: str, names: list[str], train: list[FrfData], held: list[FrfData],
+    urdf: str, space: Nominal, train: list[FrfData], held: list[FrfData],
     full: list[FrfData], options: CostOptions, use_ipopt: bool, iters: int, max_nfev: int,
 ) -> tuple[JobResult, dict[str, Any]]:  # fmt: skip
+    """The parameter-only baseline: :func:`_parameter_fit` from the nominal model, then the
+    refit of :mod:`.runner` from there (the same problem: a short check); without IPOPT's
+    parameter fit the refit runs from the nominal model with ``iters`` iterations."""
     nominal = UrdfDocument.from_string(urdf, source="nominal model")
     info: dict[str, Any] = {"status": "skipped"}
     start = urdf
     if use_ipopt:
-        start, info = _parameter_fit(nominal, train, names, options, iters)
-    fitted = UrdfDocument.from_string(start, source="refit model")
-    nom_vars = nominal_variables(fitted, names, reference=nominal)
-    job = Job(start, nom_vars, train, held, full, None, options, max_nfev_all=max_nfev,
-              alt_urdf=urdf, alt_nominal=nominal_variables(nominal, names))  # fmt: skip
-    res = run_job(job)
-    res.extra["nominal_variables"] = nom_vars
-    return res, info
+        start, info = _parameter_fit(nominal, train, space, options, iters)
+    n = max_nfev if use_ipopt else iters
+    job = Job(start, space, train, held, full, None, options, max_nfev_all=n)
+    return run_job(job), info
 
 
 @dataclass
@@ -210,6 +203,7 @@ class Prepared:
     held: list[FrfData]
     split_info: dict[str, Any]
     weighting: dict[str, Any]
+    space: Nominal
 
 
 def prepare_data(doc: UrdfDocument, datasets: Sequence[FrfData], s: Settings) -> Prepared:
@@ -239,7 +233,11 @@ def prepare_data(doc: UrdfDocument, datasets: Sequence[FrfData], s: Settings) ->
         "n_train_points": [int(d.freq_hz.size) for d in train],
         "n_heldout_points": [int(d.freq_hz.size) for d in held],
     }
-    return Prepared(full, channels, options, names, candidates, train, held, split_info, w_info)
+    f_max = max(float(d.freq_hz.max()) for d in train)
+    space = nominal_space(doc, names, f_max)
+    return Prepared(
+        full, channels, options, names, candidates, train, held, split_info, w_info, space
+    )
 
 
 def diagnose(
@@ -272,7 +270,7 @@ def diagnose(
         ctx = Context(
             doc, p.names, p.train, p.held, p.full, p.options, p.candidates,
             missing_mode_hints(by_ds), s.max_nfev, s.n_starts, (s.n_refit, s.n_refit_later),
-            s.max_effects,
+            s.max_effects, p.space,
         )  # fmt: skip
         steps = search(ctx, pool, baseline, say)
         nominal_H = [model_frf(doc, d) for d in p.full]
@@ -314,7 +312,7 @@ def _refit_baseline(
         ComputationError: the refit failed.
     """
     fut = pool.submit(
-        _baseline_task, doc.to_string(), p.names, p.train, p.held, p.full, p.options,
+        _baseline_task, doc.to_string(), p.space, p.train, p.held, p.full, p.options,
         s.use_ipopt, s.ipopt_iter, s.max_nfev,
     )  # fmt: skip
     baseline, fit_info = fut.result()
@@ -322,7 +320,6 @@ def _refit_baseline(
         from ..exceptions import ComputationError
 
         raise ComputationError(f"the parameter refit failed: {baseline.error}")
-    baseline.extra.pop("nominal_variables")
     return baseline, fit_info
 
 

@@ -8,17 +8,20 @@ data and on all data. Steps for a candidate:
    its delay/lag sweeps microseconds to milliseconds), then, for candidates with several
    scanned parameters, one coordinate scan of each; both scans also try the scales that put
    the candidate's mode at each measured mode the refitted model lacks (``Job.hints_hz``);
-2. bounded least squares of the new parameters alone (nominal ones fixed at the refit);
-3. bounded least squares of new and nominal parameters together;
+2. an IPOPT solve of the new parameters alone (nominal ones fixed at the refit);
+3. an IPOPT solve of new and nominal parameters together;
 4. a second origin, when the job carries the nominal model: the nominal model augmented with
    new parameters — the best of step 2, the candidate's initial values, or those that put its
-   mode at a missing mode — each fitted new-only and then briefly with everything; the best
-   of those short solves continues, all parameters together with the normalised complex
-   error first and the complex-log error after (see :meth:`.engine.Refit.solve`). The
-   parameter refit that starts every candidate may have bent nominal parameters to mimic the
-   missing effect (including the proportions of the inertia tensors, which the refit
-   variables keep); from the nominal values they can unbend. The lower training cost of the
-   two origins is kept.
+   mode at a missing mode — each fitted new-only and then briefly with everything
+   (:func:`short`); the best of those short solves continues, all parameters together
+   (:func:`direct`: the core's direct schedule with its presolve on the normalised complex
+   error). The parameter refit that starts every candidate may have bent nominal parameters
+   to mimic the missing effect; from the nominal values they can unbend. The lower training
+   objective of the two origins is kept.
+
+Every solve is the optimisation core's (:mod:`.refit`: a :class:`~bondid.optim.FitProblem`
+with the candidate's parameters as more names, tied or as the FRF modifier's, the default
+bounds and the noise-scaled prior of ``bondid.fit``); iteration limits are IPOPT's.
 
 A candidate with variants (e.g. the pivots of a rotational DOF) first keeps the variant
 whose step-4 start fits best (:func:`_screen_variants`). In a diagnosis the screening
@@ -26,8 +29,9 @@ whose step-4 start fits best (:func:`_screen_variants`). In a diagnosis the scre
 (``Job.start_new``): the job then skips the scans (step 1) and the other start options of
 step 4, which cuts a full refit's evaluations by about half.
 
-The parameter-only baseline gets the same treatment (step 3 from the parameter refit, and
-step 4 from the nominal model), so that candidates do not win by a better optimiser alone.
+The parameter-only baseline is :func:`bondid.fit.fit` from the nominal model with the same
+bounds and prior (the same problem as step 4 without a candidate), checked by step 3 from
+its result, so that candidates do not win by a better optimiser alone.
 
 Everything a job needs travels in :class:`Job` (URDF text, data, plain values), so it pickles
 to a worker process.
@@ -44,22 +48,42 @@ import numpy as np
 from ..cost.problem import CostOptions
 from ..data.measurement import FrfData
 from ..exceptions import BondidError
-from ..model.parameters import set_parameter
+from ..optim.search import PRESOLVE_KIND, Step
 from .augmented import Augmented, build, with_values
 from .effects import Candidate
-from .engine import Refit
-from .variables import Variable
+from .refit import Nominal, Refit, State
 
 DAMPING_FACTORS = (1.0, 4.0)
+#: a full refit whose training cost ends above this multiple of the noise level (the cost an
+#: exact model would score, :func:`bondid.cost.noise_level.noise_level_cost`) gets the core's
+#: band continuation from its best point (:func:`rescue`)
+RESCUE_RATIO = 1.5
+#: bands of that continuation (the last is the full fit) and IPOPT iterations per band
+RESCUE_BANDS = 4
+RESCUE_BAND_ITER = 30
 COORD_GRID = tuple(float(x) for x in np.geomspace(1 / 30, 30, 25))
+
+
+def direct(max_iter: int, presolve: int = 0) -> list[Step]:
+    """One solve over everything (``presolve``: the core's presolve of a log cost)."""
+    return [Step("all", max_iter=max_iter, presolve=presolve)]
+
+
+def short(n: int) -> list[Step]:
+    """``n`` iterations on the normalised complex error (kept if lower), then ``n`` on the
+    log error: the short start of the second origin."""
+    return [
+        Step("presolve", kind=PRESOLVE_KIND, norm="l2", max_iter=n, keep_if_lower=True),
+        Step("all", max_iter=n),
+    ]
 
 
 @dataclass
 class Job:
-    """Inputs of one refit job (see the module docstring)."""
+    """Inputs of one refit job (see the module docstring). Iteration counts are IPOPT's."""
 
     urdf: str
-    nominal: list[Variable]
+    nominal: Nominal
     train: list[FrfData]
     heldout: list[FrfData]
     full: list[FrfData]
@@ -69,14 +93,13 @@ class Job:
     n_starts: int = 3
     max_nfev_all: int = 30
     alt_urdf: str | None = None
-    alt_nominal: list[Variable] | None = None
     max_nfev_alt: int = 150
     pre_nfev: int = 30
     hints_hz: tuple[float, ...] = ()
     screen_nfev: int = 10
     accepted: tuple[Candidate, ...] = ()
-    #: the candidate's new parameters (log units) from its screening: when given, the refit
-    #: starts there (no scan) from both origins
+    #: the candidate's new parameters (SI) from its screening: when given, the refit starts
+    #: there (no scan) from both origins
     start_new: tuple[float, ...] = ()
 
 
@@ -125,22 +148,6 @@ class JobResult:
     n_own: int = 0
 
 
-def _db_rms(refit: Refit, u: np.ndarray, weighted: bool = True) -> float:
-    """Weighted ``db_rms`` (weights = the data's coherence) over the used channels, or the
-    unweighted one over the points of weight ≥ 0.5."""
-    from .gap import gap_report
-    from .split import mask_incoherent
-
-    chans = refit.problem.options.channels
-    if weighted:
-        sets = [b.data for b in refit.problem.blocks]
-        return float(
-            gap_report(sets, refit.frf_for_data(u), channels=chans, weighting="coherence").db_rms
-        )
-    sets = [mask_incoherent(b.data) for b in refit.problem.blocks]
-    return float(gap_report(sets, refit.frf_for_data(u), channels=chans).db_rms)
-
-
 def run_job(job: Job) -> JobResult:
     """Run one job; never raises for a numerical failure of the candidate (``error`` set)."""
     t0 = time.perf_counter()
@@ -157,87 +164,95 @@ def run_job(job: Job) -> JobResult:
         )  # fmt: skip
 
 
-def _setup(urdf: str, nominal: list[Variable], job: Job) -> Augmented:
+def _setup(urdf: str, job: Job) -> Augmented:
     """The (augmented) model of ``job`` on its training data (see :mod:`.augmented`)."""
-    return build(urdf, nominal, job.train, job.options, job.accepted, job.candidate)
+    return build(urdf, job.nominal, job.train, job.options, job.accepted, job.candidate)
 
 
-def _candidate_fit(job: Job, refit: Refit, n_nom: int) -> tuple[np.ndarray, Any, list]:
-    """Steps 1–3 of the module docstring from the parameter refit; returns the best
-    ``(u, outcome)`` and the new-parameter-only solutions of the starts (log units)."""
+def _exps(cand: Candidate) -> np.ndarray:
+    return np.array([p.scan for p in cand.parameters], float)
+
+
+def _starts(job: Job, refit: Refit) -> list[State]:
+    """Step 1 of the module docstring: start states of the candidate's new parameters."""
     cand = job.candidate
     assert cand is not None
-    n_var = len(refit.variables)
-    new_idx = list(range(n_nom, n_var))
-    exps = np.zeros(n_var)
-    exps[n_nom:] = [p.scan for p in cand.parameters]
-    u = refit.u0.copy()
-    starts = [u]
-    hint_factors = [(f / cand.ref_hz) ** 2 for f in job.hints_hz] if cand.ref_hz else []
+    s0 = refit.state0
     if job.start_new:
-        u[n_nom:] = np.clip(job.start_new, refit.lower[n_nom:], refit.upper[n_nom:])
-        starts, hint_factors = [u], []
-    elif cand.scan_grid:
-        grid = tuple(sorted({*cand.scan_grid, *hint_factors}))
-        damp = (exps == 0.5).astype(float)
-        bases = [u + damp * np.log(f) for f in DAMPING_FACTORS] if damp.any() else [u]
-        starts = []
-        for b in bases:
-            starts += refit.scan_starts(b, exps, grid, n_starts=job.n_starts)
-        starts.sort(key=refit.cost)
-        starts = starts[: job.n_starts]
-    scanned = [n_nom + i for i, p in enumerate(cand.parameters) if p.scan == 1.0]
-    best: tuple[np.ndarray, Any] | None = None
+        return [refit.with_new(s0, job.start_new)]
+    if not cand.scan_grid:
+        return [s0]
+    exps = _exps(cand)
+    hints = [(f / cand.ref_hz) ** 2 for f in job.hints_hz] if cand.ref_hz else []
+    grid = tuple(sorted({*cand.scan_grid, *hints}))
+    damp = (exps == 0.5).astype(float)
+    v0 = refit.new_values(s0)
+    bases = [refit.with_new(s0, v0 * f**damp) for f in DAMPING_FACTORS] if damp.any() else [s0]
+    starts: list[State] = []
+    for b in bases:
+        starts += refit.scan_starts(b, exps, grid, n_starts=job.n_starts)
+    starts.sort(key=refit.cost)
+    starts = starts[: job.n_starts]
+    scanned = [i for i, p in enumerate(cand.parameters) if p.scan == 1.0]
+    if len(scanned) <= 1:
+        return starts
+    out = []
+    for s in starts:
+        for k in scanned:
+            e = np.zeros(len(exps))
+            e[k] = 1.0
+            # relative steps, and the values that put this DOF's mode at a hint
+            rel = refit.new_values(s0)[k] / refit.new_values(s)[k]
+            s = refit.scan(s, e, sorted({*COORD_GRID, *(h * rel for h in hints)}))
+        out.append(s)
+    return out
+
+
+def _candidate_fit(job: Job, refit: Refit) -> tuple[State, float, Any, list[np.ndarray]]:
+    """Steps 1–3 of the module docstring from the parameter refit; returns the best state,
+    its cost and search, and the new-only solutions of the starts (SI, best first)."""
+    best: tuple[State, float, Any] | None = None
     new_only: list[tuple[float, np.ndarray]] = []
-    for u_s in starts:
-        if len(scanned) > 1 and not job.start_new:
-            for k in scanned:
-                e = np.zeros(n_var)
-                e[k] = 1.0
-                # relative steps, and the values that put this DOF's mode at a hint
-                at_hints = [h * np.exp(u[k] - u_s[k]) for h in hint_factors]
-                u_s = refit.scan(u_s, e, sorted({*COORD_GRID, *at_hints}))
-        u_s, o_s = refit.solve(u_s, free=new_idx, max_nfev=job.max_nfev_new)
-        new_only.append((o_s.cost, u_s[n_nom:]))
-        u_s, o_s = refit.solve(u_s, max_nfev=job.max_nfev_all)
-        if best is None or o_s.cost < best[1].cost:
-            best = (u_s, o_s)
+    for s in _starts(job, refit):
+        s, c = refit.solve_new(s, job.max_nfev_new)
+        new_only.append((c, refit.new_values(s)))
+        s, c, res = refit.solve(s, direct(job.max_nfev_all))
+        if best is None or c < best[1]:
+            best = (s, c, res)
     assert best is not None
     new_only.sort(key=lambda t: t[0])
-    return best[0], best[1], [v for _, v in new_only]
+    return best[0], best[1], best[2], [v for _, v in new_only]
 
 
 def _alt_start(
-    job: Job, refit: Refit, n_nom: int, found: list[np.ndarray], only: int | None = None
-) -> tuple[np.ndarray, float, int]:
+    job: Job, refit: Refit, found: list[np.ndarray], only: int | None = None
+) -> tuple[State, float, int]:
     """Start of the second origin and its training cost. Options for the new parameters: the
     best found from the parameter refit, the candidate's initial values, and those that put
     its mode at each missing mode (``Job.hints_hz``); each is fitted alone (nominal values
-    fixed), then briefly with everything (``screen_nfev`` evaluations of the normalised
-    complex error, as many of the complex-log error). The best after that short solve is
-    kept: which basin a start leads to shows only once the nominal parameters move too.
-    The parameter-only baseline (no candidate) gets the same short solve from the nominal
-    values, so that candidates do not win by a longer optimisation. ``only``: try that option
-    alone. Returns the start, its cost and the index of its option."""
+    fixed), then briefly with everything (:func:`short`: ``screen_nfev`` iterations of the
+    normalised complex error, as many of the complex-log error). The best after that short
+    solve is kept: which basin a start leads to shows only once the nominal parameters move
+    too. The parameter-only baseline (no candidate) gets the same short solve from the
+    nominal values. ``only``: try that option alone. Returns the start, its cost and the
+    index of its option."""
     cand = job.candidate
-    new_idx = list(range(n_nom, len(refit.u0)))
-    lo, hi = refit.lower[n_nom:], refit.upper[n_nom:]
-    options = [np.clip(v, lo, hi) for v in found[:1]] + [refit.u0[n_nom:]]
+    s0 = refit.state0
+    v0 = refit.new_values(s0)
+    options = [*found[:1], v0]
     if cand is not None and cand.ref_hz:
-        exps = np.array([p.scan for p in cand.parameters])
-        for f in job.hints_hz:
-            options.append(np.clip(refit.u0[n_nom:] + exps * 2.0 * np.log(f / cand.ref_hz), lo, hi))
-    best: tuple[float, np.ndarray, int] | None = None
+        exps = _exps(cand)
+        options += [v0 * (f / cand.ref_hz) ** (2.0 * exps) for f in job.hints_hz]
+    best: tuple[float, State, int] | None = None
     for k, new in enumerate(options):
         if only is not None and k != only:
             continue
-        u = refit.u0.copy()
-        u[n_nom:] = new
-        if new_idx:
-            u, _ = refit.solve(u, free=new_idx, max_nfev=job.max_nfev_new)
-        u, o = refit.solve(u, max_nfev=job.screen_nfev, pre_nfev=job.screen_nfev)
-        if best is None or o.cost < best[0]:
-            best = (o.cost, u, k)
+        s = refit.with_new(s0, new)
+        if refit.own:
+            s, _ = refit.solve_new(s, job.max_nfev_new)
+        s, c, _ = refit.solve(s, short(job.screen_nfev))
+        if best is None or c < best[0]:
+            best = (c, s, k)
     assert best is not None
     return best[1], best[0], best[2]
 
@@ -254,15 +269,12 @@ def _screen_variants(job: Job) -> tuple[Job, float]:
     cand = job.candidate
     assert cand is not None
     best: tuple[float, Candidate] | None = None
-    use_alt = job.alt_urdf is not None and job.alt_nominal is not None
-    urdf = job.alt_urdf if use_alt else job.urdf
-    nominal = job.alt_nominal if use_alt else job.nominal
-    assert urdf is not None and nominal is not None
+    urdf = job.alt_urdf if job.alt_urdf is not None else job.urdf
     pick: int | None = None
     for option in (cand, *cand.variants):
         sub = replace(job, candidate=replace(option, variants=()))
-        aug = _setup(urdf, nominal, sub)
-        _, cost, k = _alt_start(sub, aug.refit, aug.n_nominal + aug.n_accepted, [], only=pick)
+        aug = _setup(urdf, sub)
+        _, cost, k = _alt_start(sub, aug.refit, [], only=pick)
         pick = k
         if best is None or cost < best[0]:
             best = (cost, option)
@@ -270,59 +282,107 @@ def _screen_variants(job: Job) -> tuple[Job, float]:
     return replace(job, candidate=replace(best[1], variants=())), best[0]
 
 
+def _fit(job: Job) -> tuple[Augmented, State, Any]:
+    """Both origins of the module docstring; the better (lower training objective)."""
+    cand = job.candidate
+    aug = _setup(job.urdf, job)
+    found: list[np.ndarray] = []
+    if cand is None:
+        s, c, res = aug.refit.solve(aug.refit.state0, direct(job.max_nfev_all, job.pre_nfev))
+    else:
+        s, c, res, found = _candidate_fit(job, aug.refit)
+    if job.alt_urdf is not None:
+        # second origin: the nominal model (with the best new parameters found above). The
+        # parameter refit may have bent the nominal parameters to mimic the missing effect.
+        alt = _setup(job.alt_urdf, job)
+        only = 0 if job.start_new else None  # the screening's start (in found) alone
+        s_a = _alt_start(job, alt.refit, found, only)[0]
+        s_a, c_a, res_a = alt.refit.solve(s_a, direct(job.max_nfev_alt, job.pre_nfev))
+        if c_a < c:
+            aug, s, res = alt, s_a, res_a
+    return aug, s, res
+
+
+def rescue(job: Job, refit: Refit, state: State, res: Any) -> tuple[State, Any, str]:
+    """The core's band continuation (:func:`bondid.optim.schedules.continuation`) from
+    ``state`` when its training cost is above :data:`RESCUE_RATIO` times the noise level;
+    the lower objective is kept. Returns the state, its search and a note ("" when the
+    refit was at the noise level)."""
+    from ..cost.noise_level import noise_level_cost
+    from ..optim.schedules import continuation
+
+    p = refit.at(state)
+    noise = noise_level_cost(p.frf)
+    data = p.data_cost(p.z0)
+    if noise is None or not data > RESCUE_RATIO * noise:
+        return state, res, ""
+    c0 = p.cost(p.z0)
+    steps = continuation(p, RESCUE_BANDS, band_iter=RESCUE_BAND_ITER, presolve_iter=job.pre_nfev)
+    s2, c2, res2 = refit.solve(state, steps, max_iter=job.max_nfev_alt)
+    kept = c2 < c0
+    note = (
+        f"training cost {data:.4g} above {RESCUE_RATIO:g}x the noise level {noise:.4g}: band "
+        f"continuation to {refit.data_cost(s2):.4g}, {'kept' if kept else 'not kept'}"
+    )
+    return (s2, res2, note) if kept else (state, res, note)
+
+
 def _run(job: Job, t0: float) -> JobResult:
+    from .evaluate import figures
+
     extra: dict[str, Any] = {}
     if job.candidate is not None and job.candidate.variants:
         job, _ = _screen_variants(job)
         assert job.candidate is not None
         extra["variant"] = job.candidate.description
     cand = job.candidate
-    aug = _setup(job.urdf, job.nominal, job)
-    found: list[np.ndarray] = []
-    if cand is None:
-        u, out = aug.refit.solve(aug.refit.u0, max_nfev=job.max_nfev_all)
-    else:
-        u, out, found = _candidate_fit(job, aug.refit, aug.n_nominal + aug.n_accepted)
-    if job.alt_urdf is not None and job.alt_nominal is not None:
-        # second origin: the nominal model (with the best new parameters found above). The
-        # parameter refit may have bent the nominal parameters (and the proportions of the
-        # inertia tensors, which the refit variables keep) to mimic the missing effect.
-        alt = _setup(job.alt_urdf, job.alt_nominal, job)
-        only = 0 if job.start_new else None  # the screening's start (in found) alone
-        u_a = _alt_start(job, alt.refit, alt.n_nominal + alt.n_accepted, found, only)[0]
-        u_a, o_a = alt.refit.solve(u_a, max_nfev=job.max_nfev_alt, pre_nfev=job.pre_nfev)
-        if o_a.cost < out.cost:
-            aug, u, out = alt, u_a, o_a
-    doc, variables, refit, modifier = aug.doc, aug.variables, aug.refit, aug.modifier
-    n_new = len(variables) - aug.n_nominal
-    status = out.status
-    r = refit.residual(u)
-    held = Refit(doc, job.heldout, variables, modifier=modifier, options=job.options)
-    full = Refit(doc, job.full, variables, modifier=modifier, options=job.options)
-    for name, value in refit.named_values(u).items():
-        set_parameter(doc, name, value)
+    aug, state, res = _fit(job)
+    refit = aug.refit
+    state, res, note = rescue(job, refit, state, res)
+    if note:
+        extra["rescue"] = note
+    fit, std_theta = refit.result(res)
+    theta = refit.state_theta(fit)
+    train = refit.at(state)
+    r = train.residual(train.z0)[: train.n_residuals]
+    held = figures(refit, fit, theta, job.heldout, job.options)
+    full = figures(refit, fit, theta, job.full, job.options)
+    new_vals = refit.new_values(state, own=False)
     return JobResult(
         label="refit" if cand is None else cand.label,
         effect=None if cand is None else cand.effect,
         location=None if cand is None else cand.location,
-        names=[v.name for v in variables],
-        values=refit.values(u),
-        std=out.std,
-        n_new=n_new,
+        names=aug.names,
+        values=np.r_[fit.fitted[: aug.n_nominal], new_vals],
+        std=np.r_[fit.std[: aug.n_nominal], _new_std(refit, fit, std_theta)],
+        n_new=len(refit.new),
         train_rms=float(np.sqrt(r @ r)),
-        heldout_rms=float(np.sqrt(held.cost(u))),
+        heldout_rms=float(np.sqrt(held.cost)),
         n_train=int(r.size),
-        heldout_db_rms=_db_rms(held, u),
-        db_rms=_db_rms(full, u),
-        full_H=full.frf_for_data(u),
-        urdf=doc.to_string(),
+        heldout_db_rms=held.db_rms,
+        db_rms=full.db_rms,
+        full_H=full.H,
+        urdf=fit.document.to_string(),
         wall_s=time.perf_counter() - t0,
-        status=status,
+        status=fit.status,
         extra=extra,
-        db_rms_unweighted=_db_rms(full, u, weighted=False),
-        chain=_chain(job, refit.values(u)[aug.n_nominal :]),
+        db_rms_unweighted=full.db_rms_unweighted,
+        chain=_chain(job, new_vals),
         n_own=0 if cand is None else len(cand.parameters),
     )
+
+
+def _new_std(refit: Refit, fit: Any, std_theta: np.ndarray) -> np.ndarray:
+    """Std (SI) of every new parameter: the leader's over its factor, θ's, NaN when held."""
+    out = []
+    for v in refit.new:
+        if v.theta is not None:
+            out.append(float(std_theta[v.theta]) if std_theta.size else np.nan)
+        elif v.held or v.leader is None:
+            out.append(np.nan)
+        else:
+            out.append(float(fit.std[fit.names.index(v.leader)]) / v.factor)
+    return np.array(out)
 
 
 def _chain(job: Job, new_values: np.ndarray) -> tuple[Candidate, ...]:

@@ -7,8 +7,8 @@ accepted so far), with the nominal (and accepted) parameters held at their refit
 
 1. a 1-D scan of the candidate's scale (its grid, plus the scales that put its mode at each
    measured mode the model lacks), keeping the :data:`N_STARTS` best local minima;
-2. from each, a short bounded least-squares solve of the candidate's new parameters alone
-   (:attr:`.runner.Job.max_nfev_new` evaluations);
+2. from each, a short solve of the candidate's new parameters alone by the core
+   (:meth:`.refit.Refit.solve_new`, :attr:`.runner.Job.max_nfev_new` IPOPT iterations);
 3. at the best of those, one Levenberg–Marquardt step over **all** parameters on the
    linearised residual, ``δ = −(JᵀJ + λ diag(JᵀJ))⁻¹ Jᵀr``: the training cost it predicts,
    ``‖r + Jδ‖²``, is the screening figure. It is the score-test idea evaluated where the
@@ -41,7 +41,7 @@ import numpy as np
 from ..exceptions import BondidError
 from .augmented import build
 from .effects import Candidate
-from .engine import Refit
+from .refit import Refit, State
 from .runner import Job, _alt_start
 
 #: start points kept from the scan of a candidate (its variants: one each)
@@ -56,16 +56,15 @@ class Screening:
 
     Attributes:
         label, effect, location: the candidate.
-        cost_new_only: training cost (weighted mean square, as :class:`.engine.Refit`) after
-            the new parameters alone were fitted.
+        cost_new_only: training objective (weighted mean square and the prior, as
+            :meth:`.refit.Refit.cost`) after the new parameters alone were fitted.
         cost: the screening figure: the training cost one joint step predicts (lower is
             better; ``inf`` when the candidate failed).
         wall_s: time spent.
         error: why it failed ("" if it did not).
         variant: the candidate or variant (variants cleared) with the lowest figure: the one
             a full refit then uses.
-        start: its new parameters (log units) where the figure was taken: the full refit's
-            start.
+        start: its new parameters (SI) where the figure was taken: the full refit's start.
     """
 
     label: str
@@ -79,10 +78,14 @@ class Screening:
     start: tuple = ()
 
 
-def predicted_cost(refit: Refit, u: np.ndarray, damping: float = LM_DAMPING) -> float:
-    """Training cost after one Levenberg–Marquardt step over every variable from ``u`` on the
-    linearised residual (module docstring, step 3); never above the cost at ``u``."""
-    r, J = refit.residual_and_jacobian(u)
+def predicted_cost(refit: Refit, state: State, damping: float = LM_DAMPING) -> float:
+    """Training objective after one Levenberg–Marquardt step over every variable of the core's
+    decision vector from ``state`` on the linearised residual (module docstring, step 3);
+    never above the objective at ``state``."""
+    p = refit.at(state)
+    r, J = p.residual_and_jacobian(p.z0)
+    if not np.all(np.isfinite(r)):
+        return float("inf")
     c0 = float(r @ r)
     JtJ = J.T @ J
     g = J.T @ r
@@ -96,37 +99,33 @@ def predicted_cost(refit: Refit, u: np.ndarray, damping: float = LM_DAMPING) -> 
 
 
 def _figure(job: Job, n_starts: int, pick: int | None) -> tuple[float, float, int | None, tuple]:
-    """(cost after the new-only solve, screening figure, start option of the second origin,
-    the new parameters (log units) where the figure was taken) of ``job``'s candidate;
+    """(objective after the new-only solve, screening figure, start option of the second
+    origin, the new parameters (SI) where the figure was taken) of ``job``'s candidate;
     ``pick``: the only start option the second origin tries."""
     cand = job.candidate
     assert cand is not None
-    aug = build(job.urdf, job.nominal, job.train, job.options, job.accepted, cand)
-    refit = aug.refit
-    n_fix = aug.n_nominal + aug.n_accepted
-    new_idx = list(range(n_fix, len(aug.variables)))
-    exps = np.zeros(len(aug.variables))
-    exps[n_fix:] = [p.scan for p in cand.parameters]
-    starts = [refit.u0]
+    refit = build(job.urdf, job.nominal, job.train, job.options, job.accepted, cand).refit
+    exps = np.array([p.scan for p in cand.parameters], float)
+    starts = [refit.state0]
     if cand.scan_grid:
         hints = [(f / cand.ref_hz) ** 2 for f in job.hints_hz] if cand.ref_hz else []
         grid = tuple(sorted({*cand.scan_grid, *hints}))
-        starts = refit.scan_starts(refit.u0, exps, grid, n_starts=n_starts)
-    best: tuple[float, np.ndarray] | None = None
-    for u in starts:
-        u, out = refit.solve(u, free=new_idx, max_nfev=job.max_nfev_new)
-        if best is None or out.cost < best[0]:
-            best = (out.cost, u)
+        starts = refit.scan_starts(refit.state0, exps, grid, n_starts=n_starts)
+    best: tuple[float, State] | None = None
+    for s in starts:
+        s, c = refit.solve_new(s, job.max_nfev_new)
+        if best is None or c < best[0]:
+            best = (c, s)
     assert best is not None
-    figure, new = predicted_cost(refit, best[1]), tuple(best[1][n_fix:])
-    if job.alt_urdf is None or job.alt_nominal is None:
+    figure = predicted_cost(refit, best[1])
+    new = tuple(float(v) for v in refit.new_values(best[1]))
+    if job.alt_urdf is None:
         return best[0], figure, None, new
-    alt = build(job.alt_urdf, job.alt_nominal, job.train, job.options, job.accepted, cand)
-    n_alt = alt.n_nominal + alt.n_accepted
-    u_a, _, k = _alt_start(job, alt.refit, n_alt, [best[1][n_fix:]], pick)
-    fig_a = predicted_cost(alt.refit, u_a)
+    alt = build(job.alt_urdf, job.nominal, job.train, job.options, job.accepted, cand).refit
+    s_a, _, k = _alt_start(job, alt, [np.array(new)], pick)
+    fig_a = predicted_cost(alt, s_a)
     if fig_a < figure:
-        figure, new = fig_a, tuple(u_a[n_alt:])
+        figure, new = fig_a, tuple(float(v) for v in alt.new_values(s_a))
     return best[0], figure, k, new
 
 

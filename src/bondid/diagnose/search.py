@@ -27,9 +27,9 @@ from ..data.measurement import FrfData
 from ..model.document import UrdfDocument
 from . import scoring
 from .effects import Candidate
+from .refit import Nominal
 from .runner import Job, JobResult, run_job
 from .screen import Screening, screen, select
-from .variables import Variable, nominal_variables
 
 
 @dataclass
@@ -49,6 +49,16 @@ class Context:
     #: candidates refitted fully at the first step and at the later ones
     n_refit: tuple[int, int] = (4, 2)
     max_effects: int = 3
+    #: the nominal parameters of every refit (names, bounds, prior); default: from
+    #: ``nominal`` and ``names`` (:func:`.refit.nominal_space`)
+    space: Nominal | None = None
+
+    def __post_init__(self) -> None:
+        if self.space is None:
+            from .refit import nominal_space
+
+            f_max = max(float(d.freq_hz.max()) for d in self.train)
+            self.space = nominal_space(self.nominal, self.names, f_max)
 
 
 @dataclass
@@ -78,37 +88,17 @@ class Step:
 Progress = Callable[[str], None]
 
 
-@dataclass(frozen=True)
-class _Origins:
-    """What every job of a step shares: the base model's variables and the nominal model's
-    text and variables (the second origin), worked out once per step."""
-
-    nom: list[Variable]
-    alt_urdf: str
-    alt_nominal: list[Variable]
-
-
-def _origins(ctx: Context, base: JobResult) -> _Origins:
-    doc = UrdfDocument.from_string(base.urdf, source="refit model")
-    return _Origins(
-        nominal_variables(doc, ctx.names, reference=ctx.nominal),
-        ctx.nominal.to_string(),
-        nominal_variables(ctx.nominal, ctx.names),
-    )
-
-
 def _job(
-    ctx: Context, base: JobResult, origins: _Origins, cand: Candidate | None,
-    start: tuple[float, ...] = (), alt: bool = True,
+    ctx: Context, base: JobResult, cand: Candidate | None, start: tuple[float, ...] = (),
+    alt: bool = True,
 ) -> Job:  # fmt: skip
     """A job on top of ``base`` (its model text, values and accepted effects); ``alt``: with
     the nominal model as second origin."""
+    assert ctx.space is not None
     return Job(
-        base.urdf, origins.nom, ctx.train, ctx.heldout, ctx.full, cand, ctx.options,
+        base.urdf, ctx.space, ctx.train, ctx.heldout, ctx.full, cand, ctx.options,
         max_nfev_all=ctx.max_nfev, n_starts=ctx.n_starts,
-        alt_urdf=origins.alt_urdf if alt else None,
-        alt_nominal=origins.alt_nominal if alt else None,
-        hints_hz=ctx.hints_hz,
+        alt_urdf=ctx.nominal.to_string() if alt else None, hints_hz=ctx.hints_hz,
         accepted=base.chain, start_new=start,
     )  # fmt: skip
 
@@ -131,8 +121,7 @@ def _step(
     cands = _open(ctx, base)
     # later steps screen from their base alone: it is the first effect's refit, which the
     # full refits also ran from the nominal model
-    origins = _origins(ctx, base)
-    futures = {pool.submit(screen, _job(ctx, base, origins, c, alt=index == 0)): i
+    futures = {pool.submit(screen, _job(ctx, base, c, alt=index == 0)): i
                for i, c in enumerate(cands)}  # fmt: skip
     screenings: list[Screening | None] = [None] * len(cands)
     for f in as_completed(futures):
@@ -143,7 +132,7 @@ def _step(
     assert len(done) == len(cands)  # done[i] is the screening of cands[i]
     chosen = select(done, ctx.n_refit[0 if index == 0 else 1])
     step = Step(index, base, base_score, done, chosen)
-    futs = {pool.submit(run_job, _job(ctx, base, origins, _refit_candidate(done[i], cands[i]),
+    futs = {pool.submit(run_job, _job(ctx, base, _refit_candidate(done[i], cands[i]),
                                       done[i].start)): i for i in chosen}  # fmt: skip
     results = []
     for f in as_completed(futs):
