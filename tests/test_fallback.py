@@ -71,3 +71,17 @@ def test_strategy_fallback_bands() -> None:
     assert Strategy(continuation=4).fallback_bands == 0  # already the continuation
     assert Strategy(staged=True, fallback=0).fallback_bands == 0
     assert np.isfinite(NOISE_MARGIN)
+
+
+def test_fallback_setting_from_the_study_and_the_command_line(tmp_path) -> None:
+    from bondid.exceptions import ConfigError
+    from bondid.fit.cli import build_parser, resolve_settings
+    from bondid.fit.study import StudySettings, study_from_dict
+
+    assert StudySettings().fallback == 8
+    s = study_from_dict({"model": "m.urdf", "data": ["d.csv"], "search": {"fallback": 0}})
+    assert s.fallback == 0 and s.to_json_dict()["fallback"] == 0
+    with pytest.raises(ConfigError):
+        study_from_dict({"model": "m.urdf", "data": ["d.csv"], "search": {"fallback": -1}})
+    args = build_parser().parse_args(["--model", "m.urdf", "--data", "d.csv", "--fallback", "4"])
+    assert resolve_settings(args).fallback == 4
