@@ -176,7 +176,7 @@ def _run_job(
         st = run_to_noise(
             problem, job.strategy.steps(problem), max_iter=job.strategy.max_iter,
             progress=progress, ipopt_options=job.strategy.ipopt_options(),
-            fallback_bands=job.strategy.fallback_bands,
+            fallback_bands=job.strategy.fallback_bands, staged_fallback=not job.strategy.staged,
         )  # fmt: skip
         return RunOutcome(
             job.index, job.start, st.result, stages=st.stages, wall_s=time.perf_counter() - t0
