@@ -53,7 +53,7 @@ def test_direct_fit_above_the_noise_falls_back_to_the_continuation(case: dict) -
     res = fit(case["doc"], case["data"], case["names"], fallback_bands=8, **kw)
     assert math.sqrt(res.cost_final) <= WITHIN * truth_db, (res.cost_final, case["truth_cost"])
     note = [n for n in res.notes if n.startswith("fallback:")]
-    assert note and "kept the continuation" in note[0], res.notes
+    assert note and "kept the band continuation" in note[0], res.notes
     assert res.iterations > alone.iterations
 
 
