@@ -270,6 +270,7 @@ def _search(s: StudySettings, w: dict[str, Any], quiet: bool) -> Any:
     strategy = Strategy(
         staged=s.staged, continuation=s.continuation, stage_bands=s.stage_bands or None,
         presolve_iter=s.presolve, max_iter=s.max_iter, prior_width=s.prior,
+        fallback=s.fallback,
     )  # fmt: skip
     ms = run_multistart(
         w["doc"], w["datasets"], w["names"], lower=w["lower"], upper=w["upper"],

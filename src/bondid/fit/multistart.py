@@ -169,14 +169,15 @@ def _run_job(
     A failed computation (singular matrix, a solver that raised) becomes a failed run; bad
     input (:class:`ConfigError`, :class:`ParameterError`, ...) propagates.
     """
-    from ..optim.search import run_search
+    from ..optim.fallback import run_to_noise
 
     t0 = time.perf_counter()
     try:
         problem = _problem(job, base)
-        st = run_search(
+        st = run_to_noise(
             problem, job.strategy.steps(problem), max_iter=job.strategy.max_iter,
             progress=progress, ipopt_options=job.strategy.ipopt_options(),
+            fallback_bands=job.strategy.fallback_bands, staged_fallback=not job.strategy.staged,
         )  # fmt: skip
         return RunOutcome(
             job.index, job.start, st.result, stages=st.stages, wall_s=time.perf_counter() - t0

@@ -106,6 +106,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="IPOPT iterations on the normalised complex error before a log-cost fit (default"
         " 60; 0 = none): crosses the walls a log cost has where a cross term changes sign",
     )  # fmt: skip
+    p.add_argument(
+        "--fallback", type=int, metavar="N",
+        help="when a direct or staged fit ends more than 10 %% above the predicted noise level,"
+        " run the band continuation with N bands from the same start and keep the better"
+        " (default 8; 0 = off)",
+    )  # fmt: skip
     add_drop_nan_arg(p)
     p.add_argument("--out", type=Path, default=None, help="folder for the results")
     p.add_argument("--quiet", action="store_true", help="no progress display")
@@ -198,3 +204,5 @@ def _search_settings(args: argparse.Namespace, s: StudySettings) -> None:
         s.max_iter = int(_positive(args.max_iter, "--max-iter", 0) or 0)
     if args.presolve is not None:
         s.presolve = int(_positive(args.presolve, "--presolve", 0) or 0)
+    if args.fallback is not None:
+        s.fallback = int(_positive(args.fallback, "--fallback", 0) or 0)

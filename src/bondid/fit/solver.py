@@ -75,6 +75,7 @@ def fit(
     ipopt_options: dict[str, Any] | None = None,
     presolve_iter: int = PRESOLVE_ITER,
     prior_width: float = 0.0,
+    fallback_bands: int = 0,
 ) -> FitResult:
     """Fit the named parameters of ``doc`` to measured FRFs (see the module docstring).
 
@@ -95,6 +96,9 @@ def fit(
         prior_width: relative width τ of a weak prior toward ``doc``'s values, scaled by
             the data's noise (:mod:`bondid.fit.prior`; log costs with the l2 norm, so not the
             normalised-complex presolve); 0 = none. The reported costs are the data's alone.
+        fallback_bands: when the direct fit ends above the predicted noise level, the band
+            continuation with this many bands from the same start, the better kept
+            (:mod:`bondid.optim.fallback`; ``python -m bondid.fit``'s default is 8); 0 = none.
 
     Returns:
         :class:`FitResult`. IPOPT's iteration/time limits and similar stops that leave a usable
@@ -106,19 +110,19 @@ def fit(
         ConfigError: a repeated name, a kinematic placement, bad bounds or start.
         SolverError: IPOPT failed without reaching a feasible point (``status`` keeps IPOPT's).
     """
+    from ..optim.fallback import run_to_noise
     from ..optim.problem import FitProblem
     from ..optim.schedules import direct
-    from ..optim.search import run_search
     from .prior import prior_rows, with_prior_ipopt
 
     problem = FitProblem(
         doc, datasets, names, options=options, lower=lower, upper=upper, start=start,
         use_hull=use_hull, extra_rows=prior_rows(doc, prior_width),
     )  # fmt: skip
-    search = run_search(
+    search = run_to_noise(
         problem, direct(presolve_iter), max_iter=max_iter, tol=tol, progress=progress,
         ipopt_options=with_prior_ipopt(prior_width, ipopt_options),
-        constraint_hessian=constraint_hessian,
+        constraint_hessian=constraint_hessian, fallback_bands=fallback_bands,
     )  # fmt: skip
     sol = search.solution
     if sol is not None and sol.failed and sol.kept == "start":

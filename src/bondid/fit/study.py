@@ -50,6 +50,7 @@ Every section and key is optional::
     continuation = 8                         # --continuation (bands; 0 = off)
     max_iter = 200                           # --max-iter
     presolve = 60                            # --presolve (0 = none)
+    fallback = 8                             # --fallback (bands; 0 = off)
     [search.stage_bands]                     # staged fitting bands (Hz); default: from the modes
     stiffness = [[1.0, 300.0]]
     damping = [[350.0, 500.0], [800.0, 950.0]]
@@ -109,6 +110,7 @@ _SECTION_KEYS = {
         "continuation",
         "max_iter",
         "presolve",
+        "fallback",
         "stage_bands",
     ),
 }
@@ -142,6 +144,8 @@ class StudySettings:
         max_iter: IPOPT iteration limit per fit.
         presolve: IPOPT iterations on the normalised complex error before a log-cost fit
             (:data:`bondid.fit.solver.PRESOLVE_ITER`; 0 = none).
+        fallback: bands of the band continuation run when a direct or staged search ends
+            above the predicted noise level (:mod:`bondid.optim.fallback`); 0 = off.
         source: the study file, or None.
         points, gains: measurement points and transducer gains declared in the study
             (:mod:`bondid.model.points`); points_file: a TOML file with more of them.
@@ -172,6 +176,7 @@ class StudySettings:
     continuation: int = 0
     max_iter: int = 200
     presolve: int = 60
+    fallback: int = 8
     source: Path | None = None
     points: list[Point] = field(default_factory=list)
     gains: dict[str, float] = field(default_factory=dict)
@@ -206,6 +211,7 @@ class StudySettings:
             "continuation": self.continuation,
             "max_iter": self.max_iter,
             "presolve": self.presolve,
+            "fallback": self.fallback,
             "points": [vars(p) for p in self.points],
             "gains": dict(self.gains),
             "points_file": None if self.points_file is None else str(self.points_file),
@@ -323,7 +329,7 @@ def _read_cost(doc: Mapping[str, Any], s: StudySettings, where: str) -> None:
 
 #: ``[search]`` integer keys: minimum value
 _SEARCH_INTS = {"multistart": 1, "seed": 0, "workers": 1, "continuation": 0, "max_iter": 0,
-                "presolve": 0}  # fmt: skip
+                "presolve": 0, "fallback": 0}  # fmt: skip
 
 
 def _read_search(doc: Mapping[str, Any], s: StudySettings, where: str) -> None:

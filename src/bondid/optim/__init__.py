@@ -6,7 +6,9 @@
   linearising again.
 * :func:`solve` (:mod:`.ipopt`, the only module that talks to CasADi/IPOPT) → :class:`Solution`.
 * :func:`run_search` (:mod:`.search`) over a schedule of :class:`Step` (:mod:`.schedules`:
-  ``direct``, ``staged``, ``continuation``) → :class:`SearchResult`.
+  ``direct``, ``staged``, ``continuation``) → :class:`SearchResult`;
+  :func:`run_to_noise` (:mod:`.fallback`): the same, plus the band continuation when the
+  search ends above the predicted noise level.
 
 Names are imported lazily (CasADi and Pinocchio load when a problem is built).
 """
@@ -24,6 +26,7 @@ _LAZY = {
     "Step": "search",
     "StepResult": "search",
     "run_search": "search",
+    "run_to_noise": "fallback",
     "fit_result": "outcome",
     "TiedParameters": "tied",
 }

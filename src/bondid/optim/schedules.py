@@ -184,6 +184,9 @@ class Strategy:
         max_iter: IPOPT iterations of the last step (band stages: see :func:`staged`).
         prior_width: relative width of the prior toward the model's values
             (:mod:`bondid.fit.prior`) in every step of every schedule; 0 = none.
+        fallback: bands of the band continuation that :mod:`.fallback` runs when a direct
+            or staged search ends above the predicted noise level (0 = never; a
+            continuation strategy has none).
     """
 
     staged: bool = False
@@ -192,6 +195,12 @@ class Strategy:
     presolve_iter: int = PRESOLVE_ITER
     max_iter: int = 200
     prior_width: float = 0.0
+    fallback: int = CONTINUATION_BANDS
+
+    @property
+    def fallback_bands(self) -> int:
+        """Bands of the noise-level fallback of this strategy (0 = none)."""
+        return 0 if self.continuation else self.fallback
 
     def extra_rows(self, nominal: UrdfDocument) -> Callable[[FitProblem], Any] | None:
         """The ``extra_rows`` of the search's :class:`FitProblem`: the prior toward
