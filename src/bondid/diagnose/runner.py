@@ -39,6 +39,7 @@ to a worker process.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -54,10 +55,10 @@ from .effects import Candidate
 from .refit import Nominal, Refit, State
 
 DAMPING_FACTORS = (1.0, 4.0)
-#: a full refit whose training cost ends above this multiple of the noise level (the cost an
-#: exact model would score, :func:`bondid.cost.noise_level.noise_level_cost`) gets the core's
-#: band continuation from its best point (:func:`rescue`)
-RESCUE_RATIO = 1.5
+#: a full refit whose training db_rms ends above this multiple of the predicted noise level
+#: (:func:`bondid.optim.fallback.noise_ratio`; a cost 1.5× the one an exact model would
+#: score) gets the core's band continuation from its best point (:func:`rescue`)
+RESCUE_RATIO = math.sqrt(1.5)
 #: bands of that continuation (the last is the full fit) and IPOPT iterations per band
 RESCUE_BANDS = 4
 RESCUE_BAND_ITER = 30
@@ -305,24 +306,25 @@ def _fit(job: Job) -> tuple[Augmented, State, Any]:
 
 def rescue(job: Job, refit: Refit, state: State, res: Any) -> tuple[State, Any, str]:
     """The core's band continuation (:func:`bondid.optim.schedules.continuation`) from
-    ``state`` when its training cost is above :data:`RESCUE_RATIO` times the noise level;
-    the lower objective is kept. Returns the state, its search and a note ("" when the
-    refit was at the noise level)."""
-    from ..cost.noise_level import noise_level_cost
+    ``state`` when its training db_rms is above :data:`RESCUE_RATIO` times the predicted
+    noise level (the test of :mod:`bondid.optim.fallback`, which ``bondid.fit`` runs from
+    its start); the lower objective is kept. Returns the state, its search and a note (""
+    when the refit was at the noise level)."""
+    from ..optim.fallback import noise_ratio
     from ..optim.schedules import continuation
 
     p = refit.at(state)
-    noise = noise_level_cost(p.frf)
     data = p.data_cost(p.z0)
-    if noise is None or not data > RESCUE_RATIO * noise:
+    ratio = noise_ratio(p, data)
+    if ratio is None or not ratio > RESCUE_RATIO:
         return state, res, ""
     c0 = p.cost(p.z0)
     steps = continuation(p, RESCUE_BANDS, band_iter=RESCUE_BAND_ITER, presolve_iter=job.pre_nfev)
     s2, c2, res2 = refit.solve(state, steps, max_iter=job.max_nfev_alt)
     kept = c2 < c0
     note = (
-        f"training cost {data:.4g} above {RESCUE_RATIO:g}x the noise level {noise:.4g}: band "
-        f"continuation to {refit.data_cost(s2):.4g}, {'kept' if kept else 'not kept'}"
+        f"training db_rms {ratio:.2f}x the predicted noise level (cost {data:.4g}): band "
+        f"continuation to cost {refit.data_cost(s2):.4g}, {'kept' if kept else 'not kept'}"
     )
     return (s2, res2, note) if kept else (state, res, note)
 
