@@ -366,3 +366,20 @@ def test_tied_and_modifier_parameters_refitted_through_the_core(doc):
         for m, f in rest:
             assert get_parameter(fitted, m) == pytest.approx(f / f0 * get_parameter(
                 fitted, p.members[0][0]), rel=1e-9)  # fmt: skip
+    # the std of every parameter from one Jacobian (named columns and ∂r/∂θ): the θ column
+    # against central finite differences of the residual, and the named std can only widen
+    from bondid.fit.result import parameter_statistics
+
+    fit, std_theta = refit.result(res)
+    theta = refit.state_theta(fit)
+    p = refit.problem.restrict(start=fit.fitted, theta=theta)
+    r, J_named = p.named_residual_and_jacobian(p.z0)
+    EPS = 1e-6  # relative step of the finite differences
+    r_hi = p.restrict(theta=theta * (1 + EPS)).residual(p.z0)[: p.n_residuals]
+    r_lo = p.restrict(theta=theta * (1 - EPS)).residual(p.z0)[: p.n_residuals]
+    J_fd = ((r_hi - r_lo) / (2 * EPS * theta))[:, None]
+    std_fd, _ = parameter_statistics(np.hstack([J_named, J_fd]), r)
+    assert std_theta == pytest.approx(std_fd[-1:], rel=1e-4)
+    assert np.isfinite(std_theta).all() and 0 < std_theta[0] < REL_STIFF * T
+    live = np.isfinite(res.result.std) & np.isfinite(fit.std)
+    assert np.all(fit.std[live] >= 0.999 * res.result.std[live])

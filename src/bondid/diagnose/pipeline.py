@@ -40,7 +40,7 @@ from ..model.document import UrdfDocument
 from ..model.parameters import get_parameter, select_parameters
 from .effects import Candidate, get_effects
 from .pool import WorkerPool
-from .refit import Nominal, nominal_space
+from .refit import Nominal, nominal_space_for
 from .runner import Job, JobResult, run_job
 from .search import Context, Step, search
 from .split import decimate, holdout_split, limit_bands
@@ -63,7 +63,7 @@ class Settings:
     workers: int = 2
     use_ipopt: bool = True
     ipopt_iter: int = 300
-    max_nfev: int = 30
+    refit_iter: int = 30
     n_starts: int = 3
     modes: bool = True
     weighting: str = "auto"
@@ -173,7 +173,7 @@ def _parameter_fit(
 
 def _baseline_task(
     urdf: str, space: Nominal, train: list[FrfData], held: list[FrfData],
-    full: list[FrfData], options: CostOptions, use_ipopt: bool, iters: int, max_nfev: int,
+    full: list[FrfData], options: CostOptions, use_ipopt: bool, iters: int, refit_iter: int,
 ) -> tuple[JobResult, dict[str, Any]]:  # fmt: skip
     """The parameter-only baseline: :func:`_parameter_fit` from the nominal model, then the
     refit of :mod:`.runner` from there (the same problem: a short check); without IPOPT's
@@ -183,8 +183,8 @@ def _baseline_task(
     start = urdf
     if use_ipopt:
         start, info = _parameter_fit(nominal, train, space, options, iters)
-    n = max_nfev if use_ipopt else iters
-    job = Job(start, space, train, held, full, None, options, max_nfev_all=n)
+    n = refit_iter if use_ipopt else iters
+    job = Job(start, space, train, held, full, None, options, all_iter=n)
     return run_job(job), info
 
 
@@ -233,8 +233,7 @@ def prepare_data(doc: UrdfDocument, datasets: Sequence[FrfData], s: Settings) ->
         "n_train_points": [int(d.freq_hz.size) for d in train],
         "n_heldout_points": [int(d.freq_hz.size) for d in held],
     }
-    f_max = max(float(d.freq_hz.max()) for d in train)
-    space = nominal_space(doc, names, f_max)
+    space = nominal_space_for(doc, names, train)
     return Prepared(
         full, channels, options, names, candidates, train, held, split_info, w_info, space
     )
@@ -269,7 +268,7 @@ def diagnose(
         modes, by_ds, anti, bands = _where(doc, p.full, baseline, p.channels, s.modes)
         ctx = Context(
             doc, p.names, p.train, p.held, p.full, p.options, p.candidates,
-            missing_mode_hints(by_ds), s.max_nfev, s.n_starts, (s.n_refit, s.n_refit_later),
+            missing_mode_hints(by_ds), s.refit_iter, s.n_starts, (s.n_refit, s.n_refit_later),
             s.max_effects, p.space,
         )  # fmt: skip
         steps = search(ctx, pool, baseline, say)
@@ -313,7 +312,7 @@ def _refit_baseline(
     """
     fut = pool.submit(
         _baseline_task, doc.to_string(), p.space, p.train, p.held, p.full, p.options,
-        s.use_ipopt, s.ipopt_iter, s.max_nfev,
+        s.use_ipopt, s.ipopt_iter, s.refit_iter,
     )  # fmt: skip
     baseline, fit_info = fut.result()
     if baseline.error:

@@ -75,6 +75,11 @@ def nominal_space(
     return Nominal(tuple(names), lo, hi, centre, prior_width)
 
 
+def nominal_space_for(doc: UrdfDocument, names: Sequence[str], data: Sequence[FrfData]) -> Nominal:
+    """:func:`nominal_space` with the bounds of a fit on ``data`` (their highest frequency)."""
+    return nominal_space(doc, names, max(float(d.freq_hz.max()) for d in data))
+
+
 @dataclass(frozen=True)
 class NewVar:
     """One new parameter of a refit (see the module docstring).
@@ -281,14 +286,10 @@ class Refit:
     ) -> tuple[State, float, SearchResult]:
         """Run the schedule ``steps`` from ``state`` over every name; returns the new state,
         its objective (:meth:`cost`) and the search (:func:`bondid.optim.search.run_search`)."""
-        from ..fit.prior import with_prior_ipopt
         from ..optim.search import run_search
 
         sub = self.at(state)
-        res = run_search(
-            sub, steps, max_iter=max_iter,
-            ipopt_options=with_prior_ipopt(self.nominal.prior_width, None),
-        )  # fmt: skip
+        res = run_search(sub, steps, max_iter=max_iter, ipopt_options=self._ipopt_options())
         out = State(res.result.fitted.copy(), self.state_theta(res.result))
         return out, self.cost(out), res
 
@@ -296,7 +297,6 @@ class Refit:
         """One IPOPT solve of the candidate's own new parameters (the others held; the FRF
         modifier's θ free) from ``state``; returns the new state and its objective over
         every name (:meth:`cost`)."""
-        from ..fit.prior import with_prior_ipopt
         from ..optim.ipopt import solve
 
         names = [str(v.leader) for v in self.own if v.leader is not None and not v.held]
@@ -304,25 +304,40 @@ class Refit:
             return state, self.cost(state)
         th = state.theta if state.theta.size else None
         sub = self.problem.restrict(names, start=state.x, theta=th)
-        opts = with_prior_ipopt(self.nominal.prior_width, None)
-        sol = solve(sub, max_iter=max_iter, ipopt_options=opts)
+        sol = solve(sub, max_iter=max_iter, ipopt_options=self._ipopt_options())
         out = state.copy()
         out.x[[self.problem.names.index(n) for n in names]] = sub.values(sol.z)
         out.theta = sub.theta(sol.z)
         return out, self.cost(out)
 
+    def _ipopt_options(self) -> dict | None:
+        """IPOPT's options of every solve (those ``bondid.fit`` uses with the prior)."""
+        from ..fit.prior import with_prior_ipopt
+
+        return with_prior_ipopt(self.nominal.prior_width, None)
+
     def result(self, res: SearchResult) -> tuple[FitResult, np.ndarray]:
-        """The search's :class:`FitResult` and the std ``(n_θ,)`` of the modifier's θ."""
+        """The search's :class:`FitResult` and the std ``(n_θ,)`` of the modifier's θ.
+
+        With a modifier, every std (named parameters and θ) comes from one Jacobian, the
+        named columns and ``∂r/∂θ`` together, so a delay or a lag that trades off against a
+        stiffness widens both (the core's :class:`FitResult` has the named columns alone).
+        """
+        import dataclasses
+
         from ..fit.result import parameter_statistics
 
         fit = res.result
-        if self.modifier is None or res.solution is None:
+        if self.modifier is None:
             return fit, np.zeros(0)
-        p = self.problem.restrict(start=fit.fitted, theta=self.state_theta(fit))
-        r, J = p.residual_and_jacobian(p.z0)
-        std_u, _ = parameter_statistics(J[: p.n_residuals], r[: p.n_residuals])
+        theta = self.state_theta(fit)
+        p = self.problem.restrict(start=fit.fitted, theta=theta)
+        r, J_named = p.named_residual_and_jacobian(p.z0)
+        J_z = p.residual_and_jacobian(p.z0)[1][: p.n_residuals]
         n = self.modifier.size
-        return fit, std_u[-n:] * self.state_theta(fit)
+        J = np.hstack([J_named, J_z[:, p.size - n :] / theta])  # ∂r/∂u = θ ∂r/∂θ
+        std, _ = parameter_statistics(J, r)
+        return dataclasses.replace(fit, std=std[:-n]), std[-n:]
 
     def state_theta(self, fit: FitResult) -> np.ndarray:
         if self.modifier is None:

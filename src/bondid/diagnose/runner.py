@@ -27,11 +27,14 @@ A candidate with variants (e.g. the pivots of a rotational DOF) first keeps the 
 whose step-4 start fits best (:func:`_screen_variants`). In a diagnosis the screening
 (:mod:`.screen`) has already chosen the variant and a start for the new parameters
 (``Job.start_new``): the job then skips the scans (step 1) and the other start options of
-step 4, which cuts a full refit's evaluations by about half.
+step 4, which cuts a full refit's IPOPT iterations by about half.
 
 The parameter-only baseline is :func:`bondid.fit.fit` from the nominal model with the same
-bounds and prior (the same problem as step 4 without a candidate), checked by step 3 from
-its result, so that candidates do not win by a better optimiser alone.
+bounds and prior (the same problem as step 4 without a candidate), then a direct solve of
+:attr:`Job.all_iter` iterations from its result (one origin: it already started from the
+nominal model). It gets no second short start of its own, while a candidate's refit does; a
+refit of either kind that ends well above the noise level gets the band continuation
+(:func:`rescue`).
 
 Everything a job needs travels in :class:`Job` (URDF text, data, plain values), so it pickles
 to a worker process.
@@ -81,7 +84,13 @@ def short(n: int) -> list[Step]:
 
 @dataclass
 class Job:
-    """Inputs of one refit job (see the module docstring). Iteration counts are IPOPT's."""
+    """Inputs of one refit job (see the module docstring).
+
+    IPOPT iteration limits: ``new_iter`` a solve of the new parameters alone, ``all_iter``
+    the full refit from the first origin, ``alt_iter`` the one from the second origin (and
+    the rescue's continuation), ``presolve_iter`` its normalised-complex presolve,
+    ``screen_iter`` each short solve of the second origin's start options.
+    """
 
     urdf: str
     nominal: Nominal
@@ -90,14 +99,14 @@ class Job:
     full: list[FrfData]
     candidate: Candidate | None = None
     options: CostOptions = field(default_factory=CostOptions)
-    max_nfev_new: int = 10
+    new_iter: int = 10
     n_starts: int = 3
-    max_nfev_all: int = 30
+    all_iter: int = 30
     alt_urdf: str | None = None
-    max_nfev_alt: int = 150
-    pre_nfev: int = 30
+    alt_iter: int = 150
+    presolve_iter: int = 30
     hints_hz: tuple[float, ...] = ()
-    screen_nfev: int = 10
+    screen_iter: int = 10
     accepted: tuple[Candidate, ...] = ()
     #: the candidate's new parameters (SI) from its screening: when given, the refit starts
     #: there (no scan) from both origins
@@ -215,9 +224,9 @@ def _candidate_fit(job: Job, refit: Refit) -> tuple[State, float, Any, list[np.n
     best: tuple[State, float, Any] | None = None
     new_only: list[tuple[float, np.ndarray]] = []
     for s in _starts(job, refit):
-        s, c = refit.solve_new(s, job.max_nfev_new)
+        s, c = refit.solve_new(s, job.new_iter)
         new_only.append((c, refit.new_values(s)))
-        s, c, res = refit.solve(s, direct(job.max_nfev_all))
+        s, c, res = refit.solve(s, direct(job.all_iter))
         if best is None or c < best[1]:
             best = (s, c, res)
     assert best is not None
@@ -231,7 +240,7 @@ def _alt_start(
     """Start of the second origin and its training cost. Options for the new parameters: the
     best found from the parameter refit, the candidate's initial values, and those that put
     its mode at each missing mode (``Job.hints_hz``); each is fitted alone (nominal values
-    fixed), then briefly with everything (:func:`short`: ``screen_nfev`` iterations of the
+    fixed), then briefly with everything (:func:`short`: ``screen_iter`` iterations of the
     normalised complex error, as many of the complex-log error). The best after that short
     solve is kept: which basin a start leads to shows only once the nominal parameters move
     too. The parameter-only baseline (no candidate) gets the same short solve from the
@@ -250,8 +259,8 @@ def _alt_start(
             continue
         s = refit.with_new(s0, new)
         if refit.own:
-            s, _ = refit.solve_new(s, job.max_nfev_new)
-        s, c, _ = refit.solve(s, short(job.screen_nfev))
+            s, _ = refit.solve_new(s, job.new_iter)
+        s, c, _ = refit.solve(s, short(job.screen_iter))
         if best is None or c < best[0]:
             best = (c, s, k)
     assert best is not None
@@ -289,16 +298,18 @@ def _fit(job: Job) -> tuple[Augmented, State, Any]:
     aug = _setup(job.urdf, job)
     found: list[np.ndarray] = []
     if cand is None:
-        s, c, res = aug.refit.solve(aug.refit.state0, direct(job.max_nfev_all, job.pre_nfev))
+        s, c, res = aug.refit.solve(aug.refit.state0, direct(job.all_iter, job.presolve_iter))
     else:
         s, c, res, found = _candidate_fit(job, aug.refit)
     if job.alt_urdf is not None:
         # second origin: the nominal model (with the best new parameters found above). The
         # parameter refit may have bent the nominal parameters to mimic the missing effect.
         alt = _setup(job.alt_urdf, job)
-        only = 0 if job.start_new else None  # the screening's start (in found) alone
+        # with a screening start: only the first option, the new parameters the first origin
+        # found from it (not the screening's own start moved to this origin)
+        only = 0 if job.start_new else None
         s_a = _alt_start(job, alt.refit, found, only)[0]
-        s_a, c_a, res_a = alt.refit.solve(s_a, direct(job.max_nfev_alt, job.pre_nfev))
+        s_a, c_a, res_a = alt.refit.solve(s_a, direct(job.alt_iter, job.presolve_iter))
         if c_a < c:
             aug, s, res = alt, s_a, res_a
     return aug, s, res
@@ -319,8 +330,10 @@ def rescue(job: Job, refit: Refit, state: State, res: Any) -> tuple[State, Any, 
     if ratio is None or not ratio > RESCUE_RATIO:
         return state, res, ""
     c0 = p.cost(p.z0)
-    steps = continuation(p, RESCUE_BANDS, band_iter=RESCUE_BAND_ITER, presolve_iter=job.pre_nfev)
-    s2, c2, res2 = refit.solve(state, steps, max_iter=job.max_nfev_alt)
+    steps = continuation(
+        p, RESCUE_BANDS, band_iter=RESCUE_BAND_ITER, presolve_iter=job.presolve_iter
+    )
+    s2, c2, res2 = refit.solve(state, steps, max_iter=job.alt_iter)
     kept = c2 < c0
     note = (
         f"training db_rms {ratio:.2f}x the predicted noise level (cost {data:.4g}): band "

@@ -1,6 +1,6 @@
 """Screening: a cheap figure per candidate before any full refit (:func:`screen`).
 
-A full refit of a candidate (:mod:`.runner`) costs hundreds of residual evaluations; most
+A full refit of a candidate (:mod:`.runner`) costs hundreds of IPOPT iterations; most
 candidates of a diagnosis explain nothing. Each candidate is therefore screened first, from
 the model the search step starts at (the parameter refit, or the model with the effects
 accepted so far), with the nominal (and accepted) parameters held at their refitted values:
@@ -8,7 +8,7 @@ accepted so far), with the nominal (and accepted) parameters held at their refit
 1. a 1-D scan of the candidate's scale (its grid, plus the scales that put its mode at each
    measured mode the model lacks), keeping the :data:`N_STARTS` best local minima;
 2. from each, a short solve of the candidate's new parameters alone by the core
-   (:meth:`.refit.Refit.solve_new`, :attr:`.runner.Job.max_nfev_new` IPOPT iterations);
+   (:meth:`.refit.Refit.solve_new`, :attr:`.runner.Job.new_iter` IPOPT iterations);
 3. at the best of those, one Levenberg–Marquardt step over **all** parameters on the
    linearised residual, ``δ = −(JᵀJ + λ diag(JᵀJ))⁻¹ Jᵀr``: the training cost it predicts,
    ``‖r + Jδ‖²``, is the screening figure. It is the score-test idea evaluated where the
@@ -20,7 +20,7 @@ accepted so far), with the nominal (and accepted) parameters held at their refit
 At the first step of a search the same figure is also taken from a second origin, the
 nominal model, after the short start of the full refit's second origin
 (:func:`.runner._alt_start` from the new parameters the first origin found: new parameters
-alone, then a few evaluations of all together),
+alone, then a few IPOPT iterations of all together),
 and the lower of the two counts: the parameter refit may have bent nominal parameters so far
 toward the missing effect that the true candidate, added to it, first makes the fit worse
 (measured: a withheld z-guide compliance ranked 10th of 11 from the parameter refit alone).
@@ -113,7 +113,7 @@ def _figure(job: Job, n_starts: int, pick: int | None) -> tuple[float, float, in
         starts = refit.scan_starts(refit.state0, exps, grid, n_starts=n_starts)
     best: tuple[float, State] | None = None
     for s in starts:
-        s, c = refit.solve_new(s, job.max_nfev_new)
+        s, c = refit.solve_new(s, job.new_iter)
         if best is None or c < best[0]:
             best = (c, s)
     assert best is not None

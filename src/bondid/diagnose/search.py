@@ -44,21 +44,20 @@ class Context:
     options: CostOptions
     candidates: list[Candidate]
     hints_hz: tuple[float, ...] = ()
-    max_nfev: int = 30
+    refit_iter: int = 30
     n_starts: int = 3
     #: candidates refitted fully at the first step and at the later ones
     n_refit: tuple[int, int] = (4, 2)
     max_effects: int = 3
     #: the nominal parameters of every refit (names, bounds, prior); default: from
-    #: ``nominal`` and ``names`` (:func:`.refit.nominal_space`)
+    #: ``nominal`` and ``names`` (:func:`.refit.nominal_space_for`)
     space: Nominal | None = None
 
     def __post_init__(self) -> None:
         if self.space is None:
-            from .refit import nominal_space
+            from .refit import nominal_space_for
 
-            f_max = max(float(d.freq_hz.max()) for d in self.train)
-            self.space = nominal_space(self.nominal, self.names, f_max)
+            self.space = nominal_space_for(self.nominal, self.names, self.train)
 
 
 @dataclass
@@ -97,7 +96,7 @@ def _job(
     assert ctx.space is not None
     return Job(
         base.urdf, ctx.space, ctx.train, ctx.heldout, ctx.full, cand, ctx.options,
-        max_nfev_all=ctx.max_nfev, n_starts=ctx.n_starts,
+        all_iter=ctx.refit_iter, n_starts=ctx.n_starts,
         alt_urdf=ctx.nominal.to_string() if alt else None, hints_hz=ctx.hints_hz,
         accepted=base.chain, start_new=start,
     )  # fmt: skip

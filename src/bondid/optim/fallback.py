@@ -27,11 +27,11 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from .problem import FitProblem
-from .search import SearchResult, Step, run_search
+from .search import MAX_ITER, SearchResult, Step, run_search
 
 #: a fit whose weighted db_rms is above this factor times the predicted noise level falls
 #: back on the band continuation (the factor of "at the noise level" in ``bondid.fit``)
@@ -73,7 +73,8 @@ def run_to_noise(
 
     Args:
         problem, steps: as :func:`run_search`.
-        fallback_bands: bands of the fallback continuation (0 = no fallback at all).
+        fallback_bands: bands of the fallback continuation (fewer than 2, e.g. 0: no
+            fallback at all; a continuation needs at least two bands).
         staged_fallback: try the staged schedule too when the continuation did not reach
             the noise level (False when ``steps`` is itself the staged schedule).
         band_iter: IPOPT iterations per band step (default
@@ -87,25 +88,13 @@ def run_to_noise(
         The kept :class:`SearchResult`; its ``result.notes`` say which fallbacks ran and which
         search was kept, and ``result.iterations``/``wall_s`` count every search.
     """
-    from .schedules import BAND_ITER, continuation, staged
-
     t0 = time.perf_counter()
     first = run_search(problem, steps, **kw)
     ratio = noise_ratio(problem, first.result.cost_final)
     if fallback_bands < 2 or ratio is None or ratio <= NOISE_MARGIN:
         return first
     pre = max((s.presolve for s in steps), default=0) if presolve_iter is None else presolve_iter
-    schedules = [
-        (
-            f"band continuation ({fallback_bands} bands)",
-            lambda: continuation(
-                problem, fallback_bands, band_iter=band_iter or BAND_ITER, presolve_iter=pre
-            ),
-        )
-    ]
-    if staged_fallback:
-        schedules.append(("staged schedule", lambda: staged(
-            problem, max_iter=kw.get("max_iter", 200), presolve_iter=pre)))  # fmt: skip
+    schedules = _fallbacks(problem, fallback_bands, band_iter, pre, staged_fallback, kw)
     keep, kept, iterations = first, "first search", first.result.iterations
     said = [f"fallback: the search ended at {ratio:.2f}× the predicted noise level (db_rms)"]
     for label, build in schedules:
@@ -123,3 +112,25 @@ def run_to_noise(
         notes=[*keep.result.notes, "; ".join(said) + f"; kept the {kept}"],
     )  # fmt: skip
     return SearchResult(result, keep.steps, keep.solution)
+
+
+def _fallbacks(
+    problem: FitProblem, bands: int, band_iter: int | None, presolve: int, staged_too: bool,
+    kw: dict[str, Any],
+) -> list[tuple[str, Callable[[], list[Step]]]]:  # fmt: skip
+    """The fallback schedules of :func:`run_to_noise` in the order tried, each built only
+    when it runs: the band continuation, then (``staged_too``) the staged schedule."""
+    from .schedules import BAND_ITER, continuation, staged
+
+    out: list[tuple[str, Callable[[], list[Step]]]] = [
+        (
+            f"band continuation ({bands} bands)",
+            lambda: continuation(
+                problem, bands, band_iter=band_iter or BAND_ITER, presolve_iter=presolve
+            ),
+        )
+    ]
+    if staged_too:
+        out.append(("staged schedule", lambda: staged(
+            problem, max_iter=kw.get("max_iter", MAX_ITER), presolve_iter=presolve)))  # fmt: skip
+    return out

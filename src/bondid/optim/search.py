@@ -51,6 +51,8 @@ WALL_SHARE = 0.01
 LOG_KINDS = frozenset({"complex_log", "log_magnitude"})
 #: residual of the presolve
 PRESOLVE_KIND = "normalised_complex"
+#: IPOPT's iteration limit of a search step by default
+MAX_ITER = 200
 
 
 @dataclass(frozen=True)
@@ -157,7 +159,7 @@ def run_search(
     problem: FitProblem,
     steps: Sequence[Step],
     *,
-    max_iter: int = 200,
+    max_iter: int = MAX_ITER,
     tol: float = 1e-10,
     progress: Callable[[int, float], None] | None = None,
     on_step: Callable[[StepResult], None] | None = None,
