@@ -34,7 +34,7 @@ bounds and prior (the same problem as step 4 without a candidate), then a direct
 :attr:`Job.all_iter` iterations from its result (one origin: it already started from the
 nominal model). It gets no second short start of its own, while a candidate's refit does; a
 refit of either kind that ends well above the noise level gets the band continuation
-(:func:`rescue`).
+(:func:`.rescue.rescue`).
 
 Everything a job needs travels in :class:`Job` (URDF text, data, plain values), so it pickles
 to a worker process.
@@ -42,7 +42,6 @@ to a worker process.
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -56,15 +55,9 @@ from ..optim.search import PRESOLVE_KIND, Step
 from .augmented import Augmented, build, with_values
 from .effects import Candidate
 from .refit import Nominal, Refit, State
+from .rescue import rescue
 
 DAMPING_FACTORS = (1.0, 4.0)
-#: a full refit whose training db_rms ends above this multiple of the predicted noise level
-#: (:func:`bondid.optim.fallback.noise_ratio`; a cost 1.5× the one an exact model would
-#: score) gets the core's band continuation from its best point (:func:`rescue`)
-RESCUE_RATIO = math.sqrt(1.5)
-#: bands of that continuation (the last is the full fit) and IPOPT iterations per band
-RESCUE_BANDS = 4
-RESCUE_BAND_ITER = 30
 COORD_GRID = tuple(float(x) for x in np.geomspace(1 / 30, 30, 25))
 
 
@@ -315,33 +308,6 @@ def _fit(job: Job) -> tuple[Augmented, State, Any]:
     return aug, s, res
 
 
-def rescue(job: Job, refit: Refit, state: State, res: Any) -> tuple[State, Any, str]:
-    """The core's band continuation (:func:`bondid.optim.schedules.continuation`) from
-    ``state`` when its training db_rms is above :data:`RESCUE_RATIO` times the predicted
-    noise level (the test of :mod:`bondid.optim.fallback`, which ``bondid.fit`` runs from
-    its start); the lower objective is kept. Returns the state, its search and a note (""
-    when the refit was at the noise level)."""
-    from ..optim.fallback import noise_ratio
-    from ..optim.schedules import continuation
-
-    p = refit.at(state)
-    data = p.data_cost(p.z0)
-    ratio = noise_ratio(p, data)
-    if ratio is None or not ratio > RESCUE_RATIO:
-        return state, res, ""
-    c0 = p.cost(p.z0)
-    steps = continuation(
-        p, RESCUE_BANDS, band_iter=RESCUE_BAND_ITER, presolve_iter=job.presolve_iter
-    )
-    s2, c2, res2 = refit.solve(state, steps, max_iter=job.alt_iter)
-    kept = c2 < c0
-    note = (
-        f"training db_rms {ratio:.2f}x the predicted noise level (cost {data:.4g}): band "
-        f"continuation to cost {refit.data_cost(s2):.4g}, {'kept' if kept else 'not kept'}"
-    )
-    return (s2, res2, note) if kept else (state, res, note)
-
-
 def _run(job: Job, t0: float) -> JobResult:
     from .evaluate import figures
 
@@ -353,7 +319,7 @@ def _run(job: Job, t0: float) -> JobResult:
     cand = job.candidate
     aug, state, res = _fit(job)
     refit = aug.refit
-    state, res, note = rescue(job, refit, state, res)
+    state, res, note = rescue(refit, state, res, job.presolve_iter, job.alt_iter)
     if note:
         extra["rescue"] = note
     fit, std_theta = refit.result(res)
