@@ -70,6 +70,10 @@ class Settings:
     #: candidates refitted fully after the screening, at the first and at later steps
     n_refit: int = 4
     n_refit_later: int = 2
+    #: most candidates refitted when the screening's figures tie above the noise level
+    #: (:func:`.screen.select`), at the first and at later steps
+    n_refit_max: int = 12
+    n_refit_max_later: int = 4
     #: most effects accepted one after the other
     max_effects: int = 3
 
@@ -269,7 +273,7 @@ def diagnose(
         ctx = Context(
             doc, p.names, p.train, p.held, p.full, p.options, p.candidates,
             missing_mode_hints(by_ds), s.refit_iter, s.n_starts, (s.n_refit, s.n_refit_later),
-            s.max_effects, p.space,
+            s.max_effects, p.space, (s.n_refit_max, s.n_refit_max_later),
         )  # fmt: skip
         steps = search(ctx, pool, baseline, say)
         nominal_H = [model_frf(doc, d) for d in p.full]

@@ -56,6 +56,7 @@ from .augmented import Augmented, build, with_values
 from .effects import Candidate
 from .refit import Nominal, Refit, State
 from .rescue import rescue
+from .scan_grid import scan_grid
 
 DAMPING_FACTORS = (1.0, 4.0)
 COORD_GRID = tuple(float(x) for x in np.geomspace(1 / 30, 30, 25))
@@ -186,8 +187,7 @@ def _starts(job: Job, refit: Refit) -> list[State]:
     if not cand.scan_grid:
         return [s0]
     exps = _exps(cand)
-    hints = [(f / cand.ref_hz) ** 2 for f in job.hints_hz] if cand.ref_hz else []
-    grid = tuple(sorted({*cand.scan_grid, *hints}))
+    grid, hints = scan_grid(cand, job.hints_hz)
     damp = (exps == 0.5).astype(float)
     v0 = refit.new_values(s0)
     bases = [refit.with_new(s0, v0 * f**damp) for f in DAMPING_FACTORS] if damp.any() else [s0]

@@ -28,6 +28,17 @@ A candidate with variants (e.g. the pivots of a rotational DOF) gets the lowest 
 variants (one start each).
 The figure is a training cost, so screening never looks at the held-out data that decide the
 verdict.
+
+Which candidates are refitted fully (:func:`select`): the ``n_refit`` lowest figures, and, when
+even the best figure leaves the training cost well above the noise level (more than
+:data:`UNEXPLAINED_RATIO` times the cost an exact model would score on this data,
+:func:`bondid.cost.noise_level.noise_level_cost`), also the candidates tied with the last of
+those (figures within :data:`TIE_FRACTION` of its excess over the noise level), up to
+``n_max``. Such a step has not been explained by any candidate's cheap figure: the figures of
+the candidates that changed nothing then differ by far less than the one-step prediction's own
+error, and the order among them says nothing (measured: a withheld translational compliance
+whose mode the parameter refit had absorbed ranked 14th of 17 within 0.02 dB of the best).
+When the best figure is near the noise level the ranking is trusted and ``n_refit`` are kept.
 """
 
 from __future__ import annotations
@@ -43,11 +54,18 @@ from .augmented import build
 from .effects import Candidate
 from .refit import Refit, State
 from .runner import Job, _alt_start
+from .scan_grid import scan_grid
 
 #: start points kept from the scan of a candidate (its variants: one each)
 N_STARTS = 2
 #: Levenberg–Marquardt damping of the screening step (relative to diag(JᵀJ))
 LM_DAMPING = 1e-3
+#: a step whose best screening figure is above this multiple of the noise-level cost is
+#: unexplained (the ratio :mod:`.rescue` uses for a refit above the noise level)
+UNEXPLAINED_RATIO = 1.5
+#: figures within this fraction of the last kept one's excess over the noise-level cost tie
+#: with it (module docstring)
+TIE_FRACTION = 0.02
 
 
 @dataclass
@@ -65,6 +83,9 @@ class Screening:
         variant: the candidate or variant (variants cleared) with the lowest figure: the one
             a full refit then uses.
         start: its new parameters (SI) where the figure was taken: the full refit's start.
+        noise_cost: the training objective an exact model would score on this data
+            (:func:`bondid.cost.noise_level.noise_level_cost`; NaN when unknown), the same for
+            every candidate of a step.
     """
 
     label: str
@@ -76,6 +97,7 @@ class Screening:
     error: str = ""
     variant: Candidate | None = None
     start: tuple = ()
+    noise_cost: float = math.nan
 
 
 def predicted_cost(refit: Refit, state: State, damping: float = LM_DAMPING) -> float:
@@ -98,18 +120,29 @@ def predicted_cost(refit: Refit, state: State, damping: float = LM_DAMPING) -> f
     return min(c0, float(res @ res))
 
 
-def _figure(job: Job, n_starts: int, pick: int | None) -> tuple[float, float, int | None, tuple]:
+def noise_cost(refit: Refit) -> float:
+    """The noise-level cost of ``refit``'s training data (:func:`bondid.cost.noise_level.
+    noise_level_cost`; NaN when the data carry no noise estimate)."""
+    from ..cost.noise_level import noise_level_cost
+
+    c = noise_level_cost(refit.at(refit.state0).frf)
+    return float(c) if c is not None and math.isfinite(c) else math.nan
+
+
+Figure = tuple[float, float, int | None, tuple, float]
+
+
+def _figure(job: Job, n_starts: int, pick: int | None) -> Figure:
     """(objective after the new-only solve, screening figure, start option of the second
-    origin, the new parameters (SI) where the figure was taken) of ``job``'s candidate;
-    ``pick``: the only start option the second origin tries."""
+    origin, the new parameters (SI) where the figure was taken, the noise-level cost) of
+    ``job``'s candidate; ``pick``: the only start option the second origin tries."""
     cand = job.candidate
     assert cand is not None
     refit = build(job.urdf, job.nominal, job.train, job.options, job.accepted, cand).refit
     exps = np.array([p.scan for p in cand.parameters], float)
     starts = [refit.state0]
-    if cand.scan_grid:
-        hints = [(f / cand.ref_hz) ** 2 for f in job.hints_hz] if cand.ref_hz else []
-        grid = tuple(sorted({*cand.scan_grid, *hints}))
+    grid, _ = scan_grid(cand, job.hints_hz)
+    if grid:
         starts = refit.scan_starts(refit.state0, exps, grid, n_starts=n_starts)
     best: tuple[float, State] | None = None
     for s in starts:
@@ -119,14 +152,15 @@ def _figure(job: Job, n_starts: int, pick: int | None) -> tuple[float, float, in
     assert best is not None
     figure = predicted_cost(refit, best[1])
     new = tuple(float(v) for v in refit.new_values(best[1]))
+    floor = noise_cost(refit)
     if job.alt_urdf is None:
-        return best[0], figure, None, new
+        return best[0], figure, None, new, floor
     alt = build(job.alt_urdf, job.nominal, job.train, job.options, job.accepted, cand).refit
     s_a, _, k = _alt_start(job, alt, [np.array(new)], pick)
     fig_a = predicted_cost(alt, s_a)
     if fig_a < figure:
         figure, new = fig_a, tuple(float(v) for v in alt.new_values(s_a))
-    return best[0], figure, k, new
+    return best[0], figure, k, new, floor
 
 
 def screen(job: Job) -> Screening:
@@ -140,10 +174,11 @@ def screen(job: Job) -> Screening:
     start: tuple = ()
     error = ""
     pick: int | None = 0  # the second origin starts from the first origin's best only
+    floor = math.nan
     for k, option in enumerate((cand, *cand.variants)):
         sub = replace(job, candidate=replace(option, variants=()))
         try:
-            c_new, c_fig, pick, new = _figure(sub, N_STARTS if k == 0 else 1, pick)
+            c_new, c_fig, pick, new, floor = _figure(sub, N_STARTS if k == 0 else 1, pick)
         except (BondidError, np.linalg.LinAlgError, ValueError) as exc:
             error = error or f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
             continue
@@ -153,15 +188,40 @@ def screen(job: Job) -> Screening:
         error = ""
     wall = time.perf_counter() - t0
     return Screening(
-        cand.label, cand.effect, cand.location, best[0], best[1], wall, error, chosen, start
+        cand.label,
+        cand.effect,
+        cand.location,
+        best[0],
+        best[1],
+        wall,
+        error,
+        chosen,
+        start,
+        floor,
     )
 
 
-def select(screenings: list[Screening], n_refit: int) -> list[int]:
-    """Indices of the candidates to refit fully: the ``n_refit`` lowest screening figures
-    (failed ones never), best first."""
+def select(screenings: list[Screening], n_refit: int, n_max: int | None = None) -> list[int]:
+    """Indices of the candidates to refit fully, best figure first (failed ones never): the
+    ``n_refit`` lowest figures, then, when the best figure leaves the step unexplained (above
+    :data:`UNEXPLAINED_RATIO` times the noise-level cost), the next ones while they tie with
+    the last kept (within :data:`TIE_FRACTION` of its excess over the noise-level cost), up to
+    ``n_max`` in all (default ``n_refit``: no ties)."""
     order = sorted(
         (i for i, s in enumerate(screenings) if math.isfinite(s.cost)),
         key=lambda i: screenings[i].cost,
     )
-    return order[:n_refit]
+    keep = order[:n_refit]
+    noise = [s.noise_cost for s in screenings if math.isfinite(s.noise_cost)]
+    if not keep or not noise or n_max is None or n_max <= n_refit:
+        return keep
+    floor = float(np.median(noise))
+    if not floor > 0 or screenings[order[0]].cost <= UNEXPLAINED_RATIO * floor:
+        return keep
+    last = screenings[keep[-1]].cost
+    tol = TIE_FRACTION * (last - floor)
+    for i in order[n_refit:n_max]:
+        if screenings[i].cost > last + tol:
+            break
+        keep.append(i)
+    return keep

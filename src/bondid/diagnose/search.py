@@ -5,7 +5,9 @@ accepted so far — and
 
 1. screens every candidate not yet accepted (:func:`.screen.screen`: a cheap training-cost
    figure each, in worker processes);
-2. refits the best :attr:`Context.n_refit` of them fully (:func:`.runner.run_job`: every
+2. refits the best :attr:`Context.n_refit` of them fully (more, up to :attr:`Context.n_max`,
+   when the best figure leaves the step well above the noise level and others tie with the
+   last kept: :func:`.screen.select`) (:func:`.runner.run_job`: every
    nominal, accepted and new parameter together, from the base and from the nominal model);
 3. scores them on held-out data (:mod:`.scoring`) and accepts the best only if it beats the
    base's score clearly (the same rule at every step).
@@ -52,6 +54,9 @@ class Context:
     #: the nominal parameters of every refit (names, bounds, prior); default: from
     #: ``nominal`` and ``names`` (:func:`.refit.nominal_space_for`)
     space: Nominal | None = None
+    #: most candidates refitted at the first and at the later steps when the screening's
+    #: figures tie (:func:`.screen.select`)
+    n_max: tuple[int, int] = (12, 4)
 
     def __post_init__(self) -> None:
         if self.space is None:
@@ -129,7 +134,8 @@ def _step(
         progress(f"step {index + 1} screened {s.label}")
     done = [s for s in screenings if s is not None]
     assert len(done) == len(cands)  # done[i] is the screening of cands[i]
-    chosen = select(done, ctx.n_refit[0 if index == 0 else 1])
+    later = 0 if index == 0 else 1
+    chosen = select(done, ctx.n_refit[later], ctx.n_max[later])
     step = Step(index, base, base_score, done, chosen)
     futs = {pool.submit(run_job, _job(ctx, base, _refit_candidate(done[i], cands[i]),
                                       done[i].start)): i for i in chosen}  # fmt: skip
