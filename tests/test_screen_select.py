@@ -93,3 +93,18 @@ def test_scan_grid_of_a_signal_candidate_has_no_hints(doc):
     c = get_effect("sensor_delay").candidates(doc)[0]
     grid, factors = scan_grid(c, (100.0, 200.0))
     assert factors == [] and grid == tuple(sorted(set(c.scan_grid)))
+
+
+def test_select_puts_ties_at_a_kept_site_first():
+    """Ties at the interface of a kept candidate (another axis) come before better-figured ties
+    elsewhere; ties beyond n_max are dropped, the n_refit kept ones never."""
+    last = 4.0
+    tie = TIE_FRACTION * (last - NOISE)
+    s = _screens([2.0, last, last + 0.1 * tie, last + 0.2 * tie, last + 0.3 * tie])
+    s[0].location = "a->b:rz"
+    s[1].location = "c"
+    s[2].location = "d->e:tx"
+    s[3].location = "f"
+    s[4].location = "a->b:tz"  # the same interface as the best, another axis
+    assert select(s, 2, 4) == [0, 1, 4, 2]
+    assert select(s, 2, 3) == [0, 1, 4]

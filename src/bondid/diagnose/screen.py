@@ -37,8 +37,10 @@ those (figures within :data:`TIE_FRACTION` of its excess over the noise level), 
 ``n_max``. Such a step has not been explained by any candidate's cheap figure: the figures of
 the candidates that changed nothing then differ by far less than the one-step prediction's own
 error, and the order among them says nothing (measured: a withheld translational compliance
-whose mode the parameter refit had absorbed ranked 14th of 17 within 0.02 dB of the best).
-When the best figure is near the noise level the ranking is trusted and ``n_refit`` are kept.
+whose mode the parameter refit had absorbed ranked 14th of 17 within 0.02 dB of the best, one
+place behind a rotational candidate at the same interface). The ties at the site of a kept
+candidate (another axis of a kept interface) therefore come first. When the best figure is
+near the noise level the ranking is trusted and ``n_refit`` are kept.
 """
 
 from __future__ import annotations
@@ -201,12 +203,21 @@ def screen(job: Job) -> Screening:
     )
 
 
+def site(s: Screening) -> str | None:
+    """Where a candidate acts, without its axis: ``"x_stage->y_stage"`` for
+    ``"x_stage->y_stage:tz"``, the location itself otherwise."""
+    return s.location.split(":")[0] if s.location else None
+
+
 def select(screenings: list[Screening], n_refit: int, n_max: int | None = None) -> list[int]:
-    """Indices of the candidates to refit fully, best figure first (failed ones never): the
-    ``n_refit`` lowest figures, then, when the best figure leaves the step unexplained (above
-    :data:`UNEXPLAINED_RATIO` times the noise-level cost), the next ones while they tie with
-    the last kept (within :data:`TIE_FRACTION` of its excess over the noise-level cost), up to
-    ``n_max`` in all (default ``n_refit``: no ties)."""
+    """Indices of the candidates to refit fully (failed ones never): the ``n_refit`` lowest
+    figures, then, when the best figure leaves the step unexplained (above
+    :data:`UNEXPLAINED_RATIO` times the noise-level cost), the candidates that tie with the
+    last kept (within :data:`TIE_FRACTION` of its excess over the noise-level cost), up to
+    ``n_max`` in all (default ``n_refit``: no ties). Ties at the :func:`site` of a kept
+    candidate come first (a compliant interface shows at the screening through whichever of
+    its axes the start reaches: a rotation about an offset pivot moves the child much like a
+    translation), then the others, each by figure."""
     order = sorted(
         (i for i, s in enumerate(screenings) if math.isfinite(s.cost)),
         key=lambda i: screenings[i].cost,
@@ -220,8 +231,7 @@ def select(screenings: list[Screening], n_refit: int, n_max: int | None = None) 
         return keep
     last = screenings[keep[-1]].cost
     tol = TIE_FRACTION * (last - floor)
-    for i in order[n_refit:n_max]:
-        if screenings[i].cost > last + tol:
-            break
-        keep.append(i)
-    return keep
+    ties = [i for i in order[n_refit:] if screenings[i].cost <= last + tol]
+    sites = {site(screenings[i]) for i in keep}
+    ties.sort(key=lambda i: site(screenings[i]) not in sites)  # stable: by figure within
+    return keep + ties[: n_max - n_refit]
