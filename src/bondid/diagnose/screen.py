@@ -37,8 +37,8 @@ those (figures within :data:`TIE_FRACTION` of its excess over the noise level), 
 ``n_max``. Such a step has not been explained by any candidate's cheap figure: the figures of
 the candidates that changed nothing then differ by far less than the one-step prediction's own
 error, and the order among them says nothing (measured: a withheld translational compliance
-whose mode the parameter refit had absorbed ranked 14th of 17 within 0.02 dB of the best, one
-place behind a rotational candidate at the same interface). The ties at the site of a kept
+whose mode the parameter refit had absorbed ranked 14th of 17 within 0.02 dB of the best, a
+rotational candidate at the same interface 1st). The ties at the site of a kept
 candidate (another axis of a kept interface) therefore come first. When the best figure is
 near the noise level the ranking is trusted and ``n_refit`` are kept.
 """
