@@ -72,7 +72,7 @@ class Settings:
     n_refit_later: int = 2
     #: most candidates refitted when the screening's figures tie above the noise level
     #: (:func:`.screen.select`), at the first and at later steps
-    n_refit_max: int = 8
+    n_refit_max: int = 6
     n_refit_max_later: int = 4
     #: most effects accepted one after the other
     max_effects: int = 3

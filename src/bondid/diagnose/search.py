@@ -56,7 +56,7 @@ class Context:
     space: Nominal | None = None
     #: most candidates refitted at the first and at the later steps when the screening's
     #: figures tie (:func:`.screen.select`)
-    n_max: tuple[int, int] = (8, 4)
+    n_max: tuple[int, int] = (6, 4)
 
     def __post_init__(self) -> None:
         if self.space is None:
