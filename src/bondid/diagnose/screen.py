@@ -134,10 +134,11 @@ def noise_cost(refit: Refit) -> float:
 Figure = tuple[float, float, int | None, tuple, float]
 
 
-def _figure(job: Job, n_starts: int, pick: int | None) -> Figure:
+def _figure(job: Job, n_starts: int, pick: int | None, noise: bool = True) -> Figure:
     """(objective after the new-only solve, screening figure, start option of the second
-    origin, the new parameters (SI) where the figure was taken, the noise-level cost) of
-    ``job``'s candidate; ``pick``: the only start option the second origin tries."""
+    origin, the new parameters (SI) where the figure was taken, the noise-level cost or NaN
+    without ``noise``) of ``job``'s candidate; ``pick``: the only start option the second
+    origin tries."""
     cand = job.candidate
     assert cand is not None
     refit = build(job.urdf, job.nominal, job.train, job.options, job.accepted, cand).refit
@@ -154,7 +155,7 @@ def _figure(job: Job, n_starts: int, pick: int | None) -> Figure:
     assert best is not None
     figure = predicted_cost(refit, best[1])
     new = tuple(float(v) for v in refit.new_values(best[1]))
-    floor = noise_cost(refit)
+    floor = noise_cost(refit) if noise else math.nan
     if job.alt_urdf is None:
         return best[0], figure, None, new, floor
     alt = build(job.alt_urdf, job.nominal, job.train, job.options, job.accepted, cand).refit
@@ -180,7 +181,8 @@ def screen(job: Job) -> Screening:
     for k, option in enumerate((cand, *cand.variants)):
         sub = replace(job, candidate=replace(option, variants=()))
         try:
-            c_new, c_fig, pick, new, floor = _figure(sub, N_STARTS if k == 0 else 1, pick)
+            c_new, c_fig, pick, new, f = _figure(sub, N_STARTS if k == 0 else 1, pick, k == 0)
+            floor = f if k == 0 else floor
         except (BondidError, np.linalg.LinAlgError, ValueError) as exc:
             error = error or f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
             continue
