@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..data.measurement import FrfData
-from ..data.weights import information_weights
+from ..data.weights import noise_to_signal
 from .residuals import DB
 from .selection import used_points
 
@@ -103,11 +103,9 @@ def expected_sq_db(
     weights, as in the diagnosis). NaN where ``H`` is NaN."""
     if weighting != "coherence":
         weighting = "auto" if use_coherence else "estimated"
-    w = information_weights(ds, weighting)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ns = np.where(w > 0, 1.0 / w - 1.0, np.inf)
-    out = DB**2 * expected_log_error(np.where(np.isfinite(w), ns, 0.0), magnitude)
-    out[~np.isfinite(w)] = np.nan
+    ns = noise_to_signal(ds, weighting, prediction=True)
+    out = DB**2 * expected_log_error(np.where(np.isnan(ns), 0.0, ns), magnitude)
+    out[np.isnan(ns)] = np.nan
     return out
 
 
