@@ -7,9 +7,9 @@
 * the **held-out noise reference** (:func:`heldout_noise`): ``L``, the score an exact model
   would get on the held-out points (:mod:`bondid.cost.noise_level`, from the weights the
   diagnosis uses), and ``n``, the number of independent held-out points it rests on:
-  ``n = (Σ wᵢ mᵢ)² / Σ (wᵢ mᵢ)²`` with ``mᵢ`` the expected squared error of point ``i``
-  (the weighted mean square of noise has relative std ``1/√n``: each complex point's
-  ``|ln(1 + u)|²`` is about exponential).
+  ``n = (Σ wᵢ mᵢ)² / Σ wᵢ² qᵢ`` with ``mᵢ`` and ``qᵢ`` the mean and variance of point ``i``'s
+  squared log error under its noise (:func:`bondid.cost.noise_level.log_error_variance`), so
+  that the weighted mean square of pure noise has relative std ``1/√n``.
 * verdict (:func:`accept`): the best-scoring candidate (score ``s₁``) is accepted against the
   model it is added to (score ``s₀``) only when both hold:
 
@@ -87,29 +87,29 @@ def heldout_noise(datasets: Sequence[FrfData], options: CostOptions) -> NoiseRef
     score is (``options``: its channels, bands and weighting); None when the cost's noise
     level is not modelled (kinds other than the log ones, the ``l1`` norm) or no point
     weighs."""
-    from ..cost.noise_level import expected_sq_db
+    from ..cost.noise_level import expected_log_error, log_error_variance
+    from ..cost.residuals import DB
     from ..cost.selection import used_points
-    from ..data.weights import information_weights
+    from ..data.weights import information_weights, noise_to_signal
 
-    if options.kind not in ("complex_log", "log_magnitude") or options.norm != "l2":
+    if options.kind != "complex_log" or options.norm != "l2":
         return None
-    wm, ws = [], []
+    wm, wq, ws = [], [], []
     for ds in datasets:
         m = used_points(ds, options)
-        e = expected_sq_db(
-            ds, options.use_coherence, magnitude=options.kind != "complex_log",
-            weighting=options.effective_weighting,
-        )[m]  # fmt: skip
         w = np.nan_to_num(information_weights(ds, options.effective_weighting)[m])
+        v = noise_to_signal(ds, options.effective_weighting, prediction=True)[m]
         keep = w > 0
-        wm.append(w[keep] * e[keep])
-        ws.append(w[keep])
-    wm_all, w_all = np.concatenate(wm), np.concatenate(ws)
-    if w_all.sum() <= 0 or not np.all(np.isfinite(wm_all)):
+        w, v = w[keep], np.nan_to_num(v[keep])
+        wm.append(w * expected_log_error(v))
+        wq.append(w * w * log_error_variance(v))
+        ws.append(w)
+    mean, var, w_all = (np.concatenate(x) for x in (wm, wq, ws))
+    if w_all.sum() <= 0 or not (np.all(np.isfinite(mean)) and np.all(np.isfinite(var))):
         return None
-    level2 = float(wm_all.sum() / w_all.sum())
-    n_eff = float(wm_all.sum() ** 2 / max(float(np.sum(wm_all**2)), 1e-300))
-    return NoiseReference(math.sqrt(level2), n_eff)
+    level2 = float(mean.sum() / w_all.sum())
+    n_eff = float(mean.sum() ** 2 / max(float(var.sum()), 1e-300))
+    return NoiseReference(float(DB * math.sqrt(level2)), n_eff)
 
 
 def tests(
