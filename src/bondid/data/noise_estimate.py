@@ -65,9 +65,12 @@ ENVELOPE_FACTOR = 4.0
 #: slopes of φ² in log-log a sensor floor can have (flat in displacement, velocity or
 #: acceleration, seen as receptance, mobility or accelerance)
 FLOOR_SLOPES = (-4.0, -2.0, 0.0, 2.0, 4.0)
-#: Ŝ = max(P̄ − SIGNAL_MARGIN·N̂, 0), P̄ the mean |H|² over SIGNAL_POINTS neighbouring points
+#: Ŝ = max(P̄ − SIGNAL_MARGIN·N̂, 0), P̄ the mean |H|² over SIGNAL_POINTS neighbouring points ...
 SIGNAL_MARGIN = 3.0
 SIGNAL_POINTS = 5
+#: ... where those points span at most ±SIGNAL_OCTAVES octave (else 3 points: on a sparse grid
+#: 5 points smear a lightly damped resonance's peak into its neighbours)
+SIGNAL_OCTAVES = 1.0 / 32.0
 #: the signal power of a point that carries weight, for predicting its error: P̄ − κ_p N̂.
 #: Not the unbiased κ_p = 1: the points kept are those whose P̄ came out above κ N̂, so P̄
 #: is biased high among them (with κ_p = 1 the predicted noise level came out 5–15 % low on
@@ -298,14 +301,25 @@ def estimate_channel(freq_hz: np.ndarray, H: np.ndarray) -> tuple[np.ndarray, np
     return sigma, np.sqrt(phi2), math.sqrt(rho2)
 
 
-def _signal_power(H: np.ndarray, N: np.ndarray) -> np.ndarray:
-    """``Ŝ = max(P̄ − κ N̂, 0)``, ``P̄`` the :data:`SIGNAL_POINTS`-point mean of ``|H|²``
-    along the last axis (edge values repeated)."""
-    P = np.abs(H) ** 2
-    h = SIGNAL_POINTS // 2
+def _mean_power(P: np.ndarray, points: int) -> np.ndarray:
+    """``points``-point running mean along the last axis (edge values repeated)."""
+    h = points // 2
     Pp = np.pad(P, [(0, 0)] * (P.ndim - 1) + [(h, h)], mode="edge")
     n = P.shape[-1]
-    Pbar = sum(Pp[..., k : k + n] for k in range(SIGNAL_POINTS)) / SIGNAL_POINTS
+    return sum(Pp[..., k : k + n] for k in range(points)) / points
+
+
+def _signal_power(H: np.ndarray, N: np.ndarray, freq_hz: np.ndarray) -> np.ndarray:
+    """``Ŝ = max(P̄ − κ N̂, 0)``, ``P̄`` the mean of ``|H|²`` along the last axis over
+    :data:`SIGNAL_POINTS` points where they span at most ±:data:`SIGNAL_OCTAVES` octave (a
+    dense grid: a resonance peak is not smeared), over 3 elsewhere."""
+    P = np.abs(H) ** 2
+    h = SIGNAL_POINTS // 2
+    lf = np.log2(freq_hz)
+    k = np.arange(lf.size)
+    span = lf[np.minimum(k + h, lf.size - 1)] - lf[np.maximum(k - h, 0)]
+    dense = span <= 2.0 * SIGNAL_OCTAVES
+    Pbar = np.where(dense, _mean_power(P, SIGNAL_POINTS), _mean_power(P, 3))
     return np.maximum(Pbar - SIGNAL_MARGIN * N, 0.0)
 
 
@@ -339,7 +353,7 @@ def estimate_noise(
             if n >= MIN_POINTS and np.all(np.isfinite(h)):
                 sigma[a, b], floor[a, b], rho[a, b] = estimate_channel(f, h)
     N = sigma**2
-    S = _signal_power(np.where(np.isfinite(H), H, 0.0), np.nan_to_num(N))
+    S = _signal_power(np.where(np.isfinite(H), H, 0.0), np.nan_to_num(N), f)
     with np.errstate(divide="ignore", invalid="ignore"):
         snr_db = 10.0 * np.log10(S / N)
     snr_db[~np.isfinite(sigma)] = np.nan
