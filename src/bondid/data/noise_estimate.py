@@ -306,7 +306,10 @@ def _mean_power(P: np.ndarray, points: int) -> np.ndarray:
     h = points // 2
     Pp = np.pad(P, [(0, 0)] * (P.ndim - 1) + [(h, h)], mode="edge")
     n = P.shape[-1]
-    return sum(Pp[..., k : k + n] for k in range(points)) / points
+    out = np.zeros(P.shape)
+    for k in range(points):
+        out += Pp[..., k : k + n]
+    return out / points
 
 
 def _signal_power(H: np.ndarray, N: np.ndarray, freq_hz: np.ndarray) -> np.ndarray:
