@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..data.measurement import FrfData
-from ..data.weights import information_weights
+from ..data.weights import noise_to_signal
 from .residuals import DB
 from .selection import used_points
 
@@ -91,6 +91,38 @@ def expected_log_error(v: np.ndarray, magnitude: bool = False) -> np.ndarray:
     return np.where(lv < _LOG_V[0], small, np.where(lv > _LOG_V[-1], big, inner))
 
 
+@functools.lru_cache(maxsize=1)
+def _var_table() -> np.ndarray:
+    """``ln Var|ln(1 + u)|²`` on the ``ln v`` grid: Gauss–Laguerre in ``x = |u|²/v`` (80 nodes)
+    × the trapezoid rule in the phase (256 nodes; the integrand is periodic), split nowhere:
+    good to a few per cent, which is all a variance factor needs."""
+    x, wx = np.polynomial.laguerre.laggauss(80)
+    th = np.linspace(0.0, 2.0 * math.pi, 256, endpoint=False)
+    out = np.empty(_LOG_V.size)
+    for k, lv in enumerate(_LOG_V):
+        u = np.sqrt(math.exp(lv) * x)[:, None] * np.exp(1j * th)[None, :]
+        with np.errstate(divide="ignore"):
+            e2 = np.abs(np.log1p(u)) ** 2
+        m1 = float(wx @ e2.mean(axis=1))
+        m2 = float(wx @ (e2**2).mean(axis=1))
+        out[k] = math.log(max(m2 - m1 * m1, 1e-300))
+    return out
+
+
+def log_error_variance(v: np.ndarray) -> np.ndarray:
+    """``Var |ln(1 + u)|²`` for ``u`` complex Gaussian of variance ``v`` (natural-log units
+    squared, any shape): ``v²`` for small ``v`` (``|u|²`` is exponential); between the table's
+    ends interpolated in ``ln v``; above ``1e8``, the table's last value scaled by
+    ``(ln v)²`` (``|ln(1 + u)|² ≈ ¼ ln²(v x) + θ²``)."""
+    v = np.asarray(v, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lv = np.log(np.maximum(v, 1e-300))
+    tab = _var_table()
+    inner = np.exp(np.interp(lv, _LOG_V, tab))
+    big = math.exp(tab[-1]) * (lv / _LOG_V[-1]) ** 2
+    return np.where(lv < _LOG_V[0], v * v, np.where(lv > _LOG_V[-1], big, inner))
+
+
 def expected_sq_db(
     ds: FrfData, use_coherence: bool = True, magnitude: bool = False,
     weighting: str | None = None,
@@ -103,11 +135,9 @@ def expected_sq_db(
     weights, as in the diagnosis). NaN where ``H`` is NaN."""
     if weighting != "coherence":
         weighting = "auto" if use_coherence else "estimated"
-    w = information_weights(ds, weighting)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ns = np.where(w > 0, 1.0 / w - 1.0, np.inf)
-    out = DB**2 * expected_log_error(np.where(np.isfinite(w), ns, 0.0), magnitude)
-    out[~np.isfinite(w)] = np.nan
+    ns = noise_to_signal(ds, weighting, prediction=True)
+    out = DB**2 * expected_log_error(np.where(np.isnan(ns), 0.0, ns), magnitude)
+    out[np.isnan(ns)] = np.nan
     return out
 
 

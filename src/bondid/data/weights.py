@@ -94,6 +94,33 @@ def information_weights(ds: FrfData, weighting: str = "auto") -> np.ndarray:
     return w
 
 
+def noise_to_signal(ds: FrfData, weighting: str = "auto", prediction: bool = False) -> np.ndarray:
+    """Per-point noise-to-signal ratio ``N/S`` behind the weights of ``weighting`` (``w = 1/(1 +
+    N/S)``), ``(n_out, n_in, n_freq)``; 0 where nothing is known, NaN where ``H`` is NaN.
+
+    ``prediction``: the estimate's part taken with the signal power meant for predicting the
+    error at the points that carry weight
+    (:meth:`~bondid.data.noise_estimate.NoiseEstimate.noise_to_signal`); the weights
+    themselves keep the cautious one. The coherence's part is used as it is.
+    ``"none"``: 0 everywhere (nothing is known of the noise)."""
+    check_weighting(weighting)
+    if weighting in ("coherence", "none") or not prediction:
+        w = information_weights(ds, weighting)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ns = np.where(w > 0, 1.0 / w - 1.0, np.inf)
+        return np.where(np.isnan(w), np.nan, ns)
+    ns = noise_estimate(ds).noise_to_signal(prediction=True)
+    if weighting == "auto" and ds.coherence is not None:
+        coh = ds.coherence
+        nc = _coherence_ns(coh)
+        with np.errstate(invalid="ignore", over="ignore"):
+            both = np.sqrt(nc * ns)
+        ns = np.where(np.isfinite(coh), both, ns)
+        ns = np.where(np.isnan(ns) & np.isfinite(coh), nc, ns)
+    ns = np.where(np.isnan(ns), 0.0, ns)
+    return np.where(np.isfinite(ds.H), ns, np.nan)
+
+
 def with_weights_as_coherence(ds: FrfData, weighting: str = "auto") -> FrfData:
     """A copy of ``ds`` whose ``coherence`` holds the information weights (the coherence
     analogue), so code that weighs by coherence weighs by information. The noise estimate

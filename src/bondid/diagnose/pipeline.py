@@ -42,6 +42,7 @@ from .effects import Candidate, get_effects
 from .pool import WorkerPool
 from .refit import Nominal, nominal_space_for
 from .runner import Job, JobResult, run_job
+from .scoring import NoiseReference, heldout_noise
 from .search import Context, Step, search
 from .split import decimate, holdout_split, limit_bands
 
@@ -208,6 +209,8 @@ class Prepared:
     split_info: dict[str, Any]
     weighting: dict[str, Any]
     space: Nominal
+    #: the held-out data's noise reference of the verdict rule (:func:`.scoring.heldout_noise`)
+    noise: NoiseReference | None = None
 
 
 def prepare_data(doc: UrdfDocument, datasets: Sequence[FrfData], s: Settings) -> Prepared:
@@ -238,8 +241,19 @@ def prepare_data(doc: UrdfDocument, datasets: Sequence[FrfData], s: Settings) ->
         "n_heldout_points": [int(d.freq_hz.size) for d in held],
     }
     space = nominal_space_for(doc, names, train)
+    noise = heldout_noise(held, options, originals=list(datasets), weighting=s.weighting)
     return Prepared(
-        full, channels, options, names, candidates, train, held, split_info, w_info, space
+        full,
+        channels,
+        options,
+        names,
+        candidates,
+        train,
+        held,
+        split_info,
+        w_info,
+        space,
+        noise,
     )
 
 
@@ -273,7 +287,7 @@ def diagnose(
         ctx = Context(
             doc, p.names, p.train, p.held, p.full, p.options, p.candidates,
             missing_mode_hints(by_ds), s.refit_iter, s.n_starts, (s.n_refit, s.n_refit_later),
-            s.max_effects, p.space, (s.n_refit_max, s.n_refit_max_later),
+            s.max_effects, p.space, (s.n_refit_max, s.n_refit_max_later), p.noise,
         )  # fmt: skip
         steps = search(ctx, pool, baseline, say)
         nominal_H = [model_frf(doc, d) for d in p.full]

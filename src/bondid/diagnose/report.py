@@ -31,6 +31,7 @@ from typing import Any
 
 from ..atomic import write_text_atomic
 from ..jsonsafe import json_safe as _num
+from . import scoring
 from .gap import GapReport, gap_report
 from .pipeline import Diagnosis
 from .scoring import ABS_MARGIN_DB, REL_MARGIN, gap_closed
@@ -147,7 +148,7 @@ def effect_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
             "parameters": {n: {"value": v, "std": std.get(n)} for n, v in vals.items()},
             "db_rms_after": w.db_rms, "heldout_db_rms_after": w.heldout_db_rms,
             "gap_closed": gap_closed(before, w.db_rms), "score": step.scores[0],
-            "score_before": step.base_score,
+            "score_before": step.base_score, "test": step.test,
         })  # fmt: skip
     return out
 
@@ -166,8 +167,8 @@ def _verdict(
             "gap_closed": gap_closed(before, w.db_rms),
             "gap_closed_total": gap_closed(nominal, w.db_rms),
             "parameters": {n: {"value": v, "std": std.get(n)} for n, v in vals.items()},
-            "reason": f"held-out score {diag.scores[0]:.3f} dB vs {diag.baseline_score:.3f} dB"
-            f" for the parameter refit (needs ≥ {REL_MARGIN:.0%} and ≥ {ABS_MARGIN_DB} dB lower)",
+            "reason": scoring.reason(diag.steps[0].test, diag.scores[0], diag.baseline_score)
+            + " (against the parameter refit)",
             "where": _gap_dict(reports["effect"], reports.get("effect_unweighted")),
         }
     else:
@@ -176,9 +177,12 @@ def _verdict(
             "effect": "none",
             "location": None,
             "gap_closed": 0.0,
-            "reason": f"no candidate beats the parameter refit clearly on held-out data (best"
-            f" {best:.3f} dB vs {diag.baseline_score:.3f} dB; needs ≥ {REL_MARGIN:.0%} and"
-            f" ≥ {ABS_MARGIN_DB} dB lower)",
+            "reason": "no candidate passes the verdict rule against the parameter refit: "
+            + (
+                scoring.reason(diag.steps[0].test, best, diag.baseline_score)
+                if diag.steps and diag.steps[0].test
+                else f"best {best:.3f} dB"
+            ),
         }
     return verdict
 
@@ -232,8 +236,13 @@ def to_json_dict(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, An
         "split": diag.split_info,
         "scoring": {
             "score": "held-out information-weighted RMS complex-log error [dB] x FPE factor",
+            "rule": scoring.RULE,
+            "level_tol": scoring.LEVEL_TOL,
+            "z": scoring.Z,
+            "min_excess_share": scoring.MIN_EXCESS_SHARE,
             "rel_margin": REL_MARGIN,
             "abs_margin_db": ABS_MARGIN_DB,
+            "steps": [{"step": st.index + 1, **st.test} for st in diag.steps],
             "gap_closed": "1 - db_rms_after / gap.db_rms (gap after the parameter refit; "
             "both weighted)",
             "db_rms": DB_RMS_DEFINITION,

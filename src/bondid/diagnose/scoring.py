@@ -1,15 +1,33 @@
 """Scoring and the verdict.
 
-* ``score`` of a refit (lower is better): its held-out error — the coherence-weighted RMS
+* ``score`` of a refit (lower is better): its held-out error — the information-weighted RMS
   complex-log error [dB] on the held-out frequencies (see :mod:`bondid.diagnose.split`) —
   times the final-prediction-error factor ``√((N + p)/(N − p))`` for the ``p`` parameters
-  the candidate adds over the parameter-only refit (``N`` training residuals). The held-out
-  error is the main penalty on complexity; the factor only breaks ties in its favour of the
-  simpler model.
-* verdict: the best-scoring candidate wins only if it beats the parameter-only refit
-  *clearly* on held-out data: its score must be lower by at least :data:`REL_MARGIN` of the
-  refit's score **and** by at least :data:`ABS_MARGIN_DB`; otherwise the verdict is
-  ``"none"`` (refitting parameters alone explains the data as well as any candidate).
+  the candidate adds over the parameter-only refit (``N`` training residuals).
+* the **held-out noise reference** (:func:`heldout_noise`): ``L``, the score an exact model
+  would get on the held-out points (:mod:`bondid.cost.noise_level`, from the weights the
+  diagnosis uses), and ``n``, the number of independent held-out points it rests on:
+  ``n = (Σ wᵢ mᵢ)² / Σ wᵢ² qᵢ`` with ``mᵢ`` and ``qᵢ`` the mean and variance of point ``i``'s
+  squared log error under its noise (:func:`bondid.cost.noise_level.log_error_variance`), so
+  that the weighted mean square of pure noise has relative std ``1/√n``.
+* verdict (:func:`accept`): the best-scoring candidate (score ``s₁``) is accepted against the
+  model it is added to (score ``s₀``) only when both hold:
+
+  1. **the base is above the noise level**, beyond the prediction's tolerance and its
+     sampling error: ``s₀² > (1 + LEVEL_TOL)² L² (1 + z/√n)`` (:data:`LEVEL_TOL` = 0.1, the
+     "at the noise level" of the fit; ``z`` = :data:`Z`). A model already at the noise level
+     has nothing left to explain.
+  2. **the improvement is significant and real**: the likelihood-ratio statistic of the
+     held-out mean squares with the noise variance known, ``Λ = n (s₀² − s₁²) / L²``, exceeds
+     ``z²·p`` (``p`` added parameters; ``z²`` per parameter: far in the tail of ``χ²_p``,
+     the statistic's law when the candidate adds nothing), **and** the
+     candidate removes at least :data:`MIN_EXCESS_SHARE` of the base's excess over the noise,
+     ``s₀² − s₁² ≥ MIN_EXCESS_SHARE · (s₀² − L²)`` (a refit that lands in another basin moves
+     the score by a few per cent either way; an effect the data really show closes a good
+     part of what lies above the noise).
+
+  Without a noise reference (costs the noise level does not model) the former rule stands:
+  lower by :data:`REL_MARGIN` of the base's score and by :data:`ABS_MARGIN_DB`.
 * ``gap_closed = 1 − db_rms_after / db_rms_before`` with ``before`` = the gap after the
   parameter refit (``gap.db_rms`` of ``diagnosis.json``), i.e. the share of the remaining gap
   the effect removes.
@@ -19,9 +37,35 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
 
+import numpy as np
+
+from ..cost.problem import CostOptions
+from ..data.measurement import FrfData
+
+#: fallback rule (no noise reference): relative and absolute margins of the score
 REL_MARGIN = 0.05
 ABS_MARGIN_DB = 0.05
+#: "at the noise level": within this share of the predicted level (as the fit's fallback)
+LEVEL_TOL = 0.10
+#: normal quantile of both tests (one-sided; 3 ≈ 0.13 % false alarms per test on pure noise)
+Z = 3.0
+#: share of the base's excess mean square over the noise a candidate must remove
+MIN_EXCESS_SHARE = 0.25
+
+
+@dataclass(frozen=True)
+class NoiseReference:
+    """The held-out points' noise: ``level_db`` the predicted score of an exact model [dB],
+    ``n_eff`` the number of independent points behind it (module docstring)."""
+
+    level_db: float
+    n_eff: float
+
+    def as_dict(self) -> dict[str, float]:
+        return {"heldout_noise_level_db": self.level_db, "heldout_n_eff": self.n_eff}
 
 
 def score(heldout_rms: float, n_train: int, n_new: int) -> float:
@@ -38,12 +82,151 @@ def gap_closed(before: float, after: float) -> float:
     return 1.0 - after / before
 
 
-def clearly_better(candidate_score: float, baseline_score: float) -> bool:
-    """The verdict rule of the module docstring."""
+def _prediction_ns(
+    ds: FrfData, originals: Sequence[FrfData] | None, k: int, weighting: str, fallback: str
+) -> np.ndarray:
+    """``N/S`` for predicting the error at the points of ``ds`` (``(n_out, n_in, n_freq)``):
+    from ``originals[k]`` (the data set ``ds`` was cut from, before its weights went into its
+    coherence) under the rule ``weighting`` at the same frequencies and channels, else from
+    ``ds`` itself under ``fallback``."""
+    from ..data.weights import noise_to_signal
+
+    own = noise_to_signal(ds, fallback, prediction=True)
+    if originals is None or k >= len(originals):
+        return own
+    orig = originals[k]
+    idx = np.clip(np.searchsorted(orig.freq_hz, ds.freq_hz), 0, orig.freq_hz.size - 1)
+    if not np.allclose(orig.freq_hz[idx], ds.freq_hz, rtol=1e-9, atol=0.0):
+        return own
+    try:
+        oi = [orig.outputs.index(o) for o in ds.outputs]
+        ii = [orig.inputs.index(i) for i in ds.inputs]
+    except ValueError:
+        return own
+    full = noise_to_signal(orig, weighting, prediction=True)
+    return full[np.ix_(np.array(oi, int), np.array(ii, int), idx)]
+
+
+def heldout_noise(
+    datasets: Sequence[FrfData], options: CostOptions,
+    originals: Sequence[FrfData] | None = None, weighting: str = "auto",
+) -> NoiseReference | None:  # fmt: skip
+    """The noise reference of the held-out data (module docstring), weighted as the held-out
+    score is (``options``: its channels, bands and weighting).
+
+    Args:
+        datasets: held-out data sets (in the diagnosis their ``coherence`` holds the weights).
+        options: the cost options of the held-out score.
+        originals: the measured data sets they were cut from (same order), whose noise
+            estimate gives the points' noise-to-signal ratio for the prediction under the
+            rule ``weighting`` (the weights alone would give the cautious ratio, whose
+            level comes out 10–20 % high); None: from ``datasets`` themselves.
+        weighting: the weighting rule of ``originals``.
+
+    Returns:
+        The reference, or None when the cost's noise level is not modelled (kinds other than
+        ``complex_log``, the ``l1`` norm) or no point weighs.
+    """
+    from ..cost.noise_level import expected_log_error, log_error_variance
+    from ..cost.residuals import DB
+    from ..cost.selection import used_points
+    from ..data.weights import information_weights
+
+    if options.kind != "complex_log" or options.norm != "l2":
+        return None
+    wm, wq, ws = [], [], []
+    rule = options.effective_weighting
+    for k, ds in enumerate(datasets):
+        m = used_points(ds, options)
+        w = np.nan_to_num(information_weights(ds, rule)[m])
+        v = _prediction_ns(ds, originals, k, weighting, rule)[m]
+        keep = w > 0
+        w, v = w[keep], np.nan_to_num(v[keep])
+        wm.append(w * expected_log_error(v))
+        wq.append(w * w * log_error_variance(v))
+        ws.append(w)
+    mean, var, w_all = (np.concatenate(x) for x in (wm, wq, ws))
+    if w_all.sum() <= 0 or not (np.all(np.isfinite(mean)) and np.all(np.isfinite(var))):
+        return None
+    level2 = float(mean.sum() / w_all.sum())
+    n_eff = float(mean.sum() ** 2 / max(float(var.sum()), 1e-300))
+    return NoiseReference(float(DB * math.sqrt(level2)), n_eff)
+
+
+def tests(
+    candidate_score: float, baseline_score: float, n_new: int, noise: NoiseReference | None
+) -> dict[str, Any]:
+    """The figures of the verdict rule (module docstring) for one candidate: ``accepted`` and,
+    with a noise reference, ``base_over_noise`` (``s₀/L``), ``base_above_noise``, ``lr``
+    (``Λ``), ``lr_threshold``, ``excess_share`` (the share of the base's excess mean square
+    removed) and ``significant``."""
     if not (math.isfinite(candidate_score) and math.isfinite(baseline_score)):
-        return False
+        return {"accepted": False, "rule": "noise" if noise else "margin"}
     gain = baseline_score - candidate_score
-    return gain >= REL_MARGIN * baseline_score and gain >= ABS_MARGIN_DB
+    if noise is None or not noise.level_db > 0 or not noise.n_eff > 0:
+        ok = gain >= REL_MARGIN * baseline_score and gain >= ABS_MARGIN_DB
+        return {"accepted": bool(ok), "rule": "margin"}
+    s0, s1, L2, n = baseline_score**2, candidate_score**2, noise.level_db**2, noise.n_eff
+    above = s0 > (1.0 + LEVEL_TOL) ** 2 * L2 * (1.0 + Z / math.sqrt(n))
+    lr = n * (s0 - s1) / L2
+    threshold = Z**2 * max(n_new, 1)
+    excess = (s0 - s1) / (s0 - L2) if s0 > L2 else 0.0
+    significant = lr > threshold and excess >= MIN_EXCESS_SHARE
+    return {
+        "accepted": bool(above and significant),
+        "rule": "noise",
+        **noise.as_dict(),
+        "base_over_noise": math.sqrt(s0 / L2),
+        "base_above_noise": bool(above),
+        "lr": lr,
+        "lr_threshold": threshold,
+        "excess_share": excess,
+        "significant": bool(significant),
+    }
+
+
+#: the rule as ``diagnosis.json`` states it (``scoring.rule``)
+RULE = (
+    "accept the best candidate (held-out score s1) against the model it is added to (s0) iff "
+    "s0^2 > (1 + level_tol)^2 L^2 (1 + z/sqrt(n)) [the base is above the held-out noise level "
+    "L, predicted from the data's noise, n independent held-out points] and "
+    "n (s0^2 - s1^2)/L^2 > z^2 p [likelihood ratio, p added parameters] and "
+    "(s0^2 - s1^2) >= min_excess_share (s0^2 - L^2); without a noise level: s1 lower by "
+    "rel_margin of s0 and by abs_margin_db"
+)
+
+
+def reason(test: dict[str, Any], candidate_score: float, baseline_score: float) -> str:
+    """One sentence on why the rule accepted or refused (``test`` from :func:`tests`)."""
+    head = f"held-out score {candidate_score:.3f} dB vs {baseline_score:.3f} dB"
+    if test.get("rule") != "noise":
+        return (f"{head} (needs >= {REL_MARGIN:.0%} and >= {ABS_MARGIN_DB} dB lower;"
+                " no noise level for this cost)")  # fmt: skip
+    L = test["heldout_noise_level_db"]
+    parts = [f"{head}; held-out noise level {L:.3f} dB (n = {test['heldout_n_eff']:.0f})"]
+    if not test["base_above_noise"]:
+        parts.append(f"the base is at the noise level ({test['base_over_noise']:.3f}x)")
+    if test["lr"] <= test["lr_threshold"]:
+        parts.append(
+            f"improvement not significant (LR {test['lr']:.1f} <= {test['lr_threshold']:.1f})"
+        )
+    elif test["excess_share"] < MIN_EXCESS_SHARE:
+        parts.append(f"removes {test['excess_share']:.0%} of the excess over the noise (needs"
+                     f" >= {MIN_EXCESS_SHARE:.0%})")  # fmt: skip
+    return "; ".join(parts)
+
+
+def accept(
+    candidate_score: float, baseline_score: float, n_new: int = 1,
+    noise: NoiseReference | None = None,
+) -> bool:  # fmt: skip
+    """The verdict rule of the module docstring."""
+    return bool(tests(candidate_score, baseline_score, n_new, noise)["accepted"])
+
+
+def clearly_better(candidate_score: float, baseline_score: float) -> bool:
+    """The rule without a noise reference (the margins of the module docstring)."""
+    return accept(candidate_score, baseline_score, 1, None)
 
 
 def rank(scores: Sequence[float]) -> list[int]:

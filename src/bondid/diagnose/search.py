@@ -9,8 +9,9 @@ accepted so far — and
    when the best figure leaves the step well above the noise level and others tie with the
    last kept: :func:`.screen.select`) (:func:`.runner.run_job`: every
    nominal, accepted and new parameter together, from the base and from the nominal model);
-3. scores them on held-out data (:mod:`.scoring`) and accepts the best only if it beats the
-   base's score clearly (the same rule at every step).
+3. scores them on held-out data (:mod:`.scoring`) and accepts the best only under the
+   verdict rule of :func:`.scoring.accept` (the base above the held-out noise level, the
+   improvement significant given that noise; the same rule at every step).
 
 The search stops at the first step that accepts nothing, or after
 :attr:`Context.max_effects` accepted effects. The first accepted effect is the verdict; the
@@ -57,12 +58,16 @@ class Context:
     #: most candidates refitted at the first and at the later steps when the screening's
     #: figures tie (:func:`.screen.select`)
     n_max: tuple[int, int] = (6, 4)
+    #: the held-out data's noise reference of the verdict rule (default: from ``heldout``)
+    noise: scoring.NoiseReference | None = None
 
     def __post_init__(self) -> None:
         if self.space is None:
             from .refit import nominal_space_for
 
             self.space = nominal_space_for(self.nominal, self.names, self.train)
+        if self.noise is None:
+            self.noise = scoring.heldout_noise(self.heldout, self.options)
 
 
 @dataclass
@@ -77,6 +82,7 @@ class Step:
         refitted: indices into ``screenings`` of the candidates refitted fully.
         results, scores: the full refits, best score first.
         winner: the accepted effect's refit, or None.
+        test: the verdict rule's figures for the best refit (:func:`.scoring.tests`).
     """
 
     index: int
@@ -87,6 +93,7 @@ class Step:
     results: list[JobResult] = field(default_factory=list)
     scores: list[float] = field(default_factory=list)
     winner: JobResult | None = None
+    test: dict[str, Any] = field(default_factory=dict)
 
 
 Progress = Callable[[str], None]
@@ -150,8 +157,11 @@ def _step(
     order = scoring.rank(scores)
     step.results = [results[i] for i in order]
     step.scores = [scores[i] for i in order]
-    if step.results and scoring.clearly_better(step.scores[0], base_score):
-        step.winner = step.results[0]
+    if step.results:
+        best = step.results[0]
+        step.test = scoring.tests(step.scores[0], base_score, best.n_new, ctx.noise)
+        if step.test["accepted"]:
+            step.winner = best
     return step
 
 

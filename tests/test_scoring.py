@@ -1,0 +1,92 @@
+"""The diagnosis's verdict rule (bondid.diagnose.scoring): the held-out noise reference against
+Monte Carlo draws of noise of known level, and the rule's decisions on known cases."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from bondid.cost.problem import CostOptions
+from bondid.cost.residuals import DB
+from bondid.data.measurement import FrfData
+from bondid.diagnose import scoring
+from bondid.simulate import log_grid
+
+#: draws of the noise
+N_DRAWS = 400
+#: the mean weighted square of an exact model's error vs the predicted L² (relative)
+MEAN_TOL = 0.05
+#: the std of that mean square over the draws vs L²/√n (relative; the estimate of a std from
+#: 400 draws is good to about 4 %, the exponential approximation of |ln(1 + u)|² adds some)
+STD_TOL = 0.25
+
+
+def _held_out(n_freq: int = 300, seed: int = 0):
+    """One data set whose coherence holds known information weights (as in the diagnosis),
+    its exact FRF and its noise-to-signal ratios."""
+    rng = np.random.default_rng(seed)
+    f = log_grid(1.0, 1000.0, n_freq)
+    H = (1.0 / (1.0 - (f / 200.0) ** 2 + 0.02j * f / 200.0))[None, None, :] * np.ones((1, 2, 1))
+    w = rng.uniform(0.2, 1.0, H.shape)  # SNR from −6 dB up
+    w[..., : n_freq // 10] = 1.0 - 1e-6  # a few clean points
+    ds = FrfData(f, ["a"], ["p", "q"], H, "receptance", {}, w, "held-out")
+    return ds, (1.0 - w) / w
+
+
+def test_noise_reference_matches_monte_carlo() -> None:
+    ds, v = _held_out()
+    opts = CostOptions(weighting="coherence")
+    ref = scoring.heldout_noise([ds], opts)
+    assert ref is not None
+    rng = np.random.default_rng(1)
+    w = ds.coherence
+    ms = []
+    for _ in range(N_DRAWS):
+        u = np.sqrt(v / 2.0) * (rng.standard_normal(v.shape) + 1j * rng.standard_normal(v.shape))
+        e2 = DB**2 * np.abs(np.log1p(u)) ** 2
+        ms.append(float(np.sum(w * e2) / np.sum(w)))
+    L2 = ref.level_db**2
+    assert abs(np.mean(ms) / L2 - 1.0) < MEAN_TOL
+    assert abs(np.std(ms) / (L2 / math.sqrt(ref.n_eff)) - 1.0) < STD_TOL
+
+
+def test_no_reference_for_a_cost_without_noise_model() -> None:
+    ds, _ = _held_out()
+    assert scoring.heldout_noise([ds], CostOptions(kind="complex", weighting="coherence")) is None
+
+
+REF = scoring.NoiseReference(level_db=1.0, n_eff=400.0)
+
+
+def test_a_base_at_the_noise_level_accepts_nothing() -> None:
+    # even a candidate that scores far below the noise (overfitting) is refused
+    t = scoring.tests(0.5, 1.05, 1, REF)
+    assert not t["base_above_noise"] and not t["accepted"]
+
+
+def test_a_real_gap_closed_is_accepted() -> None:
+    t = scoring.tests(1.02, 2.0, 2, REF)
+    assert t["base_above_noise"] and t["significant"] and t["accepted"]
+    assert t["lr"] == pytest.approx(400 * (4.0 - 1.02**2))
+
+
+def test_an_insignificant_improvement_is_refused() -> None:
+    # the base well above the noise, the candidate better by 0.1 % of the mean square
+    t = scoring.tests(math.sqrt(4.0 * 0.999), 2.0, 1, REF)
+    assert t["base_above_noise"] and t["lr"] < t["lr_threshold"] and not t["accepted"]
+
+
+def test_a_small_share_of_the_excess_is_refused() -> None:
+    # significant (LR 400·0.3 = 120) but 10 % of an excess of 3 dB²
+    s1 = math.sqrt(4.0 - 0.3)
+    t = scoring.tests(s1, 2.0, 1, REF)
+    assert t["lr"] > t["lr_threshold"] and t["excess_share"] == pytest.approx(0.1)
+    assert not t["accepted"]
+
+
+def test_without_reference_the_margins_decide() -> None:
+    assert scoring.accept(0.9, 1.0, 1, None)
+    assert not scoring.accept(0.97, 1.0, 1, None)
+    assert not scoring.accept(math.inf, 1.0, 1, REF)
