@@ -54,6 +54,7 @@ from ..exceptions import BondidError
 from ..optim.search import PRESOLVE_KIND, Step
 from .augmented import Augmented, build, with_values
 from .effects import Candidate
+from .pivot import child_extent, is_rotational_compliance, refine_pivot
 from .refit import Nominal, Refit, State
 from .rescue import rescue
 
@@ -285,6 +286,27 @@ def _screen_variants(job: Job) -> tuple[Job, float]:
     return replace(job, candidate=replace(best[1], variants=())), best[0]
 
 
+def _refine_pivot(job: Job) -> tuple[Job, str]:
+    """The job with its rotational compliance's pivot refined (:func:`.pivot.refine_pivot`),
+    each pivot judged like a variant (:func:`_screen_variants`: the second origin's start
+    from the screening's new parameters, else the candidate's initial ones)."""
+    cand = job.candidate
+    assert cand is not None
+    urdf = job.alt_urdf if job.alt_urdf is not None else job.urdf
+    found = [np.asarray(job.start_new, float)] if job.start_new else []
+
+    def cost(c: Candidate) -> float:
+        sub = replace(job, candidate=c)
+        try:
+            return _alt_start(sub, _setup(urdf, sub).refit, found, only=0)[1]
+        except (BondidError, np.linalg.LinAlgError, ValueError):
+            return float("inf")
+
+    child = str(cand.location).split("->", 1)[1].split(":", 1)[0]
+    best, c, n = refine_pivot(cand, cost, child_extent(urdf, child))
+    return replace(job, candidate=best), f"{n} pivots tried, start figure {c:.4g}"
+
+
 def _fit(job: Job) -> tuple[Augmented, State, Any]:
     """Both origins of the module docstring; the better (lower training objective)."""
     cand = job.candidate
@@ -316,6 +338,10 @@ def _run(job: Job, t0: float) -> JobResult:
         job, _ = _screen_variants(job)
         assert job.candidate is not None
         extra["variant"] = job.candidate.description
+    if is_rotational_compliance(job.candidate):
+        job, note = _refine_pivot(job)
+        extra["variant"] = job.candidate.description  # type: ignore[union-attr]
+        extra["pivot"] = note
     cand = job.candidate
     aug, state, res = _fit(job)
     refit = aug.refit
