@@ -132,6 +132,15 @@ def test_a_chassis_heavier_at_the_bottom_is_refitted_to_the_truth(doc):
     r = build(doc.to_string(), nominal_space(doc, FEW, 4000.0), data, CostOptions(), (),
               with_values(c, start)).refit  # fmt: skip
     assert [v.name for v in r.new if v.held] == ["mass"]
+    # the scans' one-problem costs agree with each state's own, also for a state that moves
+    # the top mass (a link mass, not a joint entry of the problem)
+    exps = np.array([p.scan for p in c.parameters])
+    states = [
+        *r.profile(r.state0, exps, c.scan_grid[::20]),
+        r.with_new(r.state0, start * np.where(np.array(names) == "top_mass", 0.7, 1.0)),
+    ]
+    want_costs = [r.cost(s) for s in states]
+    assert r.costs(r.state0, states) == pytest.approx(want_costs, rel=1e-9)
     state, _, _ = r.solve(r.state0, direct(150, 30))
     got = dict(zip(names, r.new_values(state), strict=True))
     REL = 0.03  # 0.5 % noise on 2 x 120 frequencies: the top mass and stiffnesses within 3 %
