@@ -54,6 +54,13 @@ def _ratio(refit: Refit, state: State) -> float | None:
     return noise_ratio(p, p.data_cost(p.z0))
 
 
+def above_noise(refit: Refit, state: State) -> bool:
+    """Is the training db_rms at ``state`` above :data:`RESCUE_RATIO` times the predicted
+    noise level (False without a prediction)?"""
+    ratio = _ratio(refit, state)
+    return ratio is not None and ratio > RESCUE_RATIO
+
+
 def rescue(
     refit: Refit, state: State, res: Any, presolve_iter: int, max_iter: int
 ) -> tuple[State, Any, str]:

@@ -19,6 +19,10 @@ data and on all data. Steps for a candidate:
    to mimic the missing effect; from the nominal values they can unbend. The lower training
    objective of the two origins is kept.
 
+A rotational joint compliance whose refit ends above the noise level gets its pivot refined
+(:mod:`.pivot`) and both origins refitted there (:func:`_at_refined_pivot`); the lower
+objective is kept.
+
 Every solve is the optimisation core's (:mod:`.refit`: a :class:`~bondid.optim.FitProblem`
 with the candidate's parameters as more names, tied or as the FRF modifier's, the default
 bounds and the noise-scaled prior of ``bondid.fit``); iteration limits are IPOPT's.
@@ -56,7 +60,7 @@ from .augmented import Augmented, build, with_values
 from .effects import Candidate
 from .pivot import child_extent, is_rotational_compliance, refine_pivot
 from .refit import Nominal, Refit, State
-from .rescue import rescue
+from .rescue import above_noise, rescue
 
 DAMPING_FACTORS = (1.0, 4.0)
 COORD_GRID = tuple(float(x) for x in np.geomspace(1 / 30, 30, 25))
@@ -307,6 +311,21 @@ def _refine_pivot(job: Job) -> tuple[Job, str]:
     return replace(job, candidate=best), f"{n} pivots tried, start figure {c:.4g}"
 
 
+def _at_refined_pivot(
+    job: Job, aug: Augmented, state: State, res: Any
+) -> tuple[Job, Augmented, State, Any, str]:
+    """A rotational compliance whose refit ended above the noise level: the pivot refined
+    (:func:`_refine_pivot`) and both origins refitted there; the lower objective is kept."""
+    moved, note = _refine_pivot(job)
+    assert moved.candidate is not None and job.candidate is not None
+    if moved.candidate.spec["pivot"] == job.candidate.spec["pivot"]:
+        return job, aug, state, res, f"{note}; the pivot kept"
+    aug2, state2, res2 = _fit(moved)
+    if aug2.refit.cost(state2) < aug.refit.cost(state):
+        return moved, aug2, state2, res2, f"{note}; refitted there, kept"
+    return job, aug, state, res, f"{note}; refitted there, not kept"
+
+
 def _fit(job: Job) -> tuple[Augmented, State, Any]:
     """Both origins of the module docstring; the better (lower training objective)."""
     cand = job.candidate
@@ -338,12 +357,11 @@ def _run(job: Job, t0: float) -> JobResult:
         job, _ = _screen_variants(job)
         assert job.candidate is not None
         extra["variant"] = job.candidate.description
-    if is_rotational_compliance(job.candidate):
-        job, note = _refine_pivot(job)
-        extra["variant"] = job.candidate.description  # type: ignore[union-attr]
-        extra["pivot"] = note
-    cand = job.candidate
     aug, state, res = _fit(job)
+    if is_rotational_compliance(job.candidate) and above_noise(aug.refit, state):
+        job, aug, state, res, extra["pivot"] = _at_refined_pivot(job, aug, state, res)
+        extra["variant"] = job.candidate.description  # type: ignore[union-attr]
+    cand = job.candidate
     refit = aug.refit
     state, res, note = rescue(refit, state, res, job.presolve_iter, job.alt_iter)
     if note:
