@@ -184,3 +184,29 @@ def test_a_pivot_off_the_bearing_centre_in_both_directions_is_found(doc):
 
     c_exact, c_got, c_centre = refit(exact), refit(refined.candidate), refit(c)
     assert c_got < 1.3 * c_exact and c_centre > 2.0 * c_got, (c_exact, c_got, c_centre)
+
+
+def test_a_refit_above_the_noise_tries_the_other_elastic_centres(doc):
+    """Known answer: unequal mounts about the bottom face's centre; a refit of the CoM
+    variant (as if the screening had kept it) ends above the noise level, and the other
+    variants' full refits replace it by the face centre's, at a lower objective."""
+    from bondid.cost.problem import CostOptions
+    from bondid.diagnose.augmented import with_values
+    from bondid.diagnose.effects import get_effect
+    from bondid.diagnose.refit import nominal_space
+    from bondid.diagnose.rescue import above_noise
+    from bondid.diagnose.runner import Job, _fit, _other_variants
+
+    e = get_effect("soft_mounts")
+    (c,) = e.candidates(doc)
+    centre = c.variants[-1]  # the bottom face's centre
+    truth = np.array([p.initial for p in centre.parameters]) * np.array(MOUNTS)
+    data = _data(e.augment(doc, with_values(centre, truth)))
+    text = doc.to_string()
+    job = Job(text, nominal_space(doc, FEW, 4000.0), data, data, data, replace(c, variants=()),
+              CostOptions(), alt_urdf=text, start_new=tuple(truth), all_iter=60)  # fmt: skip
+    aug, state, res = _fit(job)
+    assert above_noise(aug.refit, state)
+    job2, aug2, state2, _ = _other_variants(job, aug, state, res)
+    assert job2.candidate is not None and job2.candidate.spec["com"] == centre.spec["com"]
+    assert aug2.refit.cost(state2) < 0.8 * aug.refit.cost(state)

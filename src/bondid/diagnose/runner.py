@@ -20,8 +20,9 @@ data and on all data. Steps for a candidate:
    objective of the two origins is kept.
 
 A rotational joint compliance whose refit ends above the noise level gets its pivot refined
-(:mod:`.pivot`) and both origins refitted there (:func:`_at_refined_pivot`); the lower
-objective is kept.
+(:mod:`.pivot`) and both origins refitted there (:func:`_at_refined_pivot`); another
+candidate with variants gets every other variant refitted fully (:func:`_other_variants`);
+the lowest objective is kept.
 
 Every solve is the optimisation core's (:mod:`.refit`: a :class:`~bondid.optim.FitProblem`
 with the candidate's parameters as more names, tied or as the FRF modifier's, the default
@@ -326,6 +327,34 @@ def _at_refined_pivot(
     return job, aug, state, res, f"{note}; refitted there, not kept"
 
 
+def _other_variants(
+    job: Job, aug: Augmented, state: State, res: Any
+) -> tuple[Job, Augmented, State, Any]:
+    """A refit above the noise level of a candidate with variants (e.g. the elastic centres
+    of soft mounts; the screening kept one on short starts): every other variant refitted
+    fully (both origins, the same start); the lowest objective is kept."""
+    from ..model.document import UrdfDocument
+    from .effects import get_effect
+
+    cand = job.candidate
+    assert cand is not None
+    doc = UrdfDocument.from_string(job.alt_urdf if job.alt_urdf is not None else job.urdf)
+    same = [c for c in get_effect(cand.effect).candidates(doc) if c.label == cand.label]
+    best = (aug.refit.cost(state), job, aug, state, res)
+    for v in [] if not same else (same[0], *same[0].variants):
+        if v.spec == cand.spec or len(v.parameters) != len(cand.parameters):
+            continue
+        other = replace(job, candidate=replace(v, variants=()))
+        try:
+            a2, s2, r2 = _fit(other)
+        except (BondidError, np.linalg.LinAlgError, ValueError):
+            continue
+        c2 = a2.refit.cost(s2)
+        if c2 < best[0]:
+            best = (c2, other, a2, s2, r2)
+    return best[1:]
+
+
 def _fit(job: Job) -> tuple[Augmented, State, Any]:
     """Both origins of the module docstring; the better (lower training objective)."""
     cand = job.candidate
@@ -358,8 +387,11 @@ def _run(job: Job, t0: float) -> JobResult:
         assert job.candidate is not None
         extra["variant"] = job.candidate.description
     aug, state, res = _fit(job)
-    if is_rotational_compliance(job.candidate) and above_noise(aug.refit, state):
-        job, aug, state, res, extra["pivot"] = _at_refined_pivot(job, aug, state, res)
+    if job.candidate is not None and above_noise(aug.refit, state):
+        if is_rotational_compliance(job.candidate):
+            job, aug, state, res, extra["pivot"] = _at_refined_pivot(job, aug, state, res)
+        else:
+            job, aug, state, res = _other_variants(job, aug, state, res)
         extra["variant"] = job.candidate.description  # type: ignore[union-attr]
     cand = job.candidate
     refit = aug.refit
