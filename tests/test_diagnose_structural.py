@@ -155,11 +155,12 @@ def test_a_pivot_off_the_bearing_centre_in_both_directions_is_found(doc):
     it: they move one direction at a time); the pivot refinement from the bearing centre ends
     near it, and the refit there reaches a cost near the exact pivot's."""
     from bondid.cost.problem import CostOptions
+    from bondid.diagnose.alternatives import refine_job_pivot
     from bondid.diagnose.augmented import build, with_values
     from bondid.diagnose.effects import get_effect
     from bondid.diagnose.pivot import with_pivot
     from bondid.diagnose.refit import nominal_space
-    from bondid.diagnose.runner import Job, _refine_pivot, direct
+    from bondid.diagnose.runner import Job, direct
 
     e = get_effect("joint_compliance")
     c = next(c for c in e.candidates(doc) if c.location == "base->x_stage:rx")
@@ -172,7 +173,7 @@ def test_a_pivot_off_the_bearing_centre_in_both_directions_is_found(doc):
     text = doc.to_string()
     job = Job(text, space, data, data, data, replace(c, variants=()), CostOptions(),
               alt_urdf=text, start_new=tuple(stiff * 1.3))  # fmt: skip
-    refined, _ = _refine_pivot(job)
+    refined, _ = refine_job_pivot(job)
     assert refined.candidate is not None
     got = np.array(refined.candidate.spec["pivot"])
     PIVOT_TOL = 0.006  # m: within 6 mm of the true pivot in each direction
@@ -191,11 +192,12 @@ def test_a_refit_above_the_noise_tries_the_other_elastic_centres(doc):
     variant (as if the screening had kept it) ends above the noise level, and the other
     variants' full refits replace it by the face centre's, at a lower objective."""
     from bondid.cost.problem import CostOptions
+    from bondid.diagnose.alternatives import other_variants
     from bondid.diagnose.augmented import with_values
     from bondid.diagnose.effects import get_effect
     from bondid.diagnose.refit import nominal_space
     from bondid.diagnose.rescue import above_noise
-    from bondid.diagnose.runner import Job, _fit, _other_variants
+    from bondid.diagnose.runner import Job, _fit
 
     e = get_effect("soft_mounts")
     (c,) = e.candidates(doc)
@@ -207,6 +209,6 @@ def test_a_refit_above_the_noise_tries_the_other_elastic_centres(doc):
               CostOptions(), alt_urdf=text, start_new=tuple(truth), all_iter=60)  # fmt: skip
     aug, state, res = _fit(job)
     assert above_noise(aug.refit, state)
-    job2, aug2, state2, _ = _other_variants(job, aug, state, res)
+    job2, aug2, state2, _ = other_variants(job, aug, state, res)
     assert job2.candidate is not None and job2.candidate.spec["com"] == centre.spec["com"]
     assert aug2.refit.cost(state2) < 0.8 * aug.refit.cost(state)

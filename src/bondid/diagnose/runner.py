@@ -20,9 +20,8 @@ data and on all data. Steps for a candidate:
    objective of the two origins is kept.
 
 A rotational joint compliance whose refit ends above the noise level gets its pivot refined
-(:mod:`.pivot`) and both origins refitted there (:func:`_at_refined_pivot`); another
-candidate with variants gets every other variant refitted fully (:func:`_other_variants`);
-the lowest objective is kept.
+(:mod:`.pivot`) and both origins refitted there; another candidate with variants gets every
+other variant refitted fully (:mod:`.alternatives`); the lowest objective is kept.
 
 Every solve is the optimisation core's (:mod:`.refit`: a :class:`~bondid.optim.FitProblem`
 with the candidate's parameters as more names, tied or as the FRF modifier's, the default
@@ -59,7 +58,6 @@ from ..exceptions import BondidError
 from ..optim.search import PRESOLVE_KIND, Step
 from .augmented import Augmented, build, with_values
 from .effects import Candidate
-from .pivot import child_extent, is_rotational_compliance, refine_pivot
 from .refit import Nominal, Refit, State
 from .rescue import above_noise, rescue
 
@@ -291,70 +289,6 @@ def _screen_variants(job: Job) -> tuple[Job, float]:
     return replace(job, candidate=replace(best[1], variants=())), best[0]
 
 
-def _refine_pivot(job: Job) -> tuple[Job, str]:
-    """The job with its rotational compliance's pivot refined (:func:`.pivot.refine_pivot`),
-    each pivot judged like a variant (:func:`_screen_variants`: the second origin's start
-    from the screening's new parameters, else the candidate's initial ones)."""
-    cand = job.candidate
-    assert cand is not None
-    urdf = job.alt_urdf if job.alt_urdf is not None else job.urdf
-    found = [np.asarray(job.start_new, float)] if job.start_new else []
-
-    def cost(c: Candidate) -> float:
-        sub = replace(job, candidate=c)
-        try:
-            return _alt_start(sub, _setup(urdf, sub).refit, found, only=0)[1]
-        except (BondidError, np.linalg.LinAlgError, ValueError):
-            return float("inf")
-
-    child = str(cand.location).split("->", 1)[1].split(":", 1)[0]
-    best, c, n = refine_pivot(cand, cost, child_extent(urdf, child))
-    return replace(job, candidate=best), f"{n} pivots tried, start figure {c:.4g}"
-
-
-def _at_refined_pivot(
-    job: Job, aug: Augmented, state: State, res: Any
-) -> tuple[Job, Augmented, State, Any, str]:
-    """A rotational compliance whose refit ended above the noise level: the pivot refined
-    (:func:`_refine_pivot`) and both origins refitted there; the lower objective is kept."""
-    moved, note = _refine_pivot(job)
-    assert moved.candidate is not None and job.candidate is not None
-    if moved.candidate.spec["pivot"] == job.candidate.spec["pivot"]:
-        return job, aug, state, res, f"{note}; the pivot kept"
-    aug2, state2, res2 = _fit(moved)
-    if aug2.refit.cost(state2) < aug.refit.cost(state):
-        return moved, aug2, state2, res2, f"{note}; refitted there, kept"
-    return job, aug, state, res, f"{note}; refitted there, not kept"
-
-
-def _other_variants(
-    job: Job, aug: Augmented, state: State, res: Any
-) -> tuple[Job, Augmented, State, Any]:
-    """A refit above the noise level of a candidate with variants (e.g. the elastic centres
-    of soft mounts; the screening kept one on short starts): every other variant refitted
-    fully (both origins, the same start); the lowest objective is kept."""
-    from ..model.document import UrdfDocument
-    from .effects import get_effect
-
-    cand = job.candidate
-    assert cand is not None
-    doc = UrdfDocument.from_string(job.alt_urdf if job.alt_urdf is not None else job.urdf)
-    same = [c for c in get_effect(cand.effect).candidates(doc) if c.label == cand.label]
-    best = (aug.refit.cost(state), job, aug, state, res)
-    for v in [] if not same else (same[0], *same[0].variants):
-        if v.spec == cand.spec or len(v.parameters) != len(cand.parameters):
-            continue
-        other = replace(job, candidate=replace(v, variants=()))
-        try:
-            a2, s2, r2 = _fit(other)
-        except (BondidError, np.linalg.LinAlgError, ValueError):
-            continue
-        c2 = a2.refit.cost(s2)
-        if c2 < best[0]:
-            best = (c2, other, a2, s2, r2)
-    return best[1:]
-
-
 def _fit(job: Job) -> tuple[Augmented, State, Any]:
     """Both origins of the module docstring; the better (lower training objective)."""
     cand = job.candidate
@@ -388,10 +322,13 @@ def _run(job: Job, t0: float) -> JobResult:
         extra["variant"] = job.candidate.description
     aug, state, res = _fit(job)
     if job.candidate is not None and above_noise(aug.refit, state):
+        from .alternatives import at_refined_pivot, other_variants
+        from .pivot import is_rotational_compliance
+
         if is_rotational_compliance(job.candidate):
-            job, aug, state, res, extra["pivot"] = _at_refined_pivot(job, aug, state, res)
+            job, aug, state, res, extra["pivot"] = at_refined_pivot(job, aug, state, res)
         else:
-            job, aug, state, res = _other_variants(job, aug, state, res)
+            job, aug, state, res = other_variants(job, aug, state, res)
         extra["variant"] = job.candidate.description  # type: ignore[union-attr]
     cand = job.candidate
     refit = aug.refit
