@@ -94,14 +94,17 @@ def _has_members(doc: UrdfDocument, cand: Candidate) -> bool:
     return all(m in names for p in cand.parameters for m, _ in p.members)
 
 
-def new_var(p: NewParameter, kinds: dict[str, str], theta: int | None) -> NewVar:
+def new_var(
+    p: NewParameter, kinds: dict[str, str], theta: int | None, taken: Sequence[str] = ()
+) -> NewVar:
     """The refit's view of a candidate parameter: a modifier's ``theta``, else its first
-    member as the leader and the others tied (held when a member is not a joint
-    stiffness/damping, which the core cannot tie)."""
+    member as the leader and the others tied (held when it ties members that are not a
+    joint stiffness/damping, which the core cannot tie; a single member of any kind, e.g. a
+    link mass, is free; held too when its leader is already a refitted name in ``taken``)."""
     if theta is not None or not p.members:
         return NewVar(p.name, p.initial, p.lower, p.upper, theta=theta)
     (lead, f0), rest = p.members[0], p.members[1:]
-    held = any(kinds.get(m) not in _TIEABLE for m, _ in p.members)
+    held = lead in taken or (bool(rest) and any(kinds.get(m) not in _TIEABLE for m, _ in p.members))
     ties = tuple((m, f / f0) for m, f in rest)
     return NewVar(p.name, p.initial, p.lower, p.upper, lead, f0, ties, held=held)
 
@@ -142,7 +145,7 @@ def build(
     for cand in chain:
         is_mod = get_effect(cand.effect).is_modifier
         for i, p in enumerate(cand.parameters):
-            new.append(new_var(p, kinds, n_theta + i if is_mod else None))
+            new.append(new_var(p, kinds, n_theta + i if is_mod else None, nominal.names))
         if is_mod:
             mods.append(cand)
             n_theta += len(cand.parameters)

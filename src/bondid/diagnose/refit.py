@@ -238,22 +238,38 @@ class Refit:
     def costs(self, base: State, states: Sequence[State]) -> np.ndarray:
         """:meth:`cost` of ``states`` that differ from ``base`` in the candidate's own new
         parameters only, on one problem (their decision vectors set directly: a new
-        parameter is a joint entry ``value/scale`` or a modifier entry ``ln(θ/θ₀)``)."""
+        parameter is a joint entry ``value/scale`` or a modifier entry ``ln(θ/θ₀)``; a state
+        that moves another kind, e.g. a link mass, is costed on its own problem)."""
         p = self.at(base)
         joints = {jv.name: jv for jv in p.layout.joints if jv.name_index >= 0}
         theta0 = p.theta(p.z0)
         out = np.full(len(states), np.inf)
         for k, s in enumerate(states):
-            z = p.z0.copy()
-            for v in self.own:
-                if v.theta is not None:
-                    z[p.layout.size + v.theta] = np.log(s.theta[v.theta] / theta0[v.theta])
-                elif v.leader is not None and not v.held:
-                    jv = joints[v.leader]
-                    z[jv.index] = s.x[self.problem.names.index(v.leader)] / jv.scale
+            z = self._z(p, joints, theta0, base, s)
+            if z is None:
+                out[k] = self.cost(s)
+                continue
             c = p.cost(np.clip(z, p.lbz, p.ubz))
             out[k] = c if np.isfinite(c) else np.inf
         return out
+
+    def _z(
+        self, p: FitProblem, joints: dict, theta0: np.ndarray, base: State, s: State
+    ) -> np.ndarray | None:
+        """The decision vector of ``s`` on ``p`` (started at ``base``), or None when ``s``
+        moves a new parameter that is not a joint entry."""
+        z = p.z0.copy()
+        for v in self.own:
+            if v.theta is not None:
+                z[p.layout.size + v.theta] = np.log(s.theta[v.theta] / theta0[v.theta])
+            elif v.leader is not None and not v.held:
+                i = self.problem.names.index(v.leader)
+                jv = joints.get(v.leader)
+                if jv is not None:
+                    z[jv.index] = s.x[i] / jv.scale
+                elif s.x[i] != base.x[i]:
+                    return None
+        return z
 
     def scan(self, state: State, exps: np.ndarray, grid: Sequence[float]) -> State:
         """The lowest-cost state of :meth:`profile` (``state`` included)."""

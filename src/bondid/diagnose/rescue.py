@@ -1,52 +1,96 @@
-"""The rescue of a refit that ends above the noise level: the core's band continuation
-from its best point (:func:`rescue`), for every refit job of :mod:`.runner`."""
+"""The rescue of a refit that ends above the noise level (:func:`rescue`), for every refit job
+of :mod:`.runner`: the fallbacks of the fit (:func:`bondid.optim.fallback.run_to_noise`), from
+the refit's best point: the core's band continuation, then, if that did not reach the noise
+level either, the staged schedule.
+
+The staged schedule is what reaches the noise when a structural candidate's refit is stuck
+with its new mode in the right place but the nominal stiffnesses, dampings and inertias bent
+around it: it frees each kind of parameter in the bands where it acts (the model's own
+resonances, the new DOF's included), which the continuation's growing low-pass bands do not.
+"""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
+from ..optim.search import Step
 from .refit import Refit, State
 
 #: a full refit whose training db_rms ends above this multiple of the predicted noise level
 #: (:func:`bondid.optim.fallback.noise_ratio`; a cost 1.5× the one an exact model would
-#: score) gets the core's band continuation from its best point (:func:`rescue`)
+#: score) gets the fallbacks (:func:`rescue`)
 RESCUE_RATIO = math.sqrt(1.5)
 #: bands of that continuation (the last is the full fit) and IPOPT iterations per band
 RESCUE_BANDS = 4
 RESCUE_BAND_ITER = 30
+#: the staged schedule (a long search: every stage, then the full fit) runs only when the
+#: continuation left the refit above this multiple of the noise level: a gap that size is a
+#: wrong basin, not the noise level's prediction being a little low
+STAGED_RATIO = 2.0
+
+
+def _schedules(
+    refit: Refit, state: State, presolve_iter: int, max_iter: int
+) -> list[tuple[str, float, Callable[[], list[Step]]]]:
+    """The fallbacks in the order tried with the noise ratio above which each runs, each
+    built only when it runs (at ``state``)."""
+    from ..optim.schedules import continuation, staged
+
+    p = refit.at(state)
+    return [
+        ("band continuation", RESCUE_RATIO, lambda: continuation(
+            p, RESCUE_BANDS, band_iter=RESCUE_BAND_ITER, presolve_iter=presolve_iter)),
+        ("staged schedule", STAGED_RATIO, lambda: staged(
+            p, max_iter=max_iter, presolve_iter=presolve_iter)),
+    ]  # fmt: skip
+
+
+def _ratio(refit: Refit, state: State) -> float | None:
+    from ..optim.fallback import noise_ratio
+
+    p = refit.at(state)
+    return noise_ratio(p, p.data_cost(p.z0))
+
+
+def above_noise(refit: Refit, state: State) -> bool:
+    """Is the training db_rms at ``state`` above :data:`RESCUE_RATIO` times the predicted
+    noise level (False without a prediction)?"""
+    ratio = _ratio(refit, state)
+    return ratio is not None and ratio > RESCUE_RATIO
 
 
 def rescue(
     refit: Refit, state: State, res: Any, presolve_iter: int, max_iter: int
 ) -> tuple[State, Any, str]:
-    """The core's band continuation (:func:`bondid.optim.schedules.continuation`) from
-    ``state`` when its training db_rms is above :data:`RESCUE_RATIO` times the predicted
-    noise level (the test of :mod:`bondid.optim.fallback`, which ``bondid.fit`` runs from
-    its start); the lower objective is kept.
+    """The fallbacks (module docstring) from ``state`` while its training db_rms is above
+    :data:`RESCUE_RATIO` (the staged schedule: :data:`STAGED_RATIO`) times the predicted
+    noise level (the test of :mod:`bondid.optim.fallback`, which ``bondid.fit`` runs from its
+    start); each fallback starts from the best point so far; the lowest objective is kept.
 
     Args:
         refit, state, res: the refit, its best point and that point's search.
-        presolve_iter: the presolve of the continuation's last step (IPOPT iterations).
-        max_iter: IPOPT's iteration limit of each continuation step.
+        presolve_iter: the presolve of the fallbacks' last steps (IPOPT iterations).
+        max_iter: IPOPT's iteration limit of each fallback step (the staged schedule's band
+            stages get a quarter of it).
 
     Returns:
         The state, its search and a note ("" when the refit was at the noise level).
     """
-    from ..optim.fallback import noise_ratio
-    from ..optim.schedules import continuation
-
-    p = refit.at(state)
-    data = p.data_cost(p.z0)
-    ratio = noise_ratio(p, data)
+    ratio = _ratio(refit, state)
     if ratio is None or not ratio > RESCUE_RATIO:
         return state, res, ""
-    c0 = p.cost(p.z0)
-    steps = continuation(p, RESCUE_BANDS, band_iter=RESCUE_BAND_ITER, presolve_iter=presolve_iter)
-    s2, c2, res2 = refit.solve(state, steps, max_iter=max_iter)
-    kept = c2 < c0
-    note = (
-        f"training db_rms {ratio:.2f}x the predicted noise level (cost {data:.4g}): band "
-        f"continuation to cost {refit.data_cost(s2):.4g}, {'kept' if kept else 'not kept'}"
-    )
-    return (s2, res2, note) if kept else (state, res, note)
+    said = [f"training db_rms {ratio:.2f}x the predicted noise level"]
+    best = refit.cost(state)
+    for label, above, build in _schedules(refit, state, presolve_iter, max_iter):
+        now = _ratio(refit, state)
+        if now is None or not now > above:
+            break
+        s2, c2, res2 = refit.solve(state, build(), max_iter=max_iter)
+        kept = c2 < best
+        r2 = _ratio(refit, s2)
+        said.append(f"{label} to {r2 or math.nan:.2f}x, {'kept' if kept else 'not kept'}")
+        if kept:
+            state, res, best = s2, res2, c2
+    return state, res, "; ".join(said)

@@ -19,6 +19,10 @@ data and on all data. Steps for a candidate:
    to mimic the missing effect; from the nominal values they can unbend. The lower training
    objective of the two origins is kept.
 
+A rotational joint compliance whose refit ends above the noise level gets its pivot refined
+(:mod:`.pivot`) and both origins refitted there; another candidate with variants gets every
+other variant refitted fully (:mod:`.alternatives`); the lowest objective is kept.
+
 Every solve is the optimisation core's (:mod:`.refit`: a :class:`~bondid.optim.FitProblem`
 with the candidate's parameters as more names, tied or as the FRF modifier's, the default
 bounds and the noise-scaled prior of ``bondid.fit``); iteration limits are IPOPT's.
@@ -55,7 +59,7 @@ from ..optim.search import PRESOLVE_KIND, Step
 from .augmented import Augmented, build, with_values
 from .effects import Candidate
 from .refit import Nominal, Refit, State
-from .rescue import rescue
+from .rescue import above_noise, rescue
 from .scan_grid import scan_grid
 
 DAMPING_FACTORS = (1.0, 4.0)
@@ -316,8 +320,17 @@ def _run(job: Job, t0: float) -> JobResult:
         job, _ = _screen_variants(job)
         assert job.candidate is not None
         extra["variant"] = job.candidate.description
-    cand = job.candidate
     aug, state, res = _fit(job)
+    if job.candidate is not None and above_noise(aug.refit, state):
+        from .alternatives import at_refined_pivot, other_variants
+        from .pivot import is_rotational_compliance
+
+        if is_rotational_compliance(job.candidate):
+            job, aug, state, res, extra["pivot"] = at_refined_pivot(job, aug, state, res)
+        else:
+            job, aug, state, res = other_variants(job, aug, state, res)
+        extra["variant"] = job.candidate.description  # type: ignore[union-attr]
+    cand = job.candidate
     refit = aug.refit
     state, res, note = rescue(refit, state, res, job.presolve_iter, job.alt_iter)
     if note:

@@ -150,7 +150,7 @@ def _step(
     for f in as_completed(futs):
         r = f.result()
         if cands[futs[f]].variants and done[futs[f]].variant is not None:
-            r.extra["variant"] = done[futs[f]].variant.description  # type: ignore[union-attr]
+            r.extra.setdefault("variant", done[futs[f]].variant.description)  # type: ignore[union-attr]
         results.append(r)
         progress(f"step {index + 1} refitted {r.label}")
     scores = [scoring.score(r.heldout_rms, r.n_train, r.n_new) for r in results]

@@ -1,0 +1,83 @@
+"""Alternatives to a candidate's refit that ended above the noise level (for :mod:`.runner`):
+a rotational joint compliance at a pivot refined continuously (:func:`at_refined_pivot`,
+:mod:`.pivot`), a candidate with variants at each other variant (:func:`other_variants`).
+Each alternative gets the full refit of both origins (:func:`.runner._fit`); the lowest
+objective is kept."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from ..exceptions import BondidError
+from .augmented import Augmented
+from .effects import Candidate
+from .pivot import child_extent, refine_pivot
+from .refit import State
+from .runner import Job, _alt_start, _fit, _setup
+
+
+def refine_job_pivot(job: Job) -> tuple[Job, str]:
+    """The job with its rotational compliance's pivot refined (:func:`.pivot.refine_pivot`),
+    each pivot judged like a variant (:func:`.runner._screen_variants`: the second origin's start
+    from the screening's new parameters, else the candidate's initial ones)."""
+    cand = job.candidate
+    assert cand is not None
+    urdf = job.alt_urdf if job.alt_urdf is not None else job.urdf
+    found = [np.asarray(job.start_new, float)] if job.start_new else []
+
+    def cost(c: Candidate) -> float:
+        sub = replace(job, candidate=c)
+        try:
+            return _alt_start(sub, _setup(urdf, sub).refit, found, only=0)[1]
+        except (BondidError, np.linalg.LinAlgError, ValueError):
+            return float("inf")
+
+    child = str(cand.location).split("->", 1)[1].split(":", 1)[0]
+    best, c, n = refine_pivot(cand, cost, child_extent(urdf, child))
+    return replace(job, candidate=best), f"{n} pivots tried, start figure {c:.4g}"
+
+
+def at_refined_pivot(
+    job: Job, aug: Augmented, state: State, res: Any
+) -> tuple[Job, Augmented, State, Any, str]:
+    """A rotational compliance whose refit ended above the noise level: the pivot refined
+    (:func:`refine_job_pivot`) and both origins refitted there; the lower objective is kept."""
+    moved, note = refine_job_pivot(job)
+    assert moved.candidate is not None and job.candidate is not None
+    if moved.candidate.spec["pivot"] == job.candidate.spec["pivot"]:
+        return job, aug, state, res, f"{note}; the pivot kept"
+    aug2, state2, res2 = _fit(moved)
+    if aug2.refit.cost(state2) < aug.refit.cost(state):
+        return moved, aug2, state2, res2, f"{note}; refitted there, kept"
+    return job, aug, state, res, f"{note}; refitted there, not kept"
+
+
+def other_variants(
+    job: Job, aug: Augmented, state: State, res: Any
+) -> tuple[Job, Augmented, State, Any]:
+    """A refit above the noise level of a candidate with variants (e.g. the elastic centres
+    of soft mounts; the screening kept one on short starts): every other variant refitted
+    fully (both origins, the same start); the lowest objective is kept."""
+    from ..model.document import UrdfDocument
+    from .effects import get_effect
+
+    cand = job.candidate
+    assert cand is not None
+    doc = UrdfDocument.from_string(job.alt_urdf if job.alt_urdf is not None else job.urdf)
+    same = [c for c in get_effect(cand.effect).candidates(doc) if c.label == cand.label]
+    best = (aug.refit.cost(state), job, aug, state, res)
+    for v in [] if not same else (same[0], *same[0].variants):
+        if v.spec == cand.spec or len(v.parameters) != len(cand.parameters):
+            continue
+        other = replace(job, candidate=replace(v, variants=()))
+        try:
+            a2, s2, r2 = _fit(other)
+        except (BondidError, np.linalg.LinAlgError, ValueError):
+            continue
+        c2 = a2.refit.cost(s2)
+        if c2 < best[0]:
+            best = (c2, other, a2, s2, r2)
+    return best[1:]
