@@ -106,9 +106,10 @@ def test_unequal_mounts_below_the_com_are_refitted_to_the_truth(doc):
         if p.name in ("stiffness_tx", "stiffness_ty", "stiffness_rx", "stiffness_ry",
                       "stiffness_rz"):  # fmt: skip
             assert v == pytest.approx(want, rel=REL_STIFF), (p.name, v, want)
-    # the CoM candidate (the family before the variants), started as close, stays above
+    # the CoM candidate (the family before the variants), started as close, stays above:
+    # it misses the truth's cost by more than twice the tolerance the right family meets
     _, cost_com = refit(replace(c, variants=()), truth * 1.3)
-    assert cost_com > 1.2 * cost, (cost_com, cost)
+    assert cost_com > (1 + 2 * 0.05) * c_truth, (cost_com, c_truth, cost)
 
 
 def test_a_chassis_heavier_at_the_bottom_is_refitted_to_the_truth(doc):
