@@ -90,3 +90,12 @@ def test_without_reference_the_margins_decide() -> None:
     assert scoring.accept(0.9, 1.0, 1, None)
     assert not scoring.accept(0.97, 1.0, 1, None)
     assert not scoring.accept(math.inf, 1.0, 1, REF)
+
+
+def test_a_refit_without_a_finite_score_is_refused_with_a_reason():
+    """A candidate whose refit failed (score inf) is refused, and the verdict's reason says
+    why instead of failing on missing figures."""
+    noise = scoring.NoiseReference(1.0, 400.0)
+    t = scoring.tests(math.inf, 2.0, 1, noise)
+    assert t["accepted"] is False and t["rule"] == "none"
+    assert "not finite" in scoring.reason(t, math.inf, 2.0)

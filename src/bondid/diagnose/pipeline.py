@@ -242,19 +242,8 @@ def prepare_data(doc: UrdfDocument, datasets: Sequence[FrfData], s: Settings) ->
     }
     space = nominal_space_for(doc, names, train)
     noise = heldout_noise(held, options, originals=list(datasets), weighting=s.weighting)
-    return Prepared(
-        full,
-        channels,
-        options,
-        names,
-        candidates,
-        train,
-        held,
-        split_info,
-        w_info,
-        space,
-        noise,
-    )
+    return Prepared(full, channels, options, names, candidates, train, held, split_info,
+                    w_info, space, noise)  # fmt: skip
 
 
 def diagnose(

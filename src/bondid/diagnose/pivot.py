@@ -5,11 +5,12 @@ Where a guide or bearing really pivots is seldom known, and the pivot enters the
 refit cannot vary it as a parameter. The candidate's variants (:func:`.effects.joint_compliance
 .pivot_options`) try a few discrete levels, one direction across the axis at a time; a real
 pivot lies anywhere across the axis, and 2 cm off changes the fit far more than the noise.
-When the refit at the kept pivot ends above the noise level (:func:`.runner._at_refined_pivot`),
-:func:`refine_pivot` moves that pivot by a compass (pattern) search in the plane across
-the axis: steps of a quarter of the child's hull extent (:data:`FIRST_STEP` when it has no
-hull), halved after a round without a better point, each point judged by the training cost
-of the second origin's short start (:func:`.runner._alt_start`, the screening's figure).
+When the refit at the kept pivot ends above the noise level
+(:func:`.alternatives.at_refined_pivot`), :func:`refine_pivot` moves that pivot by a compass
+(pattern) search in the plane across the axis: steps of a quarter of the child's hull extent
+(:data:`FIRST_STEP` when it has no hull), halved after a round without a better point, each
+point judged by the training cost of the second origin's short start
+(:func:`.runner._alt_start`, the screening's figure).
 """
 
 from __future__ import annotations

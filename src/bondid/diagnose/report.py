@@ -99,6 +99,7 @@ def _refit_entry(r: Any, sc: float, before: float) -> dict[str, Any]:
         "train_weighted_rms": r.train_rms,
         "n_parameters": r.n_own,
         "detail": r.extra.get("variant"),
+        "notes": {k: str(v) for k, v in r.extra.items() if k != "variant"} or None,
         "wall_s": r.wall_s,
         "error": r.error or None,
     }

@@ -13,10 +13,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..optim.search import Step
 from .refit import Refit, State
+
+if TYPE_CHECKING:
+    from ..optim.problem import FitProblem
 
 #: a full refit whose training db_rms ends above this multiple of the predicted noise level
 #: (:func:`bondid.optim.fallback.noise_ratio`; a cost 1.5× the one an exact model would
@@ -32,17 +35,17 @@ STAGED_RATIO = 2.0
 
 
 def _schedules(
-    refit: Refit, state: State, presolve_iter: int, max_iter: int
-) -> list[tuple[str, float, Callable[[], list[Step]]]]:
+    presolve_iter: int, max_iter: int
+) -> list[tuple[str, float, Callable[[FitProblem], list[Step]]]]:
     """The fallbacks in the order tried with the noise ratio above which each runs, each
-    built only when it runs (at ``state``)."""
+    built only when it runs, on the problem at the best point so far (the staged schedule's
+    bands follow that model's resonances)."""
     from ..optim.schedules import continuation, staged
 
-    p = refit.at(state)
     return [
-        ("band continuation", RESCUE_RATIO, lambda: continuation(
+        ("band continuation", RESCUE_RATIO, lambda p: continuation(
             p, RESCUE_BANDS, band_iter=RESCUE_BAND_ITER, presolve_iter=presolve_iter)),
-        ("staged schedule", STAGED_RATIO, lambda: staged(
+        ("staged schedule", STAGED_RATIO, lambda p: staged(
             p, max_iter=max_iter, presolve_iter=presolve_iter)),
     ]  # fmt: skip
 
@@ -83,11 +86,11 @@ def rescue(
         return state, res, ""
     said = [f"training db_rms {ratio:.2f}x the predicted noise level"]
     best = refit.cost(state)
-    for label, above, build in _schedules(refit, state, presolve_iter, max_iter):
+    for label, above, build in _schedules(presolve_iter, max_iter):
         now = _ratio(refit, state)
         if now is None or not now > above:
             break
-        s2, c2, res2 = refit.solve(state, build(), max_iter=max_iter)
+        s2, c2, res2 = refit.solve(state, build(refit.at(state)), max_iter=max_iter)
         kept = c2 < best
         r2 = _ratio(refit, s2)
         said.append(f"{label} to {r2 or math.nan:.2f}x, {'kept' if kept else 'not kept'}")

@@ -159,7 +159,9 @@ def _step(
     step.scores = [scores[i] for i in order]
     if step.results:
         best = step.results[0]
-        step.test = scoring.tests(step.scores[0], base_score, best.n_new, ctx.noise)
+        # p of the test: this step's own candidate parameters (best.n_new also counts the
+        # effects accepted before, already in the base)
+        step.test = scoring.tests(step.scores[0], base_score, best.n_own, ctx.noise)
         if step.test["accepted"]:
             step.winner = best
     return step
