@@ -85,6 +85,8 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--no-fit", action="store_true", help="do not time bondid.fit")
     p.add_argument("--out", type=Path, help="write the rows as JSON")
     p.add_argument("--tables", type=Path, help="print the tables of a rows JSON (--out) and stop")
+    p.add_argument("--keep", type=Path,
+                   help="copy each case's data files and outputs into KEEP/<case>/")  # fmt: skip
     args = p.parse_args(argv)
     if args.jobs < 1:
         p.error(f"--jobs {args.jobs}: give 1 or more")
@@ -104,7 +106,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     s = Settings(args.freq or (300 if args.quick else 2000),
                  args.points or (120 if args.quick else 500), args.workers, args.effects,
-                 not args.no_fit)  # fmt: skip
+                 not args.no_fit, args.keep)  # fmt: skip
 
     done: list[dict[str, Any]] = []
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -34,6 +35,9 @@ class Settings:
     workers: int = 2
     effects: str | None = None
     fit: bool = True
+    #: a folder to copy each case's data files and outputs into (``<keep>/<design>/<effect>/
+    #: <regime>/``), for a look at a case afterwards; None: nothing kept
+    keep: Path | None = None
 
 
 def _run(cmd: list[str]) -> tuple[subprocess.CompletedProcess, float]:
@@ -87,6 +91,10 @@ def run_case(case: Case, s: Settings) -> dict[str, Any]:
             fproc, row["fit_s"] = _run(fit_cmd(dz.path, paths, folder / "fit"))
             row["fit_status"] = _fit_status(fproc, folder / "fit" / "fit.json")
         row["db_truth"] = truth_db(paths, exact, diag)
+        if s.keep is not None:
+            dest = s.keep / case.name
+            shutil.rmtree(dest, ignore_errors=True)
+            shutil.copytree(folder, dest)
     return {**row, **score(case, diag, row["db_truth"])}
 
 
