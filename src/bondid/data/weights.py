@@ -82,16 +82,23 @@ def information_weights(ds: FrfData, weighting: str = "auto") -> np.ndarray:
     else:
         ns = noise_estimate(ds).noise_to_signal()
         if weighting == "auto":
-            nc = _coherence_ns(coh)
-            with np.errstate(invalid="ignore", over="ignore"):
-                both = np.sqrt(nc * ns)
-            ns = np.where(np.isfinite(coh), both, ns)
-            ns = np.where(np.isnan(ns) & np.isfinite(coh), nc, ns)
+            ns = _combine_auto(ns, coh)
         with np.errstate(over="ignore"):
             w = np.where(np.isnan(ns), 1.0, 1.0 / (1.0 + ns))
     w = np.asarray(w, dtype=float)
     w[~np.isfinite(ds.H)] = np.nan
     return w
+
+
+def _combine_auto(ns: np.ndarray, coh: np.ndarray) -> np.ndarray:
+    """The ``"auto"`` rule's ``N/S``: the geometric mean of the estimate's ``ns`` and the
+    coherence's where the coherence is finite, the coherence's alone where the estimate is
+    NaN, the estimate's where there is no coherence (all ``(n_out, n_in, n_freq)``)."""
+    nc = _coherence_ns(coh)
+    with np.errstate(invalid="ignore", over="ignore"):
+        both = np.sqrt(nc * ns)
+    out = np.where(np.isfinite(coh), both, ns)
+    return np.where(np.isnan(out) & np.isfinite(coh), nc, out)
 
 
 def noise_to_signal(ds: FrfData, weighting: str = "auto", prediction: bool = False) -> np.ndarray:
@@ -111,12 +118,7 @@ def noise_to_signal(ds: FrfData, weighting: str = "auto", prediction: bool = Fal
         return np.where(np.isnan(w), np.nan, ns)
     ns = noise_estimate(ds).noise_to_signal(prediction=True)
     if weighting == "auto" and ds.coherence is not None:
-        coh = ds.coherence
-        nc = _coherence_ns(coh)
-        with np.errstate(invalid="ignore", over="ignore"):
-            both = np.sqrt(nc * ns)
-        ns = np.where(np.isfinite(coh), both, ns)
-        ns = np.where(np.isnan(ns) & np.isfinite(coh), nc, ns)
+        ns = _combine_auto(ns, ds.coherence)
     ns = np.where(np.isnan(ns), 0.0, ns)
     return np.where(np.isfinite(ds.H), ns, np.nan)
 
