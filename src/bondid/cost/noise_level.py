@@ -91,22 +91,35 @@ def expected_log_error(v: np.ndarray, magnitude: bool = False) -> np.ndarray:
     return np.where(lv < _LOG_V[0], small, np.where(lv > _LOG_V[-1], big, inner))
 
 
+def _panels(breaks: np.ndarray, n: int = 16) -> tuple[np.ndarray, np.ndarray]:
+    """Nodes and weights of composite ``n``-point Gauss–Legendre on the panels ``breaks``."""
+    x, w = np.polynomial.legendre.leggauss(n)
+    a, b = breaks[:-1, None], breaks[1:, None]
+    return (0.5 * (a + b) + 0.5 * (b - a) * x).ravel(), (0.5 * (b - a) * w).ravel()
+
+
 @functools.lru_cache(maxsize=1)
 def _var_table() -> np.ndarray:
-    """``ln Var|ln(1 + u)|²`` on the ``ln v`` grid: Gauss–Laguerre in ``x = |u|²/v`` (80 nodes)
-    × the trapezoid rule in the phase (256 nodes; the integrand is periodic), split nowhere:
-    good to a few per cent, which is all a variance factor needs."""
-    x, wx = np.polynomial.laguerre.laggauss(80)
-    th = np.linspace(0.0, 2.0 * math.pi, 256, endpoint=False)
-    out = np.empty(_LOG_V.size)
-    for k, lv in enumerate(_LOG_V):
-        u = np.sqrt(math.exp(lv) * x)[:, None] * np.exp(1j * th)[None, :]
-        with np.errstate(divide="ignore"):
-            e2 = np.abs(np.log1p(u)) ** 2
-        m1 = float(wx @ e2.mean(axis=1))
-        m2 = float(wx @ (e2**2).mean(axis=1))
-        out[k] = math.log(max(m2 - m1 * m1, 1e-300))
-    return out
+    """``ln Var|ln(1 + u)|²`` on the ``ln v`` grid.
+
+    The angular means ``F(r)`` and ``G(r)`` of ``|ln(1 + r e^{iθ})|²`` and of its square are
+    taken once on a fixed radial rule and reused for every ``v``: ``E[·] = ∫ (2r/v) e^{−r²/v}
+    ·(r) dr``. Both rules are composite Gauss–Legendre whose panels are graded geometrically
+    (down to 2⁻³⁵) towards the singularity at ``u = −1``: in ``θ`` towards π, in ``ln r``
+    towards 0 from both sides (uniform unit panels in ``ln r`` from e⁻¹⁵ to e¹²). Checked
+    against the closed form of ``E|ln(1 + u)|²`` (to ~1e-7 relative) and a Monte-Carlo
+    estimate (tests/test_noise_level.py). The former rule (Gauss–Laguerre in ``|u|²/v`` and
+    the trapezoid in ``θ``, through the singularity) was 17 % high at ``v = 1``."""
+    grade = 2.0 ** -np.arange(36.0)
+    th, wth = _panels(np.unique(np.concatenate([[0.0, math.pi], math.pi * (1.0 - grade)])))
+    s, ws = _panels(np.unique(np.concatenate([np.arange(-15.0, 13.0), -grade, grade])))
+    r = np.exp(s)
+    e2 = np.abs(np.log1p(r[:, None] * np.exp(1j * th)[None, :])) ** 2
+    mean_f, mean_g = (e2 @ wth) / math.pi, ((e2 * e2) @ wth) / math.pi  # θ over [0, π]
+    v = np.exp(_LOG_V)[:, None]
+    kernel = (ws * r)[None, :] * (2.0 * r / v) * np.exp(-(r * r) / v)  # (n_v, n_r)
+    m1, m2 = kernel @ mean_f, kernel @ mean_g
+    return np.log(np.maximum(m2 - m1 * m1, 1e-300))
 
 
 def log_error_variance(v: np.ndarray) -> np.ndarray:
