@@ -6,11 +6,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bondid.cost.noise_level import expected_sq_db, log_error_variance, weighted_level
+from bondid.cost.noise_level import (
+    expected_sq_db,
+    log_error_variance,
+    point_noise_to_signal,
+    weighted_level,
+)
 from bondid.cost.residuals import DB
 from bondid.data.measurement import FrfData
 from bondid.data.noise_estimate import RHO_MAX, estimate_noise
-from bondid.data.weights import information_weights
+from bondid.data.weights import information_weights, noise_to_signal, with_weights_as_coherence
+from bondid.exceptions import ConfigError
 from bondid.model import UrdfDocument
 from bondid.simulate import log_grid, simulate
 
@@ -91,3 +97,28 @@ def test_log_error_variance_matches_monte_carlo(v: float) -> None:
 def test_log_error_variance_small_v_limit() -> None:
     v = np.array([1e-4, 1e-8])
     assert np.allclose(log_error_variance(v) / v**2, 1.0, rtol=SMALL_V_REL_TOL, atol=0.0)
+
+
+def test_noise_to_signal_bases(bonder) -> None:
+    """The diagnosis' data hold their weights in the coherence: the prediction basis is taken
+    from the measured data they were cut from, the weights basis is the weights' own (cautious,
+    never below the prediction's)."""
+    f = log_grid(1.0, 4000.0, 600)
+    data = simulate(bonder, None, f, noise=0.02, floor_db=-40.0, seed=3)
+    ds = FrfData(f, data.outputs, data.inputs, data.H, data.quantity, {}, None, "synthetic")
+    weighted = with_weights_as_coherence(ds, "estimated")
+    cut = FrfData(
+        f[::2], ds.outputs, ds.inputs, ds.H[..., ::2], ds.quantity, {},
+        weighted.coherence[..., ::2], "cut",
+    )  # fmt: skip
+    pred = point_noise_to_signal(cut, "coherence", "prediction", (ds, "estimated"))
+    cautious = point_noise_to_signal(cut, "coherence", "weights")
+    assert np.array_equal(pred, noise_to_signal(ds, "estimated", prediction=True)[..., ::2])
+    assert np.allclose(cautious, noise_to_signal(ds, "estimated")[..., ::2], rtol=1e-9)
+    finite = np.isfinite(cautious) & np.isfinite(pred)
+    assert np.all(cautious[finite] >= pred[finite])
+    assert np.median(cautious[finite] / pred[finite]) > 1.0
+    # without the measured data to take it from, the coherence is taken as it is
+    assert np.array_equal(point_noise_to_signal(cut, "coherence", "prediction"), cautious)
+    with pytest.raises(ConfigError, match="basis"):
+        point_noise_to_signal(cut, "coherence", "cautious")

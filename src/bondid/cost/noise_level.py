@@ -32,6 +32,7 @@ import numpy as np
 
 from ..data.measurement import FrfData
 from ..data.weights import noise_to_signal
+from ..exceptions import ConfigError
 from .residuals import DB
 from .selection import used_points
 
@@ -136,19 +137,75 @@ def log_error_variance(v: np.ndarray) -> np.ndarray:
     return np.where(lv < _LOG_V[0], v * v, np.where(lv > _LOG_V[-1], big, inner))
 
 
+#: the two bases of a point's ``N/S`` (:func:`point_noise_to_signal`)
+BASES: tuple[str, ...] = ("prediction", "weights")
+
+
+def _from_original(ds: FrfData, original: FrfData, weighting: str) -> np.ndarray | None:
+    """The prediction's ``N/S`` of ``original`` under ``weighting`` at the points of ``ds``
+    (same channels, frequencies a subset of the original's), or None when they do not map."""
+    orig = original
+    idx = np.clip(np.searchsorted(orig.freq_hz, ds.freq_hz), 0, orig.freq_hz.size - 1)
+    if not np.allclose(orig.freq_hz[idx], ds.freq_hz, rtol=1e-9, atol=0.0):
+        return None
+    try:
+        oi = [orig.outputs.index(o) for o in ds.outputs]
+        ii = [orig.inputs.index(i) for i in ds.inputs]
+    except ValueError:
+        return None
+    full = noise_to_signal(orig, weighting, prediction=True)
+    return full[np.ix_(np.array(oi, int), np.array(ii, int), idx)]
+
+
+def point_noise_to_signal(
+    ds: FrfData, weighting: str, basis: str,
+    original: tuple[FrfData, str] | None = None,
+) -> np.ndarray:  # fmt: skip
+    """``N/S`` of every point of ``ds`` (``(n_out, n_in, n_freq)``; NaN where ``H`` is NaN)
+    for predicting an exact model's error, on one of two bases (:data:`BASES`):
+
+    * ``"prediction"``: the noise estimate's signal taken as ``P̄ − 2N̂``
+      (:data:`~bondid.data.noise_estimate.PREDICTION_MARGIN`): the unbiased prediction of the
+      error. For anything that makes a statistical claim against the level: the verdict's
+      held-out reference (:func:`bondid.diagnose.scoring.heldout_noise`) and ``bondid.fit``'s
+      "at the noise level" (``fit.json``'s ``db_rms.noise_level``, its fallbacks).
+      ``original``: ``(data set, its weighting rule)`` that ``ds`` was cut from before its
+      weights went into its coherence (the diagnosis); the prediction is taken from it at
+      the same points (from ``ds`` itself when they do not map).
+    * ``"weights"``: the ``N/S`` the weights themselves hold (``w = 1/(1 + N/S)``; the
+      estimate's part with the cautious ``P̄ − 3N̂``): the level comes out 10–20 % high.
+      The diagnosis' rescue and screening thresholds (:mod:`bondid.diagnose.rescue`,
+      :mod:`bondid.diagnose.screen`): there the training data hold only the weights, and
+      their thresholds are heuristics on when more work is worth it, calibrated on this level.
+
+    Under ``weighting="coherence"`` the coherence is taken as it is on either basis (it holds
+    no estimate to take the prediction's signal from).
+    """
+    if basis not in BASES:
+        raise ConfigError(f"noise-to-signal basis {basis!r} is invalid; valid: {', '.join(BASES)}")
+    if basis == "weights":
+        return noise_to_signal(ds, weighting, prediction=False)
+    if original is not None:
+        ns = _from_original(ds, original[0], original[1])
+        if ns is not None:
+            return ns
+    return noise_to_signal(ds, weighting, prediction=True)
+
+
 def expected_sq_db(
     ds: FrfData, use_coherence: bool = True, magnitude: bool = False,
-    weighting: str | None = None,
+    weighting: str | None = None, basis: str = "prediction",
 ) -> np.ndarray:  # fmt: skip
     """Expected squared error (dB²) of an exact model at every point of ``ds``,
     ``(n_out, n_in, n_freq)``: ``(20/ln 10)² E|ln(1 + u)|²`` with ``v = N/S`` of the point from
     the data's noise estimate, combined with the file's coherence where there is one (the
     ``auto`` rule of :mod:`bondid.data.weights`; ``use_coherence=False``: the estimate alone;
     ``weighting="coherence"``: the coherence alone, e.g. when it already holds information
-    weights, as in the diagnosis). NaN where ``H`` is NaN."""
+    weights, as in the diagnosis), on the ``basis`` of :func:`point_noise_to_signal`. NaN
+    where ``H`` is NaN."""
     if weighting != "coherence":
         weighting = "auto" if use_coherence else "estimated"
-    ns = noise_to_signal(ds, weighting, prediction=True)
+    ns = point_noise_to_signal(ds, weighting, basis)
     out = DB**2 * expected_log_error(np.where(np.isnan(ns), 0.0, ns), magnitude)
     out[np.isnan(ns)] = np.nan
     return out
@@ -165,11 +222,13 @@ def weighted_level(sq_db: list[np.ndarray], weights: list[np.ndarray]) -> float 
     return math.sqrt(num / den) if den > 0 else None
 
 
-def noise_level_cost(problem: FrfProblem) -> float | None:
+def noise_level_cost(problem: FrfProblem, basis: str = "prediction") -> float | None:
     """Expected cost ``‖r‖²`` of an exact model on the problem's noisy data (module docstring).
 
     Args:
         problem: the fitting problem (its weights, channel weights included, and points).
+        basis: of each point's ``N/S`` (:func:`point_noise_to_signal`: which caller takes
+            which, and why).
 
     Returns:
         The expected cost (dB² for the log kinds: ``db_rms²`` at the noise level), or None
@@ -184,7 +243,7 @@ def noise_level_cost(problem: FrfProblem) -> float | None:
         ds = b.data
         e = expected_sq_db(
             ds, opt.use_coherence, magnitude=opt.kind != "complex_log",
-            weighting=opt.effective_weighting,
+            weighting=opt.effective_weighting, basis=basis,
         )  # fmt: skip
         sq.append(e[used_points(ds, opt)])
         ws.append(b.weight)
