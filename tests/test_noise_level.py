@@ -122,3 +122,36 @@ def test_noise_to_signal_bases(bonder) -> None:
     assert np.array_equal(point_noise_to_signal(cut, "coherence", "prediction"), cautious)
     with pytest.raises(ConfigError, match="basis"):
         point_noise_to_signal(cut, "coherence", "cautious")
+
+
+#: the level with a channel of unknown noise vs the level of the known channel alone
+#: (the same points and weights: equal up to rounding)
+SAME_LEVEL_RTOL = 1e-12
+
+
+def test_points_of_unknown_noise_are_left_out_of_the_level(bonder) -> None:
+    """A channel with a NaN point has no noise estimate: its points must not count as exact
+    (N/S = 0 pulled the predicted level down), in the fit's level and the verdict's."""
+    from bondid.cost.problem import CostOptions
+    from bondid.diagnose.scoring import heldout_noise
+
+    f = log_grid(1.0, 4000.0, 400)
+    data = simulate(bonder, None, f, noise=0.02, floor_db=-40.0, seed=5)
+    H = data.H[:1, :2].copy()
+    H[0, 1, 7] = np.nan  # channel 2: no estimate at all
+    ds = FrfData(f, data.outputs[:1], data.inputs[:2], H, data.quantity, {}, None, "gap")
+    one = FrfData(f, data.outputs[:1], data.inputs[:1], H[:, :1], data.quantity, {}, None, "a")
+    ns = noise_to_signal(ds, "estimated", prediction=True)
+    assert np.all(np.isnan(ns[0, 1])) and np.all(np.isfinite(ns[0, 0]))
+    assert np.all(np.isnan(noise_to_signal(ds, "estimated")[0, 1]))
+
+    def level(d: FrfData) -> float | None:
+        w = np.nan_to_num(information_weights(d, "estimated"))
+        return weighted_level([expected_sq_db(d, use_coherence=False).ravel()], [w.ravel()])
+
+    assert level(ds) == pytest.approx(level(one), rel=SAME_LEVEL_RTOL)
+    opts = CostOptions(weighting="estimated")
+    both, alone = heldout_noise([ds], opts), heldout_noise([one], opts)
+    assert both is not None and alone is not None
+    assert both.level_db == pytest.approx(alone.level_db, rel=SAME_LEVEL_RTOL)
+    assert both.n_eff == pytest.approx(alone.n_eff, rel=SAME_LEVEL_RTOL)

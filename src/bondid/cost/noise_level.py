@@ -213,12 +213,14 @@ def expected_sq_db(
 
 def weighted_level(sq_db: list[np.ndarray], weights: list[np.ndarray]) -> float | None:
     """``sqrt(Σ w e² / Σ w)`` (dB) of expected squared errors and their weights (flat arrays;
-    a point of weight 0 counts nothing, even where its expected error is infinite)."""
+    a point of weight 0 counts nothing, even where its expected error is infinite; a point
+    whose expected error is NaN, its noise unknown, is left out of both sums)."""
     num = den = 0.0
     for e, w in zip(sq_db, weights, strict=True):
+        known = (w > 0) & ~np.isnan(e)
         with np.errstate(invalid="ignore"):
-            num += float(np.sum(np.where(w > 0, w * e, 0.0)))
-        den += float(np.sum(w))
+            num += float(np.sum(np.where(known, w * e, 0.0)))
+        den += float(np.sum(np.where(known, w, 0.0)))
     return math.sqrt(num / den) if den > 0 else None
 
 

@@ -126,8 +126,8 @@ def heldout_noise(
         w = np.nan_to_num(information_weights(ds, rule)[m])
         orig = (originals[k], weighting) if originals is not None and k < len(originals) else None
         v = point_noise_to_signal(ds, rule, "prediction", orig)[m]
-        keep = w > 0
-        w, v = w[keep], np.nan_to_num(v[keep])
+        keep = (w > 0) & ~np.isnan(v)  # a point of unknown noise tells nothing of the level
+        w, v = w[keep], v[keep]
         wm.append(w * expected_log_error(v))
         wq.append(w * w * log_error_variance(v))
         ws.append(w)
