@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from bondid.cost.problem import CostOptions
-from bondid.cost.residuals import DB
+from bondid.cost.residuals import DB, check_kind
 from bondid.data.measurement import FrfData
 from bondid.diagnose import scoring
 from bondid.simulate import log_grid
@@ -54,7 +54,10 @@ def test_noise_reference_matches_monte_carlo() -> None:
 
 def test_no_reference_for_a_cost_without_noise_model() -> None:
     ds, _ = _held_out()
-    assert scoring.heldout_noise([ds], CostOptions(kind="complex", weighting="coherence")) is None
+    for kw in ({"kind": "normalised_complex"}, {"kind": "log_magnitude"}, {"norm": "l1"}):
+        opts = CostOptions(weighting="coherence", **kw)  # type: ignore[arg-type]
+        check_kind(opts.kind, opts.norm)  # a valid cost, only not modelled
+        assert scoring.heldout_noise([ds], opts) is None
 
 
 REF = scoring.NoiseReference(level_db=1.0, n_eff=400.0)
