@@ -19,6 +19,29 @@ OPS = ({}, {"x": 0.05, "y": -0.03})
 FEW = ["x_stage.mass", "y_stage.mass", "z_stage.mass", "x_guide_ry.stiffness"]
 #: unequal mount stiffnesses (factors on the start's, per x y z rx ry rz) and damping ratios
 MOUNTS = (0.5, 0.8, 1.4, 2.0, 0.7, 1.2, 0.6, 1.5)
+#: geometry computed two ways (the variants' centres on the hull face, the same start
+#: stiffness): equal up to rounding [m] / relative
+ROUNDING_ABS_M = 1e-12
+ROUNDING_REL = 1e-12
+#: the one-problem scan's costs vs each state's own cost (relative: the same sums, reordered)
+SCAN_COST_RTOL = 1e-9
+#: a refit of the right family from 30 % off reaches the truth's own cost within this share;
+#: the wrong family (the CoM) must miss it by more than twice that
+REFIT_COST_TOL = 0.05
+#: the mounts' stiffnesses the drives excite, recovered within this (relative): 0.5 % noise
+#: on 2 x 120 frequencies, with the stage masses refitted too (the yaw and lateral mounts
+#: trade off with them)
+REL_STIFF = 0.08
+#: the chassis' top mass and stiffnesses recovered within this (relative; same noise)
+REL_CHASSIS = 0.03
+#: the refined pivot within this of the true pivot in each direction [m]
+PIVOT_TOL_M = 0.006
+#: the refit at the refined pivot within this factor of the exact pivot's cost; the bearing
+#: centre's at least CENTRE_COST_FACTOR times the refined pivot's
+PIVOT_COST_FACTOR = 1.3
+CENTRE_COST_FACTOR = 2.0
+#: the other elastic centre's refit lowers the objective below this share of the CoM's
+VARIANT_COST_SHARE = 0.8
 
 
 @pytest.fixture(scope="module")
@@ -40,9 +63,9 @@ def _data(truth: UrdfDocument, n: int = 120, noise: float = 0.005) -> list:
 
 def _bottom(c):  # type: ignore[no-untyped-def]
     """The variant whose elastic centre lies on the hull's bottom face below the CoM."""
-    com = np.array(c.spec["com"])
-    below = [v for v in c.variants if np.allclose(v.spec["com"][:2], com[:2])]
-    return next(v for v in below if v.spec["com"][2] < com[2])
+    com = np.array(c.spec["centre"])
+    below = [v for v in c.variants if np.allclose(v.spec["centre"][:2], com[:2])]
+    return next(v for v in below if v.spec["centre"][2] < com[2])
 
 
 def test_soft_mounts_carry_elastic_centre_variants(doc):
@@ -55,14 +78,14 @@ def test_soft_mounts_carry_elastic_centre_variants(doc):
     lo = link_hull(doc.link(c.spec["root"])).vertices.min(axis=0)
     assert len(c.variants) >= 1
     for v in c.variants:
-        assert v.spec["com"][2] == pytest.approx(lo[2], abs=1e-12) and v.variants == ()
+        assert v.spec["centre"][2] == pytest.approx(lo[2], abs=ROUNDING_ABS_M) and v.variants == ()
         assert [p.name for p in v.parameters] == [p.name for p in c.parameters]
-    assert _bottom(c).spec["com"][2] < c.spec["com"][2]
+    assert _bottom(c).spec["centre"][2] < c.spec["centre"][2]
     # rocking about a centre below the CoM is slower: a larger start stiffness for the same
     # 30 Hz start (the parallel-axis term), translations unchanged
     k = {p.name: p.initial for p in c.parameters}
     kb = {p.name: p.initial for p in _bottom(c).parameters}
-    assert kb["stiffness_tx"] == pytest.approx(k["stiffness_tx"], rel=1e-12)
+    assert kb["stiffness_tx"] == pytest.approx(k["stiffness_tx"], rel=ROUNDING_REL)
     assert kb["stiffness_rx"] > k["stiffness_rx"] and kb["stiffness_ry"] > k["stiffness_ry"]
 
 
@@ -87,7 +110,7 @@ def test_unequal_mounts_below_the_com_are_refitted_to_the_truth(doc):
     job = Job(text, space, data, data, data, c, CostOptions(), alt_urdf=text)
     picked, _ = _screen_variants(job)
     assert picked.candidate is not None
-    assert picked.candidate.spec["com"] == target.spec["com"], picked.candidate.description
+    assert picked.candidate.spec["centre"] == target.spec["centre"], picked.candidate.description
 
     def refit(cand, values):  # type: ignore[no-untyped-def]
         r = build(text, space, data, CostOptions(), (), with_values(cand, values)).refit
@@ -97,11 +120,9 @@ def test_unequal_mounts_below_the_com_are_refitted_to_the_truth(doc):
     at_truth = build(text, space, data, CostOptions(), (), with_values(target, truth)).refit
     c_truth = at_truth.cost(at_truth.state0)
     got, cost = refit(target, truth * 1.3)
-    assert cost < 1.05 * c_truth, (cost, c_truth)
+    assert cost < (1 + REFIT_COST_TOL) * c_truth, (cost, c_truth)
     # the drives push in x and y: the horizontal and rocking mounts show, the vertical one
-    # (and the damping ratios) hardly; 0.5 % noise on 2 x 120 frequencies, with the stage
-    # masses refitted too (the yaw and lateral mounts trade off with them): within 8 %
-    REL_STIFF = 0.08
+    # (and the damping ratios) hardly: those within REL_STIFF
     for p, v, want in zip(target.parameters, got, truth, strict=True):
         if p.name in ("stiffness_tx", "stiffness_ty", "stiffness_rx", "stiffness_ry",
                       "stiffness_rz"):  # fmt: skip
@@ -109,7 +130,7 @@ def test_unequal_mounts_below_the_com_are_refitted_to_the_truth(doc):
     # the CoM candidate (the family before the variants), started as close, stays above:
     # it misses the truth's cost by more than twice the tolerance the right family meets
     _, cost_com = refit(replace(c, variants=()), truth * 1.3)
-    assert cost_com > (1 + 2 * 0.05) * c_truth, (cost_com, c_truth, cost)
+    assert cost_com > (1 + 2 * REFIT_COST_TOL) * c_truth, (cost_com, c_truth, cost)
 
 
 def test_a_chassis_heavier_at_the_bottom_is_refitted_to_the_truth(doc):
@@ -141,13 +162,12 @@ def test_a_chassis_heavier_at_the_bottom_is_refitted_to_the_truth(doc):
         r.with_new(r.state0, start * np.where(np.array(names) == "top_mass", 0.7, 1.0)),
     ]
     want_costs = [r.cost(s) for s in states]
-    assert r.costs(r.state0, states) == pytest.approx(want_costs, rel=1e-9)
+    assert r.costs(r.state0, states) == pytest.approx(want_costs, rel=SCAN_COST_RTOL)
     state, _, _ = r.solve(r.state0, direct(150, 30))
     got = dict(zip(names, r.new_values(state), strict=True))
-    REL = 0.03  # 0.5 % noise on 2 x 120 frequencies: the top mass and stiffnesses within 3 %
     for name, want in zip(names, truth, strict=True):
         if name == "top_mass" or name.endswith("stiffness"):
-            assert got[name] == pytest.approx(want, rel=REL), (name, got[name], want)
+            assert got[name] == pytest.approx(want, rel=REL_CHASSIS), (name, got[name], want)
 
 
 def test_a_pivot_off_the_bearing_centre_in_both_directions_is_found(doc):
@@ -177,15 +197,15 @@ def test_a_pivot_off_the_bearing_centre_in_both_directions_is_found(doc):
     refined, _ = refine_job_pivot(job)
     assert refined.candidate is not None
     got = np.array(refined.candidate.spec["pivot"])
-    PIVOT_TOL = 0.006  # m: within 6 mm of the true pivot in each direction
-    assert np.all(np.abs(got - true_pivot) < PIVOT_TOL), (got - centre, true_pivot - centre)
+    assert np.all(np.abs(got - true_pivot) < PIVOT_TOL_M), (got - centre, true_pivot - centre)
 
     def refit(cand):  # type: ignore[no-untyped-def]
         r = build(text, space, data, CostOptions(), (), with_values(cand, stiff * 1.3)).refit
         return r.solve(r.state0, direct(150, 30))[1]
 
     c_exact, c_got, c_centre = refit(exact), refit(refined.candidate), refit(c)
-    assert c_got < 1.3 * c_exact and c_centre > 2.0 * c_got, (c_exact, c_got, c_centre)
+    figures = (c_exact, c_got, c_centre)
+    assert c_got < PIVOT_COST_FACTOR * c_exact and c_centre > CENTRE_COST_FACTOR * c_got, figures
 
 
 def test_a_refit_above_the_noise_tries_the_other_elastic_centres(doc):
@@ -211,5 +231,5 @@ def test_a_refit_above_the_noise_tries_the_other_elastic_centres(doc):
     aug, state, res = _fit(job)
     assert above_noise(aug.refit, state)
     job2, aug2, state2, _ = other_variants(job, aug, state, res)
-    assert job2.candidate is not None and job2.candidate.spec["com"] == centre.spec["com"]
-    assert aug2.refit.cost(state2) < 0.8 * aug.refit.cost(state)
+    assert job2.candidate is not None and job2.candidate.spec["centre"] == centre.spec["centre"]
+    assert aug2.refit.cost(state2) < VARIANT_COST_SHARE * aug.refit.cost(state)

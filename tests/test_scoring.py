@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from bondid.cost.problem import CostOptions
-from bondid.cost.residuals import DB
+from bondid.cost.residuals import DB, check_kind
 from bondid.data.measurement import FrfData
 from bondid.diagnose import scoring
 from bondid.simulate import log_grid
@@ -54,7 +54,10 @@ def test_noise_reference_matches_monte_carlo() -> None:
 
 def test_no_reference_for_a_cost_without_noise_model() -> None:
     ds, _ = _held_out()
-    assert scoring.heldout_noise([ds], CostOptions(kind="complex", weighting="coherence")) is None
+    for kw in ({"kind": "normalised_complex"}, {"kind": "log_magnitude"}, {"norm": "l1"}):
+        opts = CostOptions(weighting="coherence", **kw)  # type: ignore[arg-type]
+        check_kind(opts.kind, opts.norm)  # a valid cost, only not modelled
+        assert scoring.heldout_noise([ds], opts) is None
 
 
 REF = scoring.NoiseReference(level_db=1.0, n_eff=400.0)
@@ -99,3 +102,75 @@ def test_a_refit_without_a_finite_score_is_refused_with_a_reason():
     t = scoring.tests(math.inf, 2.0, 1, noise)
     assert t["accepted"] is False and t["rule"] == "none"
     assert "not finite" in scoring.reason(t, math.inf, 2.0)
+
+
+# --- the verdict rule on synthetic held-out scores (Monte Carlo) ---------------------------
+
+#: seeded trials per case, and the points of the training and the held-out sets
+N_TRIALS = 300
+N_POINTS = 400
+#: a candidate that adds nothing may be accepted in at most this share of the trials (the
+#: rule's own tests would allow ~0.13 % at the noise level and far less for the LR test)
+MAX_FALSE_ALARM = 0.01
+#: a candidate that removes a real model error must be accepted in at least this share
+MIN_POWER = 0.95
+#: the points' information weights are uniform in W_MIN..1 (SNR from 6 dB up)
+W_MIN = 0.8
+#: the real model error: complex-log amplitude [Np] of a bump in log frequency (the base
+#: then scores ~1.5x the held-out noise level; at 1 Np, ~1.27x, the base-above-noise test
+#: passes in ~63 % of the trials)
+ERROR_AMPLITUDE = 1.5
+
+
+def _bump(f: np.ndarray, f0: float) -> np.ndarray:
+    """A smooth bump in ``ln f`` (width 0.3) centred at ``f0``: the shape of a local error."""
+    return np.exp(-0.5 * (np.log(f / f0) / 0.3) ** 2)
+
+
+def _verdicts(model_error: float, error_hz: float, candidate_hz: float, seed: int) -> np.ndarray:
+    """Accepted flags of the rule over seeded trials: the base's complex-log error is
+    ``model_error · bump(error_hz)``; the candidate adds a complex amplitude (2 parameters) of
+    ``bump(candidate_hz)``, fitted by weighted least squares on the training points, as a
+    refit would; both scored on the held-out points with information weights and complex
+    Gaussian noise of N/S = (1 − w)/w (what heldout_noise assumes)."""
+    rng = np.random.default_rng(seed)
+    f = log_grid(1.0, 1000.0, 2 * N_POINTS)
+    sets = {"train": f[0::2], "held": f[1::2]}
+    w = {k: rng.uniform(W_MIN, 1.0, N_POINTS) for k in sets}
+    v = {k: (1.0 - w[k]) / w[k] for k in sets}
+    held = FrfData(sets["held"], ["a"], ["p"], np.ones((1, 1, N_POINTS), complex), "receptance",
+                   {}, w["held"][None, None, :], "held-out")  # fmt: skip
+    ref = scoring.heldout_noise([held], CostOptions(weighting="coherence"))
+    assert ref is not None
+    n_train = 2 * N_POINTS  # real residuals
+    phi = {k: _bump(x, candidate_hz) for k, x in sets.items()}
+    err = {k: model_error * _bump(x, error_hz) for k, x in sets.items()}
+    out = np.empty(N_TRIALS, bool)
+    for t in range(N_TRIALS):
+        r = {}
+        for k in sets:
+            g = rng.standard_normal((2, N_POINTS))
+            u = np.sqrt(v[k] / 2) * (g[0] + 1j * g[1])
+            r[k] = np.log1p(u) + err[k]
+        wp = w["train"] * phi["train"]
+        theta = np.sum(wp * r["train"]) / np.sum(wp * phi["train"])
+
+        def rms(res: np.ndarray) -> float:
+            return float(DB * np.sqrt(np.sum(w["held"] * np.abs(res) ** 2) / np.sum(w["held"])))
+
+        s0 = scoring.score(rms(r["held"]), n_train, 0)
+        s1 = scoring.score(rms(r["held"] - theta * phi["held"]), n_train, 2)
+        out[t] = scoring.accept(s1, s0, 2, ref)
+    return out
+
+
+@pytest.mark.parametrize("model_error", [0.0, ERROR_AMPLITUDE])
+def test_a_candidate_that_adds_nothing_is_rarely_accepted(model_error: float) -> None:
+    # an exact base, or a base with a real error elsewhere than where the candidate acts
+    acc = _verdicts(model_error, error_hz=10.0, candidate_hz=300.0, seed=11)
+    assert acc.mean() <= MAX_FALSE_ALARM
+
+
+def test_a_candidate_that_removes_a_real_error_is_accepted() -> None:
+    acc = _verdicts(ERROR_AMPLITUDE, error_hz=10.0, candidate_hz=10.0, seed=12)
+    assert acc.mean() >= MIN_POWER

@@ -103,23 +103,30 @@ def _combine_auto(ns: np.ndarray, coh: np.ndarray) -> np.ndarray:
 
 def noise_to_signal(ds: FrfData, weighting: str = "auto", prediction: bool = False) -> np.ndarray:
     """Per-point noise-to-signal ratio ``N/S`` behind the weights of ``weighting`` (``w = 1/(1 +
-    N/S)``), ``(n_out, n_in, n_freq)``; 0 where nothing is known, NaN where ``H`` is NaN.
+    N/S)``), ``(n_out, n_in, n_freq)``; NaN where nothing is known of the point's noise (its
+    weight is then 1): no estimate (a channel with a NaN anywhere or shorter than
+    :data:`~bondid.data.noise_estimate.MIN_POINTS`) and no coherence, a channel without
+    coherence under ``"coherence"``, everywhere under ``"none"``; NaN where ``H`` is NaN.
+    A prediction of the noise level must leave those points out (0 would say they are exact
+    and pull the level down).
 
     ``prediction``: the estimate's part taken with the signal power meant for predicting the
     error at the points that carry weight
     (:meth:`~bondid.data.noise_estimate.NoiseEstimate.noise_to_signal`); the weights
-    themselves keep the cautious one. The coherence's part is used as it is.
-    ``"none"``: 0 everywhere (nothing is known of the noise)."""
+    themselves keep the cautious one. The coherence's part is used as it is."""
     check_weighting(weighting)
-    if weighting in ("coherence", "none") or not prediction:
-        w = information_weights(ds, weighting)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ns = np.where(w > 0, 1.0 / w - 1.0, np.inf)
-        return np.where(np.isnan(w), np.nan, ns)
-    ns = noise_estimate(ds).noise_to_signal(prediction=True)
-    if weighting == "auto" and ds.coherence is not None:
-        ns = _combine_auto(ns, ds.coherence)
-    ns = np.where(np.isnan(ns), 0.0, ns)
+    shape = ds.H.shape
+    coh = ds.coherence if ds.coherence is not None else np.full(shape, np.nan)
+    if weighting == "none":
+        ns = np.full(shape, np.nan)
+    elif weighting == "coherence":
+        c = np.clip(coh, 0.0, 1.0)
+        with np.errstate(divide="ignore"):
+            ns = np.where(np.isfinite(c), np.where(c > 0, 1.0 / c - 1.0, np.inf), np.nan)
+    else:
+        ns = noise_estimate(ds).noise_to_signal(prediction=prediction)
+        if weighting == "auto":
+            ns = _combine_auto(ns, coh)
     return np.where(np.isfinite(ds.H), ns, np.nan)
 
 

@@ -2,7 +2,8 @@
 a rotational joint compliance at a pivot refined continuously (:func:`at_refined_pivot`,
 :mod:`.pivot`), a candidate with variants at each other variant (:func:`other_variants`).
 Each alternative gets the full refit of both origins (:func:`.runner._fit`); the lowest
-objective is kept."""
+objective is kept. An alternative whose model or refit fails (a numerical error) is skipped,
+and the failure is said in the job's notes (``candidates[].notes`` of ``diagnosis.json``)."""
 
 from __future__ import annotations
 
@@ -18,6 +19,21 @@ from .pivot import child_extent, refine_pivot
 from .refit import State
 from .runner import Job, _alt_start, _fit, _setup
 
+#: the numerical failures of an alternative that skip it (anything else fails the job)
+_SKIPPED = (BondidError, np.linalg.LinAlgError, ValueError)
+
+
+def _failure(what: str, err: BaseException) -> str:
+    """One line on a skipped alternative: what, the error's type and message."""
+    return f"{what}: {type(err).__name__}: {err}"
+
+
+def _failures_note(failed: list[str], of: int, what: str) -> str:
+    """``"k of n <what> failed (first: ...)"``, or "" when none failed."""
+    if not failed:
+        return ""
+    return f"{len(failed)} of {of} {what} failed (first: {failed[0]})"
+
 
 def refine_job_pivot(job: Job) -> tuple[Job, str]:
     """The job with its rotational compliance's pivot refined (:func:`.pivot.refine_pivot`),
@@ -27,17 +43,21 @@ def refine_job_pivot(job: Job) -> tuple[Job, str]:
     assert cand is not None
     urdf = job.alt_urdf if job.alt_urdf is not None else job.urdf
     found = [np.asarray(job.start_new, float)] if job.start_new else []
+    failed: list[str] = []
 
     def cost(c: Candidate) -> float:
         sub = replace(job, candidate=c)
         try:
             return _alt_start(sub, _setup(urdf, sub).refit, found, only=0)[1]
-        except (BondidError, np.linalg.LinAlgError, ValueError):
+        except _SKIPPED as err:
+            failed.append(_failure(f"pivot {np.round(c.spec['pivot'], 4).tolist()}", err))
             return float("inf")
 
     child = str(cand.location).split("->", 1)[1].split(":", 1)[0]
     best, c, n = refine_pivot(cand, cost, child_extent(urdf, child))
-    return replace(job, candidate=best), f"{n} pivots tried, start figure {c:.4g}"
+    note = f"{n} pivots tried, start figure {c:.4g}"
+    failures = _failures_note(failed, n, "pivots")
+    return replace(job, candidate=best), f"{note} ({failures})" if failures else note
 
 
 def at_refined_pivot(
@@ -56,11 +76,12 @@ def at_refined_pivot(
 
 
 def other_variants(
-    job: Job, aug: Augmented, state: State, res: Any
+    job: Job, aug: Augmented, state: State, res: Any, notes: dict[str, Any] | None = None
 ) -> tuple[Job, Augmented, State, Any]:
     """A refit above the noise level of a candidate with variants (e.g. the elastic centres
     of soft mounts; the screening kept one on short starts): every other variant refitted
-    fully (both origins, the same start); the lowest objective is kept."""
+    fully (both origins, the same start); the lowest objective is kept. A variant whose
+    refit fails is skipped and said in ``notes["variants"]`` (the job's ``extra``)."""
     from ..model.document import UrdfDocument
     from .effects import get_effect
 
@@ -69,15 +90,21 @@ def other_variants(
     doc = UrdfDocument.from_string(job.alt_urdf if job.alt_urdf is not None else job.urdf)
     same = [c for c in get_effect(cand.effect).candidates(doc) if c.label == cand.label]
     best = (aug.refit.cost(state), job, aug, state, res)
+    failed: list[str] = []
+    tried = 0
     for v in [] if not same else (same[0], *same[0].variants):
         if v.spec == cand.spec or len(v.parameters) != len(cand.parameters):
             continue
         other = replace(job, candidate=replace(v, variants=()))
+        tried += 1
         try:
             a2, s2, r2 = _fit(other)
-        except (BondidError, np.linalg.LinAlgError, ValueError):
+        except _SKIPPED as err:
+            failed.append(_failure(f"variant {v.description!r}", err))
             continue
         c2 = a2.refit.cost(s2)
         if c2 < best[0]:
             best = (c2, other, a2, s2, r2)
+    if failed and notes is not None:
+        notes["variants"] = _failures_note(failed, tried, "other variants' refits")
     return best[1:]

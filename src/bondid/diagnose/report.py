@@ -196,11 +196,9 @@ def _step_entry(step: Any) -> dict[str, Any]:
     return {"step": step.index + 1, **step.test, "screening_base_db": base}
 
 
-def to_json_dict(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, Any]:
-    """The content of ``diagnosis.json`` (module docstring)."""
-    before = reports["refit"].db_rms
-    nominal = reports["nominal"].db_rms
-    cands = candidate_entries(diag, before)
+def _gap_section(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, Any]:
+    """``gap``: the gap after the parameter refit, its weighting, paired modes and
+    anti-resonances."""
     gap = _gap_dict(reports["refit"], reports.get("refit_unweighted"))
     gap["weighting"] = diag.weighting.get("weighting")
     gap["modes"] = [
@@ -209,9 +207,15 @@ def to_json_dict(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, An
         for row in diag.modes if "status" in row
     ]  # fmt: skip
     gap["antiresonances"] = diag.antiresonances
+    return gap
+
+
+def _stages_section(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, Any]:
+    """``stages``: the gap of the nominal model, after the parameter refit and after the
+    effects, and the shares closed."""
+    before, nominal = reports["refit"].db_rms, reports["nominal"].db_rms
     w = diag.winner
-    verdict = _verdict(diag, reports, before, nominal)
-    stages = {
+    return {
         "nominal": _gap_dict(reports["nominal"], reports.get("nominal_unweighted")),
         "refit": _gap_dict(reports["refit"], reports.get("refit_unweighted")),
         "effect": _gap_dict(reports["effect"], reports.get("effect_unweighted"))
@@ -220,8 +224,12 @@ def to_json_dict(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, An
         "gap_closed_by_refit": gap_closed(nominal, before),
         "gap_closed_total": gap_closed(nominal, w.db_rms if w else before),
     }
+
+
+def _refit_section(diag: Diagnosis) -> dict[str, Any]:
+    """``refit``: the parameter refit's values and figures."""
     b = diag.baseline
-    refit = {
+    return {
         "parameters": [
             {"name": n, "value": float(v), "std": float(s)}
             for n, v, s in zip(b.names, b.values, b.std, strict=True)
@@ -232,31 +240,41 @@ def to_json_dict(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, An
         "train_weighted_rms": b.train_rms,
         "score": diag.baseline_score,
     }
+
+
+def _scoring_section(diag: Diagnosis) -> dict[str, Any]:
+    """``scoring``: the verdict rule, its constants and each step's figures."""
+    return {
+        "score": "held-out information-weighted RMS complex-log error [dB] x FPE factor",
+        "rule": scoring.RULE,
+        "level_tol": scoring.LEVEL_TOL,
+        "z": scoring.Z,
+        "min_excess_share": scoring.MIN_EXCESS_SHARE,
+        "rel_margin": REL_MARGIN,
+        "abs_margin_db": ABS_MARGIN_DB,
+        "steps": [_step_entry(st) for st in diag.steps],
+        "gap_closed": "1 - db_rms_after / gap.db_rms (gap after the parameter refit; "
+        "both weighted)",
+        "db_rms": DB_RMS_DEFINITION,
+        "db_rms_points": "used channels, all points, weighted by the information weight",
+    }
+
+
+def to_json_dict(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, Any]:
+    """The content of ``diagnosis.json`` (module docstring)."""
+    before = reports["refit"].db_rms
     out = {
-        "gap": gap,
-        "candidates": cands,
-        "verdict": verdict,
+        "gap": _gap_section(diag, reports),
+        "candidates": candidate_entries(diag, before),
+        "verdict": _verdict(diag, reports, before, reports["nominal"].db_rms),
         "effects": effect_entries(diag, before),
-        "stages": stages,
-        "refit": refit,
+        "stages": _stages_section(diag, reports),
+        "refit": _refit_section(diag),
         "channels": diag.channels,
         "bands": [list(x) for x in diag.bands],
         "modes_by_dataset": diag.modes_by_dataset,
         "split": diag.split_info,
-        "scoring": {
-            "score": "held-out information-weighted RMS complex-log error [dB] x FPE factor",
-            "rule": scoring.RULE,
-            "level_tol": scoring.LEVEL_TOL,
-            "z": scoring.Z,
-            "min_excess_share": scoring.MIN_EXCESS_SHARE,
-            "rel_margin": REL_MARGIN,
-            "abs_margin_db": ABS_MARGIN_DB,
-            "steps": [_step_entry(st) for st in diag.steps],
-            "gap_closed": "1 - db_rms_after / gap.db_rms (gap after the parameter refit; "
-            "both weighted)",
-            "db_rms": DB_RMS_DEFINITION,
-            "db_rms_points": "used channels, all points, weighted by the information weight",
-        },
+        "scoring": _scoring_section(diag),
         "weighting": diag.weighting,
         "wall_s": diag.wall_s,
     }

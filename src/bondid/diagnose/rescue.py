@@ -54,7 +54,9 @@ def _ratio(refit: Refit, state: State) -> float | None:
     from ..optim.fallback import noise_ratio
 
     p = refit.at(state)
-    return noise_ratio(p, p.data_cost(p.z0))
+    # the weights' (cautious) level: the training data hold only their weights, and the
+    # rescue's ratios are calibrated on it (cost.noise_level.point_noise_to_signal)
+    return noise_ratio(p, p.data_cost(p.z0), basis="weights")
 
 
 def above_noise(refit: Refit, state: State) -> bool:

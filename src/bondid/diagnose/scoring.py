@@ -88,31 +88,6 @@ def gap_closed(before: float, after: float) -> float:
     return 1.0 - after / before
 
 
-def _prediction_ns(
-    ds: FrfData, originals: Sequence[FrfData] | None, k: int, weighting: str, fallback: str
-) -> np.ndarray:
-    """``N/S`` for predicting the error at the points of ``ds`` (``(n_out, n_in, n_freq)``):
-    from ``originals[k]`` (the data set ``ds`` was cut from, before its weights went into its
-    coherence) under the rule ``weighting`` at the same frequencies and channels, else from
-    ``ds`` itself under ``fallback``."""
-    from ..data.weights import noise_to_signal
-
-    own = noise_to_signal(ds, fallback, prediction=True)
-    if originals is None or k >= len(originals):
-        return own
-    orig = originals[k]
-    idx = np.clip(np.searchsorted(orig.freq_hz, ds.freq_hz), 0, orig.freq_hz.size - 1)
-    if not np.allclose(orig.freq_hz[idx], ds.freq_hz, rtol=1e-9, atol=0.0):
-        return own
-    try:
-        oi = [orig.outputs.index(o) for o in ds.outputs]
-        ii = [orig.inputs.index(i) for i in ds.inputs]
-    except ValueError:
-        return own
-    full = noise_to_signal(orig, weighting, prediction=True)
-    return full[np.ix_(np.array(oi, int), np.array(ii, int), idx)]
-
-
 def heldout_noise(
     datasets: Sequence[FrfData], options: CostOptions,
     originals: Sequence[FrfData] | None = None, weighting: str = "auto",
@@ -125,15 +100,19 @@ def heldout_noise(
         options: the cost options of the held-out score.
         originals: the measured data sets they were cut from (same order), whose noise
             estimate gives the points' noise-to-signal ratio for the prediction under the
-            rule ``weighting`` (the weights alone would give the cautious ratio, whose
-            level comes out 10–20 % high); None: from ``datasets`` themselves.
+            rule ``weighting`` (the basis ``"prediction"`` of
+            :func:`bondid.cost.noise_level.point_noise_to_signal`: the verdict's tests are
+            statistical claims against the level, which must not be biased; the weights
+            alone would give the cautious ratio, whose level comes out 10–20 % high); None:
+            from ``datasets`` themselves (in the diagnosis, whose data hold their weights in
+            the coherence, that is the cautious level).
         weighting: the weighting rule of ``originals``.
 
     Returns:
         The reference, or None when the cost's noise level is not modelled (kinds other than
         ``complex_log``, the ``l1`` norm) or no point weighs.
     """
-    from ..cost.noise_level import expected_log_error, log_error_variance
+    from ..cost.noise_level import expected_log_error, log_error_variance, point_noise_to_signal
     from ..cost.residuals import DB
     from ..cost.selection import used_points
     from ..data.weights import information_weights
@@ -145,9 +124,10 @@ def heldout_noise(
     for k, ds in enumerate(datasets):
         m = used_points(ds, options)
         w = np.nan_to_num(information_weights(ds, rule)[m])
-        v = _prediction_ns(ds, originals, k, weighting, rule)[m]
-        keep = w > 0
-        w, v = w[keep], np.nan_to_num(v[keep])
+        orig = (originals[k], weighting) if originals is not None and k < len(originals) else None
+        v = point_noise_to_signal(ds, rule, "prediction", orig)[m]
+        keep = (w > 0) & ~np.isnan(v)  # a point of unknown noise tells nothing of the level
+        w, v = w[keep], v[keep]
         wm.append(w * expected_log_error(v))
         wq.append(w * w * log_error_variance(v))
         ws.append(w)

@@ -144,7 +144,7 @@ def noise_cost(refit: Refit) -> float:
     noise_level_cost`; NaN when the data carry no noise estimate)."""
     from ..cost.noise_level import noise_level_cost
 
-    c = noise_level_cost(refit.at(refit.state0).frf)
+    c = noise_level_cost(refit.at(refit.state0).frf, basis="weights")
     return float(c) if c is not None and math.isfinite(c) else math.nan
 
 

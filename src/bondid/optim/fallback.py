@@ -38,12 +38,13 @@ from .search import MAX_ITER, SearchResult, Step, run_search
 NOISE_MARGIN = 1.10
 
 
-def noise_ratio(problem: FitProblem, data_cost: float) -> float | None:
+def noise_ratio(problem: FitProblem, data_cost: float, basis: str = "prediction") -> float | None:
     """``sqrt(data_cost / C_noise)``: the fit's db_rms over the predicted noise level (None
-    when the cost has no noise-level prediction)."""
+    when the cost has no noise-level prediction); ``basis`` of the level as
+    :func:`bondid.cost.noise_level.point_noise_to_signal` (the fit's test: the prediction)."""
     from ..cost.noise_level import noise_level_cost
 
-    c_noise = noise_level_cost(problem.frf)
+    c_noise = noise_level_cost(problem.frf, basis)
     if c_noise is None or not c_noise > 0 or not math.isfinite(data_cost):
         return None
     return math.sqrt(max(data_cost, 0.0) / c_noise)

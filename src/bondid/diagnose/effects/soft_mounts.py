@@ -101,7 +101,7 @@ class SoftMounts(Effect):
                 for (ax, _, _), p, mi in zip(axes, params[sl], inert[sl], strict=True)
             )
             params.append(NewParameter(group, ZETA, 1e-4, 2.0, "1", members, scan=0.5))
-        spec = {"root": root, "com": [float(x) for x in centre]}
+        spec = {"root": root, "centre": [float(x) for x in centre]}
         grid = tuple((f / F0_HZ) ** 2 for f in SCAN_HZ)
         where = "CoM" if k == 0 else f"elastic centre {np.round(centre * 1e3, 1).tolist()} mm"
         return Candidate(
@@ -112,7 +112,7 @@ class SoftMounts(Effect):
     def augment(self, doc: UrdfDocument, candidate: Candidate) -> UrdfDocument:
         new = doc.copy()
         root = candidate.spec["root"]
-        centre = np.asarray(candidate.spec["com"], float)
+        centre = np.asarray(candidate.spec["centre"], float)
         add_link(new, GROUND)
         p = {q.name: q for q in candidate.parameters}
         axes = [ax for ax, _, _ in TRANSLATIONS + ROTATIONS]
