@@ -283,34 +283,6 @@ def test_screening_keeps_the_withheld_effect(doc):
     assert all(np.isfinite(s.cost) and s.cost <= s.cost_new_only + 1e-12 for s in screens)
 
 
-def test_screening_from_two_origins_keeps_the_withheld_effect(doc):
-    """Known answer, both origins (the nominal model as the second): the base's own figures
-    (screen.baseline) are finite and never above the base's objective, and with the
-    figures compared relative to them the true compliance is still among those refitted."""
-    from dataclasses import replace
-
-    from bondid.cost.problem import CostOptions
-    from bondid.diagnose.augmented import build
-    from bondid.diagnose.effects import get_effect
-    from bondid.diagnose.refit import nominal_space
-    from bondid.diagnose.runner import Job
-    from bondid.diagnose.screen import baseline, screen, select
-
-    e = get_effect("joint_compliance")
-    c = next(c for c in e.candidates(doc) if c.location == "x_stage->y_stage:tz")
-    data = _data(_with_values(e, doc, c, scale=2.0), n=120)
-    nom = nominal_space(doc, FEW, 4000.0)
-    text = doc.to_string()
-    plain = Job(text, nom, data, data, data, None, CostOptions(), alt_urdf=text)
-    base = baseline(plain)
-    c0 = build(text, nom, data, CostOptions(), (), None).refit
-    assert len(base) == 2 and all(np.isfinite(b) and 0 < b <= c0.cost(c0.state0) for b in base)
-    jobs = [replace(plain, candidate=k, screen_base=base) for k in e.candidates(doc)]
-    screens = [screen(j) for j in jobs]
-    kept = [screens[i].label for i in select(screens, 4)]
-    assert c.label in kept, sorted((s.cost, s.label) for s in screens)
-
-
 def test_two_withheld_effects_are_found_in_order(doc, tmp_path):
     """Known answer: a joint compliance and an actuator lag withheld together; the search
     accepts both (class and location), one per step, and no third."""

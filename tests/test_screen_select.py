@@ -108,19 +108,3 @@ def test_select_puts_ties_at_a_kept_site_first():
     s[4].location = "a->b:tz"  # the same interface as the best, another axis
     assert select(s, 2, 4) == [0, 1, 4, 2]
     assert select(s, 2, 3) == [0, 1, 4]
-
-
-def test_relative_figure_puts_the_second_origin_on_the_first_origins_scale():
-    """A second-origin figure counts by the share of the base's own figure at that origin it
-    removes: with base figures (2, 4), a second-origin 3.6 (10 % off) reads 1.8, a
-    first-origin figure reads as it is; without a usable baseline, figures stay raw."""
-    from dataclasses import replace
-
-    from bondid.diagnose.runner import Job
-    from bondid.diagnose.screen import _relative
-
-    job = Job("", None, [], [], [], screen_base=(2.0, 4.0))  # type: ignore[arg-type]
-    assert _relative(1.9, job, 0) == pytest.approx(1.9, rel=1e-15)
-    assert _relative(3.6, job, 1) == pytest.approx(1.8, rel=1e-15)
-    for base in [(), (2.0,), (2.0, math.nan), (math.nan, 4.0), (2.0, 0.0)]:
-        assert _relative(3.6, replace(job, screen_base=base), 1) == 3.6

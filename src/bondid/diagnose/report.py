@@ -108,8 +108,7 @@ def _refit_entry(r: Any, sc: float, before: float) -> dict[str, Any]:
 def candidate_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
     """``candidates`` of diagnosis.json: per search step (``step``, 1 = the verdict's), the
     refitted candidates by held-out score, then the others by screening figure; each with
-    its screening figures (``screening_db``: the predicted training RMS [dB], with two
-    origins the lower of the two on the first origin's scale (:func:`.screen._relative`);
+    its screening figures (``screening_db``: the predicted training RMS [dB];
     ``screening_new_only_db``: after its new parameters alone) and ``refitted``."""
     out: list[dict[str, Any]] = []
     for step in diag.steps:
@@ -189,13 +188,6 @@ def _verdict(
     return verdict
 
 
-def _step_entry(step: Any) -> dict[str, Any]:
-    """One entry of ``scoring.steps``: the verdict rule's figures of the step and the base's
-    own screening figures per origin (``screening_base_db``, spec extension)."""
-    base = [math.sqrt(b) if b >= 0 else None for b in step.screen_base]
-    return {"step": step.index + 1, **step.test, "screening_base_db": base}
-
-
 def _gap_section(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, Any]:
     """``gap``: the gap after the parameter refit, its weighting, paired modes and
     anti-resonances."""
@@ -252,7 +244,7 @@ def _scoring_section(diag: Diagnosis) -> dict[str, Any]:
         "min_excess_share": scoring.MIN_EXCESS_SHARE,
         "rel_margin": REL_MARGIN,
         "abs_margin_db": ABS_MARGIN_DB,
-        "steps": [_step_entry(st) for st in diag.steps],
+        "steps": [{"step": st.index + 1, **st.test} for st in diag.steps],
         "gap_closed": "1 - db_rms_after / gap.db_rms (gap after the parameter refit; "
         "both weighted)",
         "db_rms": DB_RMS_DEFINITION,

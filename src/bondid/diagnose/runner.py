@@ -109,9 +109,6 @@ class Job:
     #: the candidate's new parameters (SI) from its screening: when given, the refit starts
     #: there (no scan) from both origins
     start_new: tuple[float, ...] = ()
-    #: the screening figures of the base model without a candidate, per origin
-    #: (:func:`.screen.baseline`); empty: not known (the figures are compared as they are)
-    screen_base: tuple[float, ...] = ()
 
 
 @dataclass

@@ -24,17 +24,6 @@ alone, then a few IPOPT iterations of all together),
 and the lower of the two counts: the parameter refit may have bent nominal parameters so far
 toward the missing effect that the true candidate, added to it, first makes the fit worse
 (measured: a withheld z-guide compliance ranked 10th of 11 from the parameter refit alone).
-The two origins' figures are compared relative to the base model's own figure at each origin
-(:func:`baseline`: the same step and short start without a candidate), i.e. by the share of
-the base's predicted cost the candidate removes, and reported on the first origin's scale
-(:func:`_relative`). Raw figures do not compare: neither origin is a stationary point of the
-base's own problem (the first has parameters at their bounds and constraints active, the
-second has had ten iterations), so the one-step prediction gains as much for every
-candidate as for none (measured on a withheld translational compliance, bonder, coherence
-data: every first-origin figure within 1.5 % of the base's own, the true one not among the
-best, while from the second origin it removed 2.5 % of the base's figure against at most
-1.3 % for every other candidate; the raw second-origin figures were all twice the
-first-origin ones and never counted).
 A candidate with variants (e.g. the pivots of a rotational DOF) gets the lowest figure of its
 variants (one start each).
 The figure is a training cost, so screening never looks at the held-out data that decide the
@@ -151,37 +140,6 @@ def noise_cost(refit: Refit) -> float:
 Figure = tuple[float, float, int | None, tuple, float]
 
 
-def baseline(job: Job) -> tuple[float, ...]:
-    """The screening figures of the step's base model without any candidate, one per origin
-    of ``job`` (module docstring): the first origin's one-step prediction at the base itself,
-    and, when ``job`` has a second origin, the prediction after its short start from the
-    nominal model without a candidate. ``job.candidate`` is ignored. A failed origin gives
-    NaN (its candidates' figures are then taken as they are)."""
-    plain = replace(job, candidate=None, screen_base=())
-    out = []
-    for urdf in (job.urdf, job.alt_urdf):
-        if urdf is None:
-            break
-        try:
-            refit = build(urdf, job.nominal, job.train, job.options, job.accepted, None).refit
-            s = refit.state0 if urdf is job.urdf else _alt_start(plain, refit, [])[0]
-            out.append(predicted_cost(refit, s))
-        except (BondidError, np.linalg.LinAlgError, ValueError):
-            out.append(math.nan)
-    return tuple(out)
-
-
-def _relative(figure: float, job: Job, origin: int) -> float:
-    """A candidate's figure from origin ``origin`` expressed on the first origin's scale:
-    ``figure × base₀ / base_origin`` (``job.screen_base``, :func:`baseline`), so that the
-    figures of both origins compare by the share of the base's predicted cost the candidate
-    removes; ``figure`` itself without a usable baseline."""
-    base = job.screen_base
-    if len(base) <= origin or not all(math.isfinite(b) and b > 0 for b in (base[0], base[origin])):
-        return figure
-    return figure * base[0] / base[origin]
-
-
 def _figure(job: Job, n_starts: int, pick: int | None, noise: bool = True) -> Figure:
     """(objective after the new-only solve, screening figure, start option of the second
     origin, the new parameters (SI) where the figure was taken, the noise-level cost or NaN
@@ -205,11 +163,10 @@ def _figure(job: Job, n_starts: int, pick: int | None, noise: bool = True) -> Fi
     new = tuple(float(v) for v in refit.new_values(best[1]))
     floor = noise_cost(refit) if noise else math.nan
     if job.alt_urdf is None:
-        return best[0], _relative(figure, job, 0), None, new, floor
+        return best[0], figure, None, new, floor
     alt = build(job.alt_urdf, job.nominal, job.train, job.options, job.accepted, cand).refit
     s_a, _, k = _alt_start(job, alt, [np.array(new)], pick)
     fig_a = predicted_cost(alt, s_a)
-    figure, fig_a = _relative(figure, job, 0), _relative(fig_a, job, 1)
     if fig_a < figure:
         figure, new = fig_a, tuple(float(v) for v in alt.new_values(s_a))
     return best[0], figure, k, new, floor

@@ -32,7 +32,7 @@ from . import scoring
 from .effects import Candidate
 from .refit import Nominal
 from .runner import Job, JobResult, run_job
-from .screen import Screening, baseline, screen, select
+from .screen import Screening, screen, select
 
 
 @dataclass
@@ -83,7 +83,6 @@ class Step:
         results, scores: the full refits, best score first.
         winner: the accepted effect's refit, or None.
         test: the verdict rule's figures for the best refit (:func:`.scoring.tests`).
-        screen_base: see the field's comment.
     """
 
     index: int
@@ -95,9 +94,6 @@ class Step:
     scores: list[float] = field(default_factory=list)
     winner: JobResult | None = None
     test: dict[str, Any] = field(default_factory=dict)
-    #: the base's own screening figures per origin (:func:`.screen.baseline`; empty with one
-    #: origin)
-    screen_base: tuple[float, ...] = ()
 
 
 Progress = Callable[[str], None]
@@ -136,13 +132,8 @@ def _step(
     cands = _open(ctx, base)
     # later steps screen from their base alone: it is the first effect's refit, which the
     # full refits also ran from the nominal model
-    jobs = [_job(ctx, base, c, alt=index == 0) for c in cands]
-    base_figures: tuple[float, ...] = ()
-    if jobs and jobs[0].alt_urdf is not None:
-        # two origins: their figures compare relative to the base's own at each origin
-        base_figures = pool.submit(baseline, jobs[0]).result()
-        jobs = [replace(j, screen_base=base_figures) for j in jobs]
-    futures = {pool.submit(screen, j): i for i, j in enumerate(jobs)}
+    futures = {pool.submit(screen, _job(ctx, base, c, alt=index == 0)): i
+               for i, c in enumerate(cands)}  # fmt: skip
     screenings: list[Screening | None] = [None] * len(cands)
     for f in as_completed(futures):
         s = f.result()
@@ -152,7 +143,7 @@ def _step(
     assert len(done) == len(cands)  # done[i] is the screening of cands[i]
     later = 0 if index == 0 else 1
     chosen = select(done, ctx.n_refit[later], ctx.n_max[later])
-    step = Step(index, base, base_score, done, chosen, screen_base=base_figures)
+    step = Step(index, base, base_score, done, chosen)
     futs = {pool.submit(run_job, _job(ctx, base, _refit_candidate(done[i], cands[i]),
                                       done[i].start)): i for i in chosen}  # fmt: skip
     results = []
