@@ -330,9 +330,17 @@ def _run(job: Job, t0: float) -> JobResult:
         else:
             job, aug, state, res = other_variants(job, aug, state, res)
         extra["variant"] = job.candidate.description  # type: ignore[union-attr]
+    from_nominal = False
+    if job.candidate is not None and above_noise(aug.refit, state):
+        from .alternatives import wider_search
+
+        aug, state, res, extra["wider"] = wider_search(job, aug, state, res)
+        from_nominal = job.alt_urdf is not None
     cand = job.candidate
     refit = aug.refit
-    state, res, note = rescue(refit, state, res, job.presolve_iter, job.alt_iter)
+    state, res, note = rescue(
+        refit, state, res, job.presolve_iter, job.alt_iter, continuation=not from_nominal
+    )
     if note:
         extra["rescue"] = note
     fit, std_theta = refit.result(res)
