@@ -28,7 +28,8 @@ from .rescue import above_noise
 from .runner import Job, _alt_start, _fit, _setup
 
 #: bands and IPOPT iterations per band of :func:`continuation_from_nominal` (the fit's own
-#: fallback continuation, :func:`bondid.optim.fallback.run_to_noise`, uses 8 × 60)
+#: fallback continuation, :func:`bondid.optim.fallback.run_to_noise`, uses 8 × 60; 4 × 30
+#: left the true actuator lag of benchmark case bonder/al/nocoh at 1.93× the noise level)
 NOMINAL_BANDS = 8
 NOMINAL_BAND_ITER = 60
 
