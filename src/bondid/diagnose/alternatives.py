@@ -3,7 +3,15 @@ a rotational joint compliance at a pivot refined continuously (:func:`at_refined
 :mod:`.pivot`), a candidate with variants at each other variant (:func:`other_variants`).
 Each alternative gets the full refit of both origins (:func:`.runner._fit`); the lowest
 objective is kept. An alternative whose model or refit fails (a numerical error) is skipped,
-and the failure is said in the job's notes (``candidates[].notes`` of ``diagnosis.json``)."""
+and the failure is said in the job's notes (``candidates[].notes`` of ``diagnosis.json``).
+
+Then, still above the noise level, the two ways the fit itself gets out of a wrong basin
+(:func:`wider_search`): the refit from the candidate's own starting-point scans and start
+options instead of the screening's start (:func:`with_own_scans`: the screening's start can
+put the new mode out of the band, where no local solve moves it back), and the fit's band
+continuation from the second origin, the nominal model with the best new parameters so far
+(:func:`continuation_from_nominal`: the start ``bondid.fit`` runs it from, where the
+parameter refit has not bent the nominal parameters around the missing effect)."""
 
 from __future__ import annotations
 
@@ -17,6 +25,7 @@ from .augmented import Augmented
 from .effects import Candidate
 from .pivot import child_extent, refine_pivot
 from .refit import State
+from .rescue import above_noise
 from .runner import Job, _alt_start, _fit, _setup
 
 #: the numerical failures of an alternative that skip it (anything else fails the job)
@@ -33,6 +42,13 @@ def _failures_note(failed: list[str], of: int, what: str) -> str:
     if not failed:
         return ""
     return f"{len(failed)} of {of} {what} failed (first: {failed[0]})"
+
+
+#: bands and IPOPT iterations per band of :func:`continuation_from_nominal` (the fit's own
+#: fallback continuation, :func:`bondid.optim.fallback.run_to_noise`, uses 8 × 60; 4 × 30
+#: left the true actuator lag of benchmark case bonder/al/nocoh at 1.93× the noise level)
+NOMINAL_BANDS = 8
+NOMINAL_BAND_ITER = 60
 
 
 def refine_job_pivot(job: Job) -> tuple[Job, str]:
@@ -108,3 +124,74 @@ def other_variants(
     if failed and notes is not None:
         notes["variants"] = _failures_note(failed, tried, "other variants' refits")
     return best[1:]
+
+
+def with_own_scans(
+    job: Job, aug: Augmented, state: State, res: Any
+) -> tuple[Augmented, State, Any, str]:
+    """The refit of both origins again without the screening's start (``Job.start_new``
+    dropped: the runner's own scans of the candidate's scale and every start option of the
+    second origin); the lower objective is kept. Nothing to do without a screening start."""
+    if not job.start_new:
+        return aug, state, res, ""
+    try:
+        aug2, state2, res2 = _fit(replace(job, start_new=()))
+    except _SKIPPED as exc:
+        return aug, state, res, f"own scans failed ({type(exc).__name__})"
+    return _lower(aug, state, res, aug2, state2, res2, "own scans")
+
+
+def continuation_from_nominal(
+    job: Job, aug: Augmented, state: State, res: Any,
+    n_bands: int = NOMINAL_BANDS, band_iter: int = NOMINAL_BAND_ITER,
+) -> tuple[Augmented, State, Any, str]:  # fmt: skip
+    """The fit's band continuation (:func:`bondid.optim.schedules.continuation`, ``n_bands``
+    bands of ``band_iter`` iterations, then the full fit) from the second origin: the nominal
+    model (``Job.alt_urdf``) with the candidate's new parameters at their best values so far,
+    fitted alone first; the lower objective is kept. Nothing to do without a second origin."""
+    from ..optim.schedules import continuation
+
+    if job.alt_urdf is None:
+        return aug, state, res, ""
+    try:
+        alt_aug = _setup(job.alt_urdf, job)
+        alt = alt_aug.refit
+        s = alt.with_new(alt.state0, aug.refit.new_values(state))
+        if alt.own:
+            s, _ = alt.solve_new(s, job.new_iter)
+        steps = continuation(alt.at(s), n_bands, band_iter=band_iter,
+                             presolve_iter=job.presolve_iter)  # fmt: skip
+        s2, _, res2 = alt.solve(s, steps, max_iter=job.alt_iter)
+    except _SKIPPED as exc:
+        return aug, state, res, f"continuation from the nominal model failed ({type(exc).__name__})"
+    return _lower(aug, state, res, alt_aug, s2, res2, "continuation from the nominal model")
+
+
+def wider_search(
+    job: Job, aug: Augmented, state: State, res: Any
+) -> tuple[Augmented, State, Any, str]:
+    """:func:`with_own_scans`, then, if still above the noise level,
+    :func:`continuation_from_nominal` (module docstring); notes joined by "; "."""
+    notes = []
+    for step in (with_own_scans, continuation_from_nominal):
+        if not above_noise(aug.refit, state):
+            break
+        aug, state, res, note = step(job, aug, state, res)
+        if note:
+            notes.append(note)
+    return aug, state, res, "; ".join(notes)
+
+
+def _lower(
+    aug: Augmented, state: State, res: Any, aug2: Augmented, state2: State, res2: Any,
+    label: str,
+) -> tuple[Augmented, State, Any, str]:  # fmt: skip
+    """The refit of lower objective, with a note of ``label``'s noise ratio."""
+    from .rescue import noise_ratio_at
+
+    c, c2 = aug.refit.cost(state), aug2.refit.cost(state2)
+    r2 = noise_ratio_at(aug2.refit, state2)
+    note = f"{label} to {r2 if r2 is not None else float('nan'):.2f}x"
+    if c2 < c:
+        return aug2, state2, res2, f"{note}, kept"
+    return aug, state, res, f"{note}, not kept"

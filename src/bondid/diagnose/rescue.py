@@ -50,7 +50,8 @@ def _schedules(
     ]  # fmt: skip
 
 
-def _ratio(refit: Refit, state: State) -> float | None:
+def noise_ratio_at(refit: Refit, state: State) -> float | None:
+    """The training db_rms at ``state`` over the predicted noise level (None without one)."""
     from ..optim.fallback import noise_ratio
 
     p = refit.at(state)
@@ -62,13 +63,14 @@ def _ratio(refit: Refit, state: State) -> float | None:
 def above_noise(refit: Refit, state: State) -> bool:
     """Is the training db_rms at ``state`` above :data:`RESCUE_RATIO` times the predicted
     noise level (False without a prediction)?"""
-    ratio = _ratio(refit, state)
+    ratio = noise_ratio_at(refit, state)
     return ratio is not None and ratio > RESCUE_RATIO
 
 
 def rescue(
-    refit: Refit, state: State, res: Any, presolve_iter: int, max_iter: int
-) -> tuple[State, Any, str]:
+    refit: Refit, state: State, res: Any, presolve_iter: int, max_iter: int,
+    continuation: bool = True,
+) -> tuple[State, Any, str]:  # fmt: skip
     """The fallbacks (module docstring) from ``state`` while its training db_rms is above
     :data:`RESCUE_RATIO` (the staged schedule: :data:`STAGED_RATIO`) times the predicted
     noise level (the test of :mod:`bondid.optim.fallback`, which ``bondid.fit`` runs from its
@@ -79,22 +81,25 @@ def rescue(
         presolve_iter: the presolve of the fallbacks' last steps (IPOPT iterations).
         max_iter: IPOPT's iteration limit of each fallback step (the staged schedule's band
             stages get a quarter of it).
+        continuation: run the band continuation (False: the staged schedule alone, for a
+            candidate whose refit already had the continuation from the nominal model,
+            :func:`.alternatives.continuation_from_nominal`).
 
     Returns:
         The state, its search and a note ("" when the refit was at the noise level).
     """
-    ratio = _ratio(refit, state)
+    ratio = noise_ratio_at(refit, state)
     if ratio is None or not ratio > RESCUE_RATIO:
         return state, res, ""
     said = [f"training db_rms {ratio:.2f}x the predicted noise level"]
     best = refit.cost(state)
-    for label, above, build in _schedules(presolve_iter, max_iter):
-        now = _ratio(refit, state)
+    for label, above, build in _schedules(presolve_iter, max_iter)[0 if continuation else 1 :]:
+        now = noise_ratio_at(refit, state)
         if now is None or not now > above:
             break
         s2, c2, res2 = refit.solve(state, build(refit.at(state)), max_iter=max_iter)
         kept = c2 < best
-        r2 = _ratio(refit, s2)
+        r2 = noise_ratio_at(refit, s2)
         said.append(f"{label} to {r2 or math.nan:.2f}x, {'kept' if kept else 'not kept'}")
         if kept:
             state, res, best = s2, res2, c2

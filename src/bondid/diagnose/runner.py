@@ -328,11 +328,19 @@ def _run(job: Job, t0: float) -> JobResult:
         if is_rotational_compliance(job.candidate):
             job, aug, state, res, extra["pivot"] = at_refined_pivot(job, aug, state, res)
         else:
-            job, aug, state, res = other_variants(job, aug, state, res)
+            job, aug, state, res = other_variants(job, aug, state, res, extra)
         extra["variant"] = job.candidate.description  # type: ignore[union-attr]
+    from_nominal = False
+    if job.candidate is not None and above_noise(aug.refit, state):
+        from .alternatives import wider_search
+
+        aug, state, res, extra["wider"] = wider_search(job, aug, state, res)
+        from_nominal = job.alt_urdf is not None
     cand = job.candidate
     refit = aug.refit
-    state, res, note = rescue(refit, state, res, job.presolve_iter, job.alt_iter)
+    state, res, note = rescue(
+        refit, state, res, job.presolve_iter, job.alt_iter, continuation=not from_nominal
+    )
     if note:
         extra["rescue"] = note
     fit, std_theta = refit.result(res)
