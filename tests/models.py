@@ -106,3 +106,25 @@ def random_pose(doc: UrdfDocument, seed: int = 1) -> dict[str, float]:
         else float(0.5 * rng.standard_normal())
         for j in doc.movable_joint_names
     }
+
+
+#: the two operating points of the diagnosis tests' synthetic data (joint name → position)
+BONDER_OPS: tuple[dict[str, float], ...] = ({}, {"x": 0.05, "y": -0.03})
+
+
+def noisy_bonder_data(truth: UrdfDocument, n: int = 120, noise: float = 0.005) -> list:
+    """Receptance data of ``truth`` at :data:`BONDER_OPS` on ``n`` log-spaced frequencies from
+    1 Hz to 4 kHz, with ``noise`` relative noise and a floor 70 dB below the response
+    (seeded per operating point; coherence from the same noise)."""
+    from bondid.data.noise import add_measurement_noise
+    from bondid.simulate import log_grid, simulate
+
+    f = log_grid(1.0, 4000.0, n)
+    out = []
+    for k, op in enumerate(BONDER_OPS):
+        d = simulate(truth, op, f)
+        d.H, d.coherence = add_measurement_noise(
+            d.H, f, rel=noise, floor_db=-70, rng=k, floor_ref="response"
+        )
+        out.append(d)
+    return out

@@ -8,14 +8,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from models import noisy_bonder_data
 
-from bondid.data.noise import add_measurement_noise
 from bondid.model import UrdfDocument
-from bondid.simulate import log_grid, simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 MODEL = ROOT / "urdf" / "bonder.urdf"
-OPS = ({}, {"x": 0.05, "y": -0.03})
 FEW = ["x_stage.mass", "y_stage.mass", "z_stage.mass", "x_guide_ry.stiffness"]
 #: unequal mount stiffnesses (factors on the start's, per x y z rx ry rz) and damping ratios
 MOUNTS = (0.5, 0.8, 1.4, 2.0, 0.7, 1.2, 0.6, 1.5)
@@ -49,16 +47,7 @@ def doc() -> UrdfDocument:
     return UrdfDocument.load(MODEL)
 
 
-def _data(truth: UrdfDocument, n: int = 120, noise: float = 0.005) -> list:
-    f = log_grid(1.0, 4000.0, n)
-    out = []
-    for k, op in enumerate(OPS):
-        d = simulate(truth, op, f)
-        d.H, d.coherence = add_measurement_noise(
-            d.H, f, rel=noise, floor_db=-70, rng=k, floor_ref="response"
-        )
-        out.append(d)
-    return out
+_data = noisy_bonder_data
 
 
 def _bottom(c):  # type: ignore[no-untyped-def]

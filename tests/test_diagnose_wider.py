@@ -10,14 +10,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from models import noisy_bonder_data
 
-from bondid.data.noise import add_measurement_noise
 from bondid.model import UrdfDocument
-from bondid.simulate import log_grid, simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 MODEL = ROOT / "urdf" / "bonder.urdf"
-OPS = ({}, {"x": 0.05, "y": -0.03})
 FEW = ["x_stage.mass", "y_stage.mass", "z_stage.mass", "x_guide_ry.stiffness"]
 #: a refit "at the truth": its training objective within this factor of the exact model's
 AT_TRUTH = 1.3
@@ -28,16 +26,7 @@ def doc() -> UrdfDocument:
     return UrdfDocument.load(MODEL)
 
 
-def _data(truth: UrdfDocument, n: int = 120, noise: float = 0.005) -> list:
-    f = log_grid(1.0, 4000.0, n)
-    out = []
-    for k, op in enumerate(OPS):
-        d = simulate(truth, op, f)
-        d.H, d.coherence = add_measurement_noise(
-            d.H, f, rel=noise, floor_db=-70, rng=k, floor_ref="response"
-        )
-        out.append(d)
-    return out
+_data = noisy_bonder_data
 
 
 @pytest.fixture(scope="module")
