@@ -108,3 +108,50 @@ def test_select_puts_ties_at_a_kept_site_first():
     s[4].location = "a->b:tz"  # the same interface as the best, another axis
     assert select(s, 2, 4) == [0, 1, 4, 2]
     assert select(s, 2, 3) == [0, 1, 4]
+
+
+class _LinearProblem:
+    """``r(z) = A z − y`` at ``z0`` with box bounds, as the screening's step sees a problem."""
+
+    def __init__(self, A, y, z0, lbz, ubz):  # type: ignore[no-untyped-def]
+        self.A, self.y, self.z0, self.lbz, self.ubz = A, y, z0, lbz, ubz
+
+    def residual_and_jacobian(self, z):  # type: ignore[no-untyped-def]
+        return self.A @ z - self.y, self.A
+
+
+class _Refit:
+    def __init__(self, problem):  # type: ignore[no-untyped-def]
+        self.problem = problem
+
+    def at(self, state):  # type: ignore[no-untyped-def]
+        return self.problem
+
+
+#: the one-step prediction's damping moves it this far (relative) from the exact box optimum
+LM_PREDICTION_RTOL = 1e-2
+
+
+def test_predicted_cost_keeps_the_step_in_the_bounds_and_holds_fixed_variables():
+    """Known answer on a linear residual: variable 0 free, variable 1 at its upper bound with
+    the gradient pushing it further up, variable 2 held (lower = upper). The prediction is
+    the box-constrained least-squares optimum (variable 1 stays, variable 2 stays), not the
+    unconstrained one, and a held variable does not void the step."""
+    from bondid.diagnose.screen import predicted_cost
+
+    rng = np.random.default_rng(5)
+    A = rng.normal(size=(40, 3))
+    z_true = np.array([1.0, 2.0, -1.0])
+    y = A @ z_true
+    z0 = np.array([0.0, 0.5, 0.0])
+    lbz, ubz = np.array([-10.0, -10.0, 0.0]), np.array([10.0, 0.5, 0.0])
+    cost = predicted_cost(_Refit(_LinearProblem(A, y, z0, lbz, ubz)), None)  # type: ignore[arg-type]
+    # exact: variable 0 alone free, variables 1 and 2 at z0
+    rest = y - A[:, 1] * z0[1]
+    z_0 = float(A[:, 0] @ rest / (A[:, 0] @ A[:, 0]))
+    exact = float(np.sum((A[:, 0] * z_0 - rest) ** 2))
+    c_start = float(np.sum((A @ z0 - y) ** 2))
+    assert exact < c_start
+    assert cost == pytest.approx(exact, rel=LM_PREDICTION_RTOL)
+    # the unconstrained step would reach zero: the bounds are what keeps the cost up
+    assert cost > 0.1 * c_start

@@ -120,11 +120,15 @@ def predicted_cost(refit: Refit, state: State, damping: float = LM_DAMPING) -> f
     b = np.concatenate([-r, np.zeros(J.shape[1])])
     lo = np.minimum(np.asarray(p.lbz, float) - p.z0, 0.0)
     hi = np.maximum(np.asarray(p.ubz, float) - p.z0, 0.0)
+    free = hi > lo  # a variable held by its bounds (lower = upper) does not move
+    if not free.any():
+        return c0
+    A = A[:, free]
     try:
-        step = lsq_linear(A, b, bounds=(lo, hi), method="trf", lsmr_tol="auto").x
+        step = lsq_linear(A, b, bounds=(lo[free], hi[free]), method="trf", lsmr_tol="auto").x
     except (ValueError, np.linalg.LinAlgError):
         return c0
-    res = r + J @ step
+    res = r + J[:, free] @ step
     return min(c0, float(res @ res))
 
 
