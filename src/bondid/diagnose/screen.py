@@ -104,31 +104,21 @@ class Screening:
 
 def predicted_cost(refit: Refit, state: State, damping: float = LM_DAMPING) -> float:
     """Training objective after one Levenberg–Marquardt step over every variable of the core's
-    decision vector from ``state`` on the linearised residual (module docstring, step 3),
-    the step kept within the decision vector's bounds (a bounded linear least-squares
-    problem); never above the objective at ``state``."""
-    from scipy.optimize import lsq_linear
-
+    decision vector from ``state`` on the linearised residual (module docstring, step 3);
+    never above the objective at ``state``."""
     p = refit.at(state)
     r, J = p.residual_and_jacobian(p.z0)
-    if not np.all(np.isfinite(r)) or not np.all(np.isfinite(J)):
+    if not np.all(np.isfinite(r)):
         return float("inf")
     c0 = float(r @ r)
-    d = np.maximum(np.einsum("ij,ij->j", J, J), 1e-12)
-    d = np.maximum(d, 1e-12 * float(np.max(d)))
-    A = np.vstack([J, np.diag(np.sqrt(damping * d))])
-    b = np.concatenate([-r, np.zeros(J.shape[1])])
-    lo = np.minimum(np.asarray(p.lbz, float) - p.z0, 0.0)
-    hi = np.maximum(np.asarray(p.ubz, float) - p.z0, 0.0)
-    free = hi > lo  # a variable held by its bounds (lower = upper) does not move
-    if not free.any():
-        return c0
-    A = A[:, free]
+    JtJ = J.T @ J
+    g = J.T @ r
+    d = np.maximum(np.diag(JtJ), 1e-12 * max(float(np.max(np.diag(JtJ))), 1e-300))
     try:
-        step = lsq_linear(A, b, bounds=(lo[free], hi[free]), method="trf", lsmr_tol="auto").x
-    except (ValueError, np.linalg.LinAlgError):
+        step = -np.linalg.solve(JtJ + damping * np.diag(d), g)
+    except np.linalg.LinAlgError:
         return c0
-    res = r + J[:, free] @ step
+    res = r + J @ step
     return min(c0, float(res @ res))
 
 
