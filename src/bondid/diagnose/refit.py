@@ -25,6 +25,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -226,6 +227,16 @@ class Refit:
     def data_cost(self, state: State) -> float:
         p = self.at(state)
         return p.data_cost(p.z0)
+
+    @cached_property
+    def noise_cost(self) -> float | None:
+        """The data cost an exact model would score on the training data
+        (:func:`bondid.cost.noise_level.noise_level_cost`, the weights' basis; None without a
+        prediction). It depends on the data and weights only (every point of the refit
+        restricts the same problem), so it is computed once."""
+        from ..cost.noise_level import noise_level_cost
+
+        return noise_level_cost(self.problem.frf, "weights")
 
     # -- scans -------------------------------------------------------------------------------
     def profile(

@@ -44,7 +44,13 @@ def noise_ratio(problem: FitProblem, data_cost: float, basis: str = "prediction"
     :func:`bondid.cost.noise_level.point_noise_to_signal` (the fit's test: the prediction)."""
     from ..cost.noise_level import noise_level_cost
 
-    c_noise = noise_level_cost(problem.frf, basis)
+    return ratio_to_level(data_cost, noise_level_cost(problem.frf, basis))
+
+
+def ratio_to_level(data_cost: float, c_noise: float | None) -> float | None:
+    """``sqrt(data_cost / c_noise)`` (None without a positive noise-level cost ``c_noise``
+    or a finite ``data_cost``): :func:`noise_ratio` with the level computed once by the
+    caller (it depends on the data and weights only, not on the parameters)."""
     if c_noise is None or not c_noise > 0 or not math.isfinite(data_cost):
         return None
     return math.sqrt(max(data_cost, 0.0) / c_noise)
