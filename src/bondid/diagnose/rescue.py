@@ -34,30 +34,39 @@ RESCUE_BAND_ITER = 30
 STAGED_RATIO = 2.0
 
 
+#: names of the rescue's fallbacks, in the order tried
+BAND_CONTINUATION = "band continuation"
+STAGED_SCHEDULE = "staged schedule"
+
+
 def _schedules(
-    presolve_iter: int, max_iter: int
+    presolve_iter: int, max_iter: int, continuation: bool = True
 ) -> list[tuple[str, float, Callable[[FitProblem], list[Step]]]]:
     """The fallbacks in the order tried with the noise ratio above which each runs, each
     built only when it runs, on the problem at the best point so far (the staged schedule's
-    bands follow that model's resonances)."""
-    from ..optim.schedules import continuation, staged
+    bands follow that model's resonances). ``continuation``: with the band continuation
+    (False: the staged schedule alone)."""
+    from ..optim.schedules import continuation as band_continuation
+    from ..optim.schedules import staged
 
-    return [
-        ("band continuation", RESCUE_RATIO, lambda p: continuation(
+    every = {
+        BAND_CONTINUATION: (RESCUE_RATIO, lambda p: band_continuation(
             p, RESCUE_BANDS, band_iter=RESCUE_BAND_ITER, presolve_iter=presolve_iter)),
-        ("staged schedule", STAGED_RATIO, lambda p: staged(
+        STAGED_SCHEDULE: (STAGED_RATIO, lambda p: staged(
             p, max_iter=max_iter, presolve_iter=presolve_iter)),
-    ]  # fmt: skip
+    }  # fmt: skip
+    names = [BAND_CONTINUATION, STAGED_SCHEDULE] if continuation else [STAGED_SCHEDULE]
+    return [(name, *every[name]) for name in names]
 
 
 def noise_ratio_at(refit: Refit, state: State) -> float | None:
     """The training db_rms at ``state`` over the predicted noise level (None without one)."""
-    from ..optim.fallback import noise_ratio
+    from ..optim.fallback import ratio_to_level
 
-    p = refit.at(state)
     # the weights' (cautious) level: the training data hold only their weights, and the
-    # rescue's ratios are calibrated on it (cost.noise_level.point_noise_to_signal)
-    return noise_ratio(p, p.data_cost(p.z0), basis="weights")
+    # rescue's ratios are calibrated on it (cost.noise_level.point_noise_to_signal); the
+    # level is the refit's, computed once (Refit.noise_cost)
+    return ratio_to_level(refit.data_cost(state), refit.noise_cost)
 
 
 def above_noise(refit: Refit, state: State) -> bool:
@@ -93,7 +102,7 @@ def rescue(
         return state, res, ""
     said = [f"training db_rms {ratio:.2f}x the predicted noise level"]
     best = refit.cost(state)
-    for label, above, build in _schedules(presolve_iter, max_iter)[0 if continuation else 1 :]:
+    for label, above, build in _schedules(presolve_iter, max_iter, continuation):
         now = noise_ratio_at(refit, state)
         if now is None or not now > above:
             break
