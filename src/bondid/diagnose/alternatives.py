@@ -149,22 +149,36 @@ def continuation_from_nominal(
     bands of ``band_iter`` iterations, then the full fit) from the second origin: the nominal
     model (``Job.alt_urdf``) with the candidate's new parameters at their best values so far,
     fitted alone first; the lower objective is kept. Nothing to do without a second origin."""
-    from ..optim.schedules import continuation
-
     if job.alt_urdf is None:
         return aug, state, res, ""
     try:
-        alt_aug = _setup(job.alt_urdf, job)
-        alt = alt_aug.refit
-        s = alt.with_new(alt.state0, aug.refit.new_values(state))
-        if alt.own:
-            s, _ = alt.solve_new(s, job.new_iter)
-        steps = continuation(alt.at(s), n_bands, band_iter=band_iter,
-                             presolve_iter=job.presolve_iter)  # fmt: skip
-        s2, _, res2 = alt.solve(s, steps, max_iter=job.alt_iter)
+        alt_aug, s2, res2 = nominal_continuation(job, aug.refit.new_values(state), n_bands,
+                                                 band_iter)  # fmt: skip
     except _SKIPPED as exc:
-        return aug, state, res, f"continuation from the nominal model failed ({type(exc).__name__})"
-    return _lower(aug, state, res, alt_aug, s2, res2, "continuation from the nominal model")
+        return aug, state, res, f"{NOMINAL_LABEL} failed ({type(exc).__name__})"
+    return _lower(aug, state, res, alt_aug, s2, res2, NOMINAL_LABEL)
+
+
+NOMINAL_LABEL = "continuation from the nominal model"
+
+
+def nominal_continuation(
+    job: Job, new_values: np.ndarray,
+    n_bands: int = NOMINAL_BANDS, band_iter: int = NOMINAL_BAND_ITER,
+) -> tuple[Augmented, State, Any]:  # fmt: skip
+    """The solve of :func:`continuation_from_nominal` from the nominal model with the
+    candidate's own new parameters at ``new_values`` (SI); raises what the refit raises."""
+    from ..optim.schedules import continuation
+
+    assert job.alt_urdf is not None
+    alt_aug = _setup(job.alt_urdf, job)
+    alt = alt_aug.refit
+    s = alt.with_new(alt.state0, new_values)
+    if alt.own:
+        s, _ = alt.solve_new(s, job.new_iter)
+    steps = continuation(alt.at(s), n_bands, band_iter=band_iter, presolve_iter=job.presolve_iter)
+    s2, _, res2 = alt.solve(s, steps, max_iter=job.alt_iter)
+    return alt_aug, s2, res2
 
 
 def wider_search(

@@ -89,6 +89,19 @@ def with_values(cand: Candidate, values: Sequence[float] | np.ndarray) -> Candid
     return replace(cand, parameters=pars, variants=())
 
 
+def chain_of(
+    accepted: Sequence[Candidate], cand: Candidate | None, new_values: np.ndarray
+) -> tuple[Candidate, ...]:
+    """``accepted`` and ``cand`` (when given) with their fitted ``new_values`` (SI, in order)."""
+    out: list[Candidate] = []
+    k = 0
+    for c in [*accepted, *([cand] if cand is not None else [])]:
+        n = len(c.parameters)
+        out.append(with_values(c, new_values[k : k + n]))
+        k += n
+    return tuple(out)
+
+
 def _has_members(doc: UrdfDocument, cand: Candidate) -> bool:
     names = {p.name for p in parameter_infos(doc)}
     return all(m in names for p in cand.parameters for m, _ in p.members)

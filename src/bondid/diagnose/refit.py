@@ -366,6 +366,19 @@ class Refit:
         std, _ = parameter_statistics(J, r)
         return dataclasses.replace(fit, std=std[:-n]), std[-n:]
 
+    def new_std(self, fit: FitResult, std_theta: np.ndarray) -> np.ndarray:
+        """Std (SI) of every new parameter: the leader's over its factor, θ's (``std_theta``),
+        NaN when held."""
+        out = []
+        for v in self.new:
+            if v.theta is not None:
+                out.append(float(std_theta[v.theta]) if std_theta.size else np.nan)
+            elif v.held or v.leader is None:
+                out.append(np.nan)
+            else:
+                out.append(float(fit.std[fit.names.index(v.leader)]) / v.factor)
+        return np.array(out)
+
     def state_theta(self, fit: FitResult) -> np.ndarray:
         if self.modifier is None:
             return np.zeros(0)

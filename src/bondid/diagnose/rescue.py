@@ -72,7 +72,11 @@ def noise_ratio_at(refit: Refit, state: State) -> float | None:
 def above_noise(refit: Refit, state: State) -> bool:
     """Is the training db_rms at ``state`` above :data:`RESCUE_RATIO` times the predicted
     noise level (False without a prediction)?"""
-    ratio = noise_ratio_at(refit, state)
+    return above_ratio(noise_ratio_at(refit, state))
+
+
+def above_ratio(ratio: float | None) -> bool:
+    """:func:`above_noise` of a noise ratio already computed (:func:`noise_ratio_at`)."""
     return ratio is not None and ratio > RESCUE_RATIO
 
 

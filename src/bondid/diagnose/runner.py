@@ -56,7 +56,7 @@ from ..cost.problem import CostOptions
 from ..data.measurement import FrfData
 from ..exceptions import BondidError
 from ..optim.search import PRESOLVE_KIND, Step
-from .augmented import Augmented, build, with_values
+from .augmented import Augmented, build, chain_of
 from .effects import Candidate
 from .refit import Nominal, Refit, State
 from .rescue import above_noise, rescue
@@ -109,6 +109,9 @@ class Job:
     #: the candidate's new parameters (SI) from its screening: when given, the refit starts
     #: there (no scan) from both origins
     start_new: tuple[float, ...] = ()
+    #: run the wider search (:func:`.alternatives.wider_search`) inside the job; the
+    #: diagnosis's search runs it in a second round instead (:mod:`.widen`)
+    wider: bool = True
 
 
 @dataclass
@@ -154,6 +157,12 @@ class JobResult:
     chain: tuple[Candidate, ...] = ()
     #: number of this job's own candidate parameters (the last ``n_own`` of ``values``)
     n_own: int = 0
+    #: the candidate as refitted (the variant or pivot the job kept; start values unfitted)
+    candidate: Candidate | None = None
+    #: the training objective (data and prior) and the noise ratio (training db_rms over the
+    #: predicted noise level, :func:`.rescue.noise_ratio_at`) at the result
+    objective: float = float("inf")
+    noise_ratio: float | None = None
 
 
 def run_job(job: Job) -> JobResult:
@@ -313,8 +322,6 @@ def _fit(job: Job) -> tuple[Augmented, State, Any]:
 
 
 def _run(job: Job, t0: float) -> JobResult:
-    from .evaluate import figures
-
     extra: dict[str, Any] = {}
     if job.candidate is not None and job.candidate.variants:
         job, _ = _screen_variants(job)
@@ -331,15 +338,27 @@ def _run(job: Job, t0: float) -> JobResult:
             job, aug, state, res = other_variants(job, aug, state, res, extra)
         extra["variant"] = job.candidate.description  # type: ignore[union-attr]
     from_nominal = False
-    if job.candidate is not None and above_noise(aug.refit, state):
+    if job.wider and job.candidate is not None and above_noise(aug.refit, state):
         from .alternatives import wider_search
 
         aug, state, res, extra["wider"] = wider_search(job, aug, state, res)
         from_nominal = job.alt_urdf is not None
+    return finish(job, aug, state, res, extra, t0, continuation=not from_nominal)
+
+
+def finish(
+    job: Job, aug: Augmented, state: State, res: Any, extra: dict[str, Any], t0: float,
+    continuation: bool = True,
+) -> JobResult:  # fmt: skip
+    """The rescue (:func:`.rescue.rescue`; ``continuation``: with its band continuation) from
+    the job's best refit, then its figures on held-out and all data."""
+    from .evaluate import figures
+    from .rescue import noise_ratio_at
+
     cand = job.candidate
     refit = aug.refit
     state, res, note = rescue(
-        refit, state, res, job.presolve_iter, job.alt_iter, continuation=not from_nominal
+        refit, state, res, job.presolve_iter, job.alt_iter, continuation=continuation
     )
     if note:
         extra["rescue"] = note
@@ -356,7 +375,7 @@ def _run(job: Job, t0: float) -> JobResult:
         location=None if cand is None else cand.location,
         names=aug.names,
         values=np.r_[fit.fitted[: aug.n_nominal], new_vals],
-        std=np.r_[fit.std[: aug.n_nominal], _new_std(refit, fit, std_theta)],
+        std=np.r_[fit.std[: aug.n_nominal], refit.new_std(fit, std_theta)],
         n_new=len(refit.new),
         train_rms=float(np.sqrt(r @ r)),
         heldout_rms=float(np.sqrt(held.cost)),
@@ -369,30 +388,7 @@ def _run(job: Job, t0: float) -> JobResult:
         status=fit.status,
         extra=extra,
         db_rms_unweighted=full.db_rms_unweighted,
-        chain=_chain(job, new_vals),
+        chain=chain_of(job.accepted, cand, new_vals),
         n_own=0 if cand is None else len(cand.parameters),
-    )
-
-
-def _new_std(refit: Refit, fit: Any, std_theta: np.ndarray) -> np.ndarray:
-    """Std (SI) of every new parameter: the leader's over its factor, θ's, NaN when held."""
-    out = []
-    for v in refit.new:
-        if v.theta is not None:
-            out.append(float(std_theta[v.theta]) if std_theta.size else np.nan)
-        elif v.held or v.leader is None:
-            out.append(np.nan)
-        else:
-            out.append(float(fit.std[fit.names.index(v.leader)]) / v.factor)
-    return np.array(out)
-
-
-def _chain(job: Job, new_values: np.ndarray) -> tuple[Candidate, ...]:
-    """``job.accepted`` and its candidate with their fitted ``new_values`` (in order)."""
-    out: list[Candidate] = []
-    k = 0
-    for c in [*job.accepted, *([job.candidate] if job.candidate is not None else [])]:
-        n = len(c.parameters)
-        out.append(with_values(c, new_values[k : k + n]))
-        k += n
-    return tuple(out)
+        candidate=cand, objective=refit.cost(state), noise_ratio=noise_ratio_at(refit, state),
+    )  # fmt: skip

@@ -8,7 +8,9 @@ accepted so far — and
 2. refits the best :attr:`Context.n_refit` of them fully (more, up to :attr:`Context.n_max`,
    when the best figure leaves the step well above the noise level and others tie with the
    last kept: :func:`.screen.select`) (:func:`.runner.run_job`: every
-   nominal, accepted and new parameter together, from the base and from the nominal model);
+   nominal, accepted and new parameter together, from the base and from the nominal model),
+   then gives the best of them that ended above the noise level the wider search in a
+   second round (:func:`.widen.second_round`);
 3. scores them on held-out data (:mod:`.scoring`) and accepts the best only under the
    verdict rule of :func:`.scoring.accept` (the base above the held-out noise level, the
    improvement significant given that noise; the same rule at every step).
@@ -33,6 +35,7 @@ from .effects import Candidate
 from .refit import Nominal
 from .runner import Job, JobResult, run_job
 from .screen import Screening, screen, select
+from .widen import second_round
 
 
 @dataclass
@@ -104,13 +107,14 @@ def _job(
     alt: bool = True,
 ) -> Job:  # fmt: skip
     """A job on top of ``base`` (its model text, values and accepted effects); ``alt``: with
-    the nominal model as second origin."""
+    the nominal model as second origin. Without the wider search: the step runs it in its
+    second round (:mod:`.widen`)."""
     assert ctx.space is not None
     return Job(
         base.urdf, ctx.space, ctx.train, ctx.heldout, ctx.full, cand, ctx.options,
         all_iter=ctx.refit_iter, n_starts=ctx.n_starts,
         alt_urdf=ctx.nominal.to_string() if alt else None, hints_hz=ctx.hints_hz,
-        accepted=base.chain, start_new=start,
+        accepted=base.chain, start_new=start, wider=False,
     )  # fmt: skip
 
 
@@ -144,15 +148,19 @@ def _step(
     later = 0 if index == 0 else 1
     chosen = select(done, ctx.n_refit[later], ctx.n_max[later])
     step = Step(index, base, base_score, done, chosen)
-    futs = {pool.submit(run_job, _job(ctx, base, _refit_candidate(done[i], cands[i]),
-                                      done[i].start)): i for i in chosen}  # fmt: skip
-    results = []
+    jobs = {i: _job(ctx, base, _refit_candidate(done[i], cands[i]), done[i].start)
+            for i in chosen}  # fmt: skip
+    futs = {pool.submit(run_job, jobs[i]): i for i in chosen}
+    results, used = [], []
     for f in as_completed(futs):
         r = f.result()
         if cands[futs[f]].variants and done[futs[f]].variant is not None:
             r.extra.setdefault("variant", done[futs[f]].variant.description)  # type: ignore[union-attr]
         results.append(r)
+        used.append(jobs[futs[f]])
         progress(f"step {index + 1} refitted {r.label}")
+    results = second_round(pool, used, results,
+                           lambda label: progress(f"step {index + 1} widened {label}"))  # fmt: skip
     scores = [scoring.score(r.heldout_rms, r.n_train, r.n_new) for r in results]
     order = scoring.rank(scores)
     step.results = [results[i] for i in order]
