@@ -141,7 +141,9 @@ def run(
         return {"case": case.name, "error": f"no candidate {truth.effect}@{truth.location}"}
     t1 = time.perf_counter()
     scr = screen(_job(ctx, base, match[0]))
-    job = _job(ctx, base, _refit_candidate(scr, match[0]), scr.start)
+    # with the wider search in the job (the search runs it in a second round, for the best
+    # refits of a step: the true candidate's, when it could decide the step)
+    job = replace(_job(ctx, base, _refit_candidate(scr, match[0]), scr.start), wider=True)
     if from_truth:
         from benchmark.truth import perturb
 

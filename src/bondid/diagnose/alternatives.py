@@ -11,7 +11,9 @@ options instead of the screening's start (:func:`with_own_scans`: the screening'
 put the new mode out of the band, where no local solve moves it back), and the fit's band
 continuation from the second origin, the nominal model with the best new parameters so far
 (:func:`continuation_from_nominal`: the start ``bondid.fit`` runs it from, where the
-parameter refit has not bent the nominal parameters around the missing effect)."""
+parameter refit has not bent the nominal parameters around the missing effect). A job runs it
+itself with ``Job.wider``; the diagnosis's search runs it in a second round of each step,
+for the refits that could decide the step (:mod:`.widen`)."""
 
 from __future__ import annotations
 

@@ -21,7 +21,8 @@ data and on all data. Steps for a candidate:
 
 A rotational joint compliance whose refit ends above the noise level gets its pivot refined
 (:mod:`.pivot`) and both origins refitted there; another candidate with variants gets every
-other variant refitted fully (:mod:`.alternatives`); the lowest objective is kept.
+other variant refitted fully (:mod:`.alternatives`); the lowest objective is kept. Still
+above it, with ``Job.wider``, the wider search (:func:`.alternatives.wider_search`).
 
 Every solve is the optimisation core's (:mod:`.refit`: a :class:`~bondid.optim.FitProblem`
 with the candidate's parameters as more names, tied or as the FRF modifier's, the default
