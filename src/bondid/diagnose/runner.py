@@ -59,7 +59,7 @@ from ..optim.search import PRESOLVE_KIND, Step
 from .augmented import Augmented, build, with_values
 from .effects import Candidate
 from .refit import Nominal, Refit, State
-from .rescue import above_noise, rescue
+from .rescue import rescue
 from .scan_grid import scan_grid
 
 DAMPING_FACTORS = (1.0, 4.0)
@@ -109,6 +109,10 @@ class Job:
     #: the candidate's new parameters (SI) from its screening: when given, the refit starts
     #: there (no scan) from both origins
     start_new: tuple[float, ...] = ()
+    #: the held-out data's noise level [dB] (:class:`.scoring.NoiseReference`): a refit at
+    #: the training noise level whose held-out figure is above :data:`.rescue.RESCUE_RATIO`
+    #: times it also gets the alternatives (NaN: the training test alone)
+    heldout_noise_db: float = float("nan")
 
 
 @dataclass
@@ -313,6 +317,7 @@ def _fit(job: Job) -> tuple[Augmented, State, Any]:
 
 
 def _run(job: Job, t0: float) -> JobResult:
+    from .alternatives import stuck
     from .evaluate import figures
 
     extra: dict[str, Any] = {}
@@ -321,7 +326,7 @@ def _run(job: Job, t0: float) -> JobResult:
         assert job.candidate is not None
         extra["variant"] = job.candidate.description
     aug, state, res = _fit(job)
-    if job.candidate is not None and above_noise(aug.refit, state):
+    if job.candidate is not None and stuck(job, aug, state, res):
         from .alternatives import at_refined_pivot, other_variants
         from .pivot import is_rotational_compliance
 
@@ -331,7 +336,7 @@ def _run(job: Job, t0: float) -> JobResult:
             job, aug, state, res = other_variants(job, aug, state, res, extra)
         extra["variant"] = job.candidate.description  # type: ignore[union-attr]
     from_nominal = False
-    if job.candidate is not None and above_noise(aug.refit, state):
+    if job.candidate is not None and stuck(job, aug, state, res):
         from .alternatives import wider_search
 
         aug, state, res, extra["wider"] = wider_search(job, aug, state, res)
