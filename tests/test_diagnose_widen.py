@@ -115,3 +115,20 @@ def test_second_round_keeps_the_first_round_when_it_is_lower(first_round):
     assert out.heldout_rms == first.heldout_rms and out.urdf == first.urdf
     assert "kept" in out.extra["wider"] and ", kept" not in out.extra["wider"]
     assert out.extra["wider"].count("not kept") == 2  # both its refits ran, neither kept
+
+
+def test_a_refit_at_the_training_noise_level_is_widened_when_its_heldout_figure_is_not(
+    compliance,  # noqa: F811
+):
+    """needs_wider: a refit at the training noise level is stuck when its held-out figure
+    is above RESCUE_RATIO times the held-out noise level, not below it, nor without a level;
+    a failed refit never."""
+    from bondid.diagnose.widen import needs_wider
+
+    c = compliance[0]
+    at = 0.9 * RESCUE_RATIO
+    level = 1.0
+    assert needs_wider(_result("x", 1.1 * RESCUE_RATIO * level, at, c), level)
+    assert not needs_wider(_result("y", 0.9 * RESCUE_RATIO * level, at, c), level)
+    assert not needs_wider(_result("z", 1.1 * RESCUE_RATIO * level, at, c))  # no level
+    assert not needs_wider(_result("w", 5.0, at, c, error="ValueError: x"), level)

@@ -133,3 +133,25 @@ def test_the_rescue_without_continuation_runs_only_the_staged_schedule(doc, comp
     _, _, without = rescue(aug.refit, state, res, 10, 20, continuation=False)
     assert "band continuation" in with_cont
     assert without and "band continuation" not in without
+
+
+def test_a_refit_that_misses_the_heldout_data_is_stuck(doc, compliance, monkeypatch):
+    """Known answer for the held-out test of ``stuck`` (the training test is held False
+    here): with the held-out noise level set to the refit's own held-out figure on data of
+    the same machine, the refit is not stuck there; on held-out data of another machine (the
+    nominal model without the compliance) it is; without a level only the training test
+    counts."""
+    from bondid.diagnose import alternatives
+    from bondid.diagnose.evaluate import heldout_ratio
+    from bondid.diagnose.runner import _fit
+
+    c, exact, data = compliance
+    job = _job(doc, c, data, exact)
+    aug, state, res = _fit(job)
+    monkeypatch.setattr(alternatives, "above_noise", lambda refit, state: False)
+    own = heldout_ratio(aug.refit, res.result, data, job.options, 1.0)  # its figure [dB]
+    same = replace(job, heldout_noise_db=own)
+    assert not alternatives.stuck(same, aug, state, res)
+    other = _data(doc)
+    assert alternatives.stuck(replace(same, heldout=other), aug, state, res)
+    assert not alternatives.stuck(replace(job, heldout=other), aug, state, res)  # no level

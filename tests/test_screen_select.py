@@ -108,3 +108,28 @@ def test_select_puts_ties_at_a_kept_site_first():
     s[4].location = "a->b:tz"  # the same interface as the best, another axis
     assert select(s, 2, 4) == [0, 1, 4, 2]
     assert select(s, 2, 3) == [0, 1, 4]
+
+
+def test_select_takes_ties_in_turn_by_site_and_by_the_second_origin():
+    """Ties of an unexplained step are taken in turn from two orders: at a kept site first,
+    and by the second origin's figure (where an effect the parameter refit absorbed still
+    shows); a tie without a second-origin figure comes only through the site order."""
+    last = 4.0
+    tie = TIE_FRACTION * (last - NOISE)
+    s = _screens([2.0, last, last + 0.1 * tie, last + 0.2 * tie, last + 0.3 * tie,
+                  last + 0.4 * tie])  # fmt: skip
+    s[0].location = "a->b:rz"
+    s[1].location = "c"
+    for k, loc in zip(range(2, 6), ["d->e:tx", "f", "a->b:tz", "g"], strict=True):
+        s[k].location = loc
+    seconds = {2: 9.0, 3: 8.0, 4: math.nan, 5: 5.0}  # 5 best from the nominal model
+    for k, v in seconds.items():
+        s[k].by_origin = (s[k].cost, v)
+    # turns: second origin's best (5), then the kept site's tie (4), then 3, then 2
+    assert select(s, 2, 6) == [0, 1, 5, 4, 3, 2]
+    assert select(s, 2, 4) == [0, 1, 5, 4]
+    assert select(s, 2, 3) == [0, 1, 5]
+    # without second-origin figures: the site order alone (as before)
+    for k in seconds:
+        s[k].by_origin = (s[k].cost, math.nan)
+    assert select(s, 2, 4) == [0, 1, 4, 2]

@@ -64,3 +64,18 @@ def figures(
     weighted = gap_report(list(datasets), H, channels=chans, weighting="coherence").db_rms
     plain = gap_report([mask_incoherent(d) for d in datasets], H, channels=chans).db_rms
     return Figures(float(cost), H, float(weighted), float(plain))
+
+
+def heldout_ratio(
+    refit: Refit, fit: FitResult, datasets: Sequence[FrfData], options: CostOptions,
+    level_db: float,
+) -> float:  # fmt: skip
+    """The held-out weighted RMS of ``fit`` on ``datasets`` (``sqrt`` of :func:`figures`'s
+    ``cost``, the verdict's figure before its FPE factor) over the held-out noise level
+    ``level_db`` [dB] (:class:`.scoring.NoiseReference`); NaN without a level or data."""
+    import math
+
+    if not datasets or not (math.isfinite(level_db) and level_db > 0):
+        return math.nan
+    held = figures(refit, fit, refit.state_theta(fit), datasets, options)
+    return math.sqrt(held.cost) / level_db

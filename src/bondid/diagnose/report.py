@@ -105,11 +105,18 @@ def _refit_entry(r: Any, sc: float, before: float) -> dict[str, Any]:
     }
 
 
+def _sqrt_or_none(cost: float) -> float | None:
+    """``sqrt(cost)`` [dB] of a finite cost, else None."""
+    return math.sqrt(cost) if math.isfinite(cost) and cost >= 0 else None
+
+
 def candidate_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
     """``candidates`` of diagnosis.json: per search step (``step``, 1 = the verdict's), the
     refitted candidates by held-out score, then the others by screening figure; each with
     its screening figures (``screening_db``: the predicted training RMS [dB];
-    ``screening_new_only_db``: after its new parameters alone) and ``refitted``."""
+    ``screening_new_only_db``: after its new parameters alone; ``screening_by_origin_db``:
+    the figure from the step's base and from the nominal model, null where not taken) and
+    ``refitted``."""
     out: list[dict[str, Any]] = []
     for step in diag.steps:
         by_label = {r.label: (r, sc) for r, sc in zip(step.results, step.scores, strict=True)}
@@ -122,6 +129,7 @@ def candidate_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
                 "screening_db": math.sqrt(s.cost) if math.isfinite(s.cost) else None,
                 "screening_new_only_db": math.sqrt(s.cost_new_only)
                 if math.isfinite(s.cost_new_only) else None,
+                "screening_by_origin_db": [_sqrt_or_none(c) for c in s.by_origin],
                 "screening_wall_s": s.wall_s, "refitted": s.label in by_label,
             }  # fmt: skip
             if s.label in by_label:

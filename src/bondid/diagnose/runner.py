@@ -60,7 +60,7 @@ from ..optim.search import PRESOLVE_KIND, Step
 from .augmented import Augmented, build, chain_of
 from .effects import Candidate
 from .refit import Nominal, Refit, State
-from .rescue import above_noise, rescue
+from .rescue import rescue
 from .scan_grid import scan_grid
 
 DAMPING_FACTORS = (1.0, 4.0)
@@ -113,6 +113,10 @@ class Job:
     #: run the wider search (:func:`.alternatives.wider_search`) inside the job; the
     #: diagnosis's search runs it in a second round instead (:mod:`.widen`)
     wider: bool = True
+    #: the held-out data's noise level [dB] (:class:`.scoring.NoiseReference`): a refit at
+    #: the training noise level whose held-out figure is above :data:`.rescue.RESCUE_RATIO`
+    #: times it is stuck too (:func:`.alternatives.stuck`; NaN: the training test alone)
+    heldout_noise_db: float = float("nan")
 
 
 @dataclass
@@ -323,13 +327,15 @@ def _fit(job: Job) -> tuple[Augmented, State, Any]:
 
 
 def _run(job: Job, t0: float) -> JobResult:
+    from .alternatives import stuck
+
     extra: dict[str, Any] = {}
     if job.candidate is not None and job.candidate.variants:
         job, _ = _screen_variants(job)
         assert job.candidate is not None
         extra["variant"] = job.candidate.description
     aug, state, res = _fit(job)
-    if job.candidate is not None and above_noise(aug.refit, state):
+    if job.candidate is not None and stuck(job, aug, state, res):
         from .alternatives import at_refined_pivot, other_variants
         from .pivot import is_rotational_compliance
 
@@ -339,7 +345,7 @@ def _run(job: Job, t0: float) -> JobResult:
             job, aug, state, res = other_variants(job, aug, state, res, extra)
         extra["variant"] = job.candidate.description  # type: ignore[union-attr]
     from_nominal = False
-    if job.wider and job.candidate is not None and above_noise(aug.refit, state):
+    if job.wider and job.candidate is not None and stuck(job, aug, state, res):
         from .alternatives import wider_search
 
         aug, state, res, extra["wider"] = wider_search(job, aug, state, res)

@@ -115,6 +115,7 @@ def _job(
         all_iter=ctx.refit_iter, n_starts=ctx.n_starts,
         alt_urdf=ctx.nominal.to_string() if alt else None, hints_hz=ctx.hints_hz,
         accepted=base.chain, start_new=start, wider=False,
+        heldout_noise_db=ctx.noise.level_db if ctx.noise is not None else float("nan"),
     )  # fmt: skip
 
 

@@ -2,17 +2,18 @@
 :mod:`.search`).
 
 The first round refits every chosen candidate without the wider search (``Job.wider`` False:
-the fit of both origins, the alternatives of :mod:`.alternatives`, the rescue). A refit that
-ended above the noise level (:func:`.rescue.above_ratio`, the test of
-:func:`.rescue.above_noise`) and ranks among the best :data:`TOP_K` of the step by held-out
-score (:func:`.scoring.score`, ranked as the step ranks) could still decide the step: it gets
-the wider search from its first-round result (:func:`run_widen`): the refit with its own
-scans (the screening's start dropped), then, if still above the noise level, the band
-continuation from the nominal model with the new parameters at their best values so far; the
-lower training objective of the first round and of each of these is kept. When the first
-round's refit stays, the result is the first round's (its note added); otherwise the kept
-refit gets the rescue (the staged schedule alone after the continuation from the nominal
-model, as in a job that runs the wider search itself) and is evaluated again.
+the fit of both origins, the alternatives of :mod:`.alternatives`, the rescue). A refit that is
+stuck (:func:`needs_wider`: above the noise level on the training data, the test of
+:func:`.rescue.above_noise`, or on the held-out data, as :func:`.alternatives.stuck`) and ranks
+among the best :data:`TOP_K` of the step by held-out score (:func:`.scoring.score`, ranked as
+the step ranks) could still decide the step: it gets the wider search from its first-round
+result (:func:`run_widen`): the refit with its own scans (the screening's start dropped), then,
+if still above the noise level on the training data (only there has it something to find), the
+band continuation from the nominal model with the new parameters at their best values so far;
+the lower training objective of the first round and of each of these is kept. When the first
+round's refit stays, the result is the first round's (its note added); otherwise the kept refit
+gets the rescue (the staged schedule alone after the continuation from the nominal model, as in
+a job that runs the wider search itself) and is evaluated again.
 
 The refits ranked below :data:`TOP_K` are left as the first round ended them, their note
 ``wider`` says so: in the kept outputs of stop 15's benchmark (40 refits) the wider search
@@ -22,6 +23,7 @@ diagnosis time of those 12 cases from 179 s to 263 s.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import as_completed
@@ -35,7 +37,7 @@ from . import scoring
 from .alternatives import _SKIPPED, NOMINAL_LABEL, nominal_continuation
 from .augmented import Augmented
 from .refit import State
-from .rescue import above_ratio, noise_ratio_at
+from .rescue import RESCUE_RATIO, above_ratio, noise_ratio_at
 from .runner import Job, JobResult, _fit, finish
 
 #: refits of a step (best held-out score first) that may get the wider search
@@ -51,9 +53,16 @@ class Widen:
     first: JobResult
 
 
-def needs_wider(r: JobResult) -> bool:
-    """Did the first-round refit of a candidate end above the noise level (no failure)?"""
-    return not r.error and r.candidate is not None and above_ratio(r.noise_ratio)
+def needs_wider(r: JobResult, heldout_noise_db: float = float("nan")) -> bool:
+    """Is the first-round refit of a candidate (no failure) stuck (:func:`.alternatives.
+    stuck`): above the noise level on its training data, or above :data:`.rescue.
+    RESCUE_RATIO` times the held-out noise level ``heldout_noise_db`` [dB] on the held-out
+    data?"""
+    if r.error or r.candidate is None:
+        return False
+    level = heldout_noise_db
+    held = math.isfinite(level) and level > 0 and r.heldout_rms > RESCUE_RATIO * level
+    return above_ratio(r.noise_ratio) or held
 
 
 def second_round(
@@ -68,7 +77,7 @@ def second_round(
     futs = {}
     for k, i in enumerate(scoring.rank(scores)):
         r = results[i]
-        if not needs_wider(r):
+        if not needs_wider(r, jobs[i].heldout_noise_db):
             continue
         if k < top_k:
             job = replace(jobs[i], candidate=r.candidate, wider=True)
