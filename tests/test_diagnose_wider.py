@@ -142,14 +142,14 @@ def test_a_refit_that_misses_the_heldout_data_is_stuck(doc, compliance, monkeypa
     nominal model without the compliance) it is; without a level only the training test
     counts."""
     from bondid.diagnose import alternatives
-    from bondid.diagnose.evaluate import heldout_ratio
+    from bondid.diagnose.evaluate import heldout_rms
     from bondid.diagnose.runner import _fit
 
     c, exact, data = compliance
     job = _job(doc, c, data, exact)
     aug, state, res = _fit(job)
     monkeypatch.setattr(alternatives, "above_noise", lambda refit, state: False)
-    own = heldout_ratio(aug.refit, res.result, data, job.options, 1.0)  # its figure [dB]
+    own = heldout_rms(aug.refit, res.result, data, job.options)  # its figure [dB]
     same = replace(job, heldout_noise_db=own)
     assert not alternatives.stuck(same, aug, state, res)
     other = _data(doc)

@@ -18,6 +18,7 @@ for the refits that could decide the step (:mod:`.widen`)."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from typing import Any
 
@@ -58,20 +59,20 @@ def stuck(job: Job, aug: Augmented, state: State, res: Any) -> bool:
     """Does a candidate's refit need the alternatives: its training figure above the noise
     level (:func:`.rescue.above_noise`), or its held-out figure above
     :data:`.rescue.RESCUE_RATIO` times the held-out noise level (:attr:`.runner.Job.
-    heldout_noise_db`; :func:`.evaluate.heldout_ratio`)? A wrong variant (e.g. a pivot) can
+    heldout_noise_db`; :func:`.rescue.above_heldout_level`)? A wrong variant (e.g. a pivot) can
     fit the training bands at the noise level with bent nominal parameters and miss the
     held-out ones (measured: a rotational compliance at the candidate's pivot, training
     1.19× the noise level, held-out 2.1×; at the refined pivot 1.13× and 1.5×). Which
     alternative is kept is still decided on the training objective alone."""
-    from .evaluate import heldout_ratio
-    from .rescue import RESCUE_RATIO
+    from .evaluate import heldout_rms
+    from .rescue import above_heldout_level
 
     if above_noise(aug.refit, state):
         return True
     level = job.heldout_noise_db
-    return bool(
-        heldout_ratio(aug.refit, res.result, job.heldout, job.options, level) > RESCUE_RATIO
-    )
+    if not (math.isfinite(level) and level > 0):  # no level: the held-out figure is not needed
+        return False
+    return above_heldout_level(heldout_rms(aug.refit, res.result, job.heldout, job.options), level)
 
 
 def refine_job_pivot(job: Job) -> tuple[Job, str]:
@@ -232,8 +233,14 @@ def _lower(
     from .rescue import noise_ratio_at
 
     c, c2 = aug.refit.cost(state), aug2.refit.cost(state2)
-    r2 = noise_ratio_at(aug2.refit, state2)
-    note = f"{label} to {r2 if r2 is not None else float('nan'):.2f}x"
+    note = kept_note(label, noise_ratio_at(aug2.refit, state2), c2 < c)
     if c2 < c:
-        return aug2, state2, res2, f"{note}, kept"
-    return aug, state, res, f"{note}, not kept"
+        return aug2, state2, res2, note
+    return aug, state, res, note
+
+
+def kept_note(label: str, ratio: float | None, kept: bool) -> str:
+    """``"<label> to <ratio>x, kept"`` (or ``not kept``): what a retry reached (its training
+    db_rms over the predicted noise level) and whether it was kept."""
+    r = ratio if ratio is not None else float("nan")
+    return f"{label} to {r:.2f}x, {'kept' if kept else 'not kept'}"

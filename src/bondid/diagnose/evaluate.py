@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -18,6 +19,9 @@ from ..cost.problem import CostOptions
 from ..data.measurement import FrfData
 from ..fit.result import FitResult
 from .refit import Refit
+
+if TYPE_CHECKING:
+    from ..optim.problem import FitProblem
 
 
 @dataclass
@@ -32,6 +36,25 @@ class Figures:
     db_rms_unweighted: float
 
 
+def _problem_on(
+    refit: Refit, fit: FitResult, theta: np.ndarray, datasets: Sequence[FrfData],
+    options: CostOptions,
+) -> FitProblem:  # fmt: skip
+    """The core's problem of ``refit`` on ``datasets`` at ``fit`` (the modifier held at
+    ``theta``): the refit's residual, weights and normalisation on other data."""
+    from ..optim.problem import FitProblem
+
+    p = refit.problem
+    mod = refit.modifier
+    if mod is not None:
+        th = tuple(float(t) for t in theta)
+        mod = replace(mod, start=th, lower=th, upper=th)
+    return FitProblem(
+        fit.document, list(datasets), p.names, options=options, lower=p.lower,
+        upper=p.upper, ties=p.ties, modifier=mod, use_hull=False,
+    )  # fmt: skip
+
+
 def figures(
     refit: Refit, fit: FitResult, theta: np.ndarray, datasets: Sequence[FrfData],
     options: CostOptions,
@@ -39,21 +62,12 @@ def figures(
     """The figures of the fitted model ``fit`` (with the modifier at ``theta``) on
     ``datasets`` (see the module docstring)."""
     from ..frf.aligned import model_frf
-    from ..optim.problem import FitProblem
     from .gap import gap_report
     from .split import mask_incoherent
 
-    p = refit.problem
-    mod = refit.modifier
-    if mod is not None:
-        th = tuple(float(t) for t in theta)
-        mod = replace(mod, start=th, lower=th, upper=th)
-    doc = fit.document
-    on = FitProblem(
-        doc, list(datasets), p.names, options=options, lower=p.lower, upper=p.upper,
-        ties=p.ties, modifier=mod, use_hull=False,
-    )  # fmt: skip
+    on = _problem_on(refit, fit, theta, datasets, options)
     cost = on.data_cost(on.z0)
+    doc, mod = fit.document, refit.modifier
     H = []
     for ds, aff in zip(datasets, on.frf.affines, strict=True):
         h = model_frf(doc, ds, affine=aff)
@@ -66,16 +80,13 @@ def figures(
     return Figures(float(cost), H, float(weighted), float(plain))
 
 
-def heldout_ratio(
-    refit: Refit, fit: FitResult, datasets: Sequence[FrfData], options: CostOptions,
-    level_db: float,
-) -> float:  # fmt: skip
-    """The held-out weighted RMS of ``fit`` on ``datasets`` (``sqrt`` of :func:`figures`'s
-    ``cost``, the verdict's figure before its FPE factor) over the held-out noise level
-    ``level_db`` [dB] (:class:`.scoring.NoiseReference`); NaN without a level or data."""
-    import math
-
-    if not datasets or not (math.isfinite(level_db) and level_db > 0):
-        return math.nan
-    held = figures(refit, fit, refit.state_theta(fit), datasets, options)
-    return math.sqrt(held.cost) / level_db
+def heldout_rms(
+    refit: Refit, fit: FitResult, datasets: Sequence[FrfData], options: CostOptions
+) -> float:
+    """The weighted RMS [dB] of ``fit`` on ``datasets`` (``sqrt`` of :func:`figures`'s
+    ``cost``, the verdict's held-out figure before its FPE factor), without the model FRFs
+    and gap figures :func:`figures` also computes; NaN without data."""
+    if not datasets:
+        return float("nan")
+    on = _problem_on(refit, fit, refit.state_theta(fit), datasets, options)
+    return float(np.sqrt(on.data_cost(on.z0)))

@@ -80,6 +80,12 @@ def above_ratio(ratio: float | None) -> bool:
     return ratio is not None and ratio > RESCUE_RATIO
 
 
+def above_heldout_level(heldout_rms: float, level_db: float) -> bool:
+    """Is a refit's held-out weighted RMS [dB] above :data:`RESCUE_RATIO` times the held-out
+    noise level ``level_db`` [dB] (False without a positive, finite level)?"""
+    return math.isfinite(level_db) and level_db > 0 and heldout_rms > RESCUE_RATIO * level_db
+
+
 def rescue(
     refit: Refit, state: State, res: Any, presolve_iter: int, max_iter: int,
     continuation: bool = True,

@@ -131,32 +131,10 @@ def predicted_cost(refit: Refit, state: State, damping: float = LM_DAMPING) -> f
 
 
 def noise_cost(refit: Refit) -> float:
-    """The noise-level cost of ``refit``'s training data (:func:`bondid.cost.noise_level.
-    noise_level_cost`; NaN when the data carry no noise estimate)."""
-    from ..cost.noise_level import noise_level_cost
-
-    c = noise_level_cost(refit.at(refit.state0).frf, basis="weights")
+    """The noise-level cost of ``refit``'s training data (:attr:`.refit.Refit.noise_cost`,
+    the weights' basis; NaN when the data carry no noise estimate)."""
+    c = refit.noise_cost
     return float(c) if c is not None and math.isfinite(c) else math.nan
-
-
-def base_figures(job: Job) -> tuple[float, float]:
-    """The screening figures of the step's base model without a candidate, one per origin of
-    ``job`` (``job.candidate`` is ignored): the one-step prediction at the base itself, and,
-    with a second origin, the one after the same short start from the nominal model
-    (:func:`.runner._alt_start`) without a candidate (NaN without one, or when it fails)."""
-    plain = replace(job, candidate=None, start_new=())
-    out = []
-    for urdf in (job.urdf, job.alt_urdf):
-        if urdf is None:
-            out.append(math.nan)
-            continue
-        try:
-            refit = build(urdf, job.nominal, job.train, job.options, job.accepted, None).refit
-            s = refit.state0 if urdf is job.urdf else _alt_start(plain, refit, [])[0]
-            out.append(predicted_cost(refit, s))
-        except (BondidError, np.linalg.LinAlgError, ValueError):
-            out.append(math.nan)
-    return out[0], out[1]
 
 
 Figure = tuple[float, float, int | None, tuple, float, tuple[float, float]]

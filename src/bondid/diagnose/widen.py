@@ -23,7 +23,6 @@ diagnosis time of those 12 cases from 179 s to 263 s.
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import as_completed
@@ -34,10 +33,10 @@ import numpy as np
 
 from ..exceptions import BondidError
 from . import scoring
-from .alternatives import _SKIPPED, NOMINAL_LABEL, nominal_continuation
+from .alternatives import _SKIPPED, NOMINAL_LABEL, kept_note, nominal_continuation
 from .augmented import Augmented
 from .refit import State
-from .rescue import RESCUE_RATIO, above_ratio, noise_ratio_at
+from .rescue import above_heldout_level, above_ratio, noise_ratio_at
 from .runner import Job, JobResult, _fit, finish
 
 #: refits of a step (best held-out score first) that may get the wider search
@@ -60,9 +59,7 @@ def needs_wider(r: JobResult, heldout_noise_db: float = float("nan")) -> bool:
     data?"""
     if r.error or r.candidate is None:
         return False
-    level = heldout_noise_db
-    held = math.isfinite(level) and level > 0 and r.heldout_rms > RESCUE_RATIO * level
-    return above_ratio(r.noise_ratio) or held
+    return above_ratio(r.noise_ratio) or above_heldout_level(r.heldout_rms, heldout_noise_db)
 
 
 def second_round(
@@ -119,8 +116,7 @@ def _widen(w: Widen, t0: float) -> JobResult:
         nonlocal best, cost, ratio
         c2, r2 = aug.refit.cost(state), noise_ratio_at(aug.refit, state)
         kept = c2 < cost
-        notes.append(f"{label} to {r2 if r2 is not None else float('nan'):.2f}x, "
-                     f"{'kept' if kept else 'not kept'}")  # fmt: skip
+        notes.append(kept_note(label, r2, kept))
         if kept:
             best, cost, ratio = (aug, state, res), c2, r2
 
