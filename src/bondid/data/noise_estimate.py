@@ -251,10 +251,13 @@ def _mean_power(P: np.ndarray, points: int) -> np.ndarray:
     n = P.shape[-1]
     if n <= points:
         return np.repeat(P.mean(axis=-1, keepdims=True), n, axis=-1)
-    h = points // 2
-    c = np.cumsum(np.concatenate([np.zeros((*P.shape[:-1], 1)), P], axis=-1), axis=-1)
-    start = np.clip(np.arange(n) - h, 0, n - points)
-    return (c[..., start + points] - c[..., start]) / points
+    # the sum of shifted copies, not differences of a running sum: |H|² spans many decades
+    # along a channel, and a running sum's differences lose the small values to cancellation
+    start = np.clip(np.arange(n) - points // 2, 0, n - points)
+    out = np.zeros(P.shape)
+    for j in range(points):
+        out += P[..., start + j]
+    return out / points
 
 
 def _signal_power(H: np.ndarray, N: np.ndarray, freq_hz: np.ndarray) -> np.ndarray:
