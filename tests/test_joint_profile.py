@@ -12,7 +12,7 @@ import pytest
 from models import noisy_bonder_data
 
 from bondid.diagnose.joint_profile import damped_step, joint_profile, short_joint_fit
-from bondid.diagnose.screen import Screening, profile_picks
+from bondid.diagnose.screen import UNEXPLAINED_RATIO, Screening, needs_profile, profile_picks
 from bondid.model import UrdfDocument, set_parameter
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -57,6 +57,13 @@ def test_profile_picks_the_lowest_finite_profiles_and_their_starts():
     assert s[2].refit_start(True) == (2.0,) and s[2].refit_start(False) == (1.0,)
     # no profile start (the profile failed): the one-step figure's start
     assert _screen("e", math.inf, pstart=()).refit_start(True) == (1.0,)
+
+
+def test_the_profile_runs_only_where_the_figure_leaves_the_step_unexplained():
+    noise = 2.0
+    assert not needs_profile(0.99 * UNEXPLAINED_RATIO * noise, noise)
+    assert needs_profile(1.01 * UNEXPLAINED_RATIO * noise, noise)
+    assert needs_profile(0.1, math.nan)  # no noise level: always
 
 
 @pytest.fixture(scope="module")
