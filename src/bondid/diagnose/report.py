@@ -110,13 +110,24 @@ def _sqrt_or_none(cost: float) -> float | None:
     return math.sqrt(cost) if math.isfinite(cost) and cost >= 0 else None
 
 
+def _refitted_by(step: Any, s: Any) -> str | None:
+    """Why the screening ``s`` of ``step`` was refitted fully: ``"joint profile"`` when the
+    joint profile picked it (from its start), ``"figure"`` when the one-step figure alone
+    did, None when it was not refitted."""
+    i = step.screenings.index(s)
+    if i in step.by_profile:
+        return "joint profile"
+    return "figure" if i in step.refitted else None
+
+
 def candidate_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
     """``candidates`` of diagnosis.json: per search step (``step``, 1 = the verdict's), the
     refitted candidates by held-out score, then the others by screening figure; each with
     its screening figures (``screening_db``: the predicted training RMS [dB];
     ``screening_new_only_db``: after its new parameters alone; ``screening_by_origin_db``:
-    the figure from the step's base and from the nominal model, null where not taken) and
-    ``refitted``."""
+    the figure from the step's base and from the nominal model, null where not taken;
+    ``screening_profile_db``: the joint profile's, :mod:`.joint_profile`), ``refitted`` and
+    ``refitted_by`` (``"figure"``, ``"joint profile"`` (from its start) or null)."""
     out: list[dict[str, Any]] = []
     for step in diag.steps:
         by_label = {r.label: (r, sc) for r, sc in zip(step.results, step.scores, strict=True)}
@@ -130,7 +141,9 @@ def candidate_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
                 "screening_new_only_db": math.sqrt(s.cost_new_only)
                 if math.isfinite(s.cost_new_only) else None,
                 "screening_by_origin_db": [_sqrt_or_none(c) for c in s.by_origin],
+                "screening_profile_db": _sqrt_or_none(s.profile_cost),
                 "screening_wall_s": s.wall_s, "refitted": s.label in by_label,
+                "refitted_by": _refitted_by(step, s),
             }  # fmt: skip
             if s.label in by_label:
                 entry.update(_refit_entry(*by_label[s.label], before))

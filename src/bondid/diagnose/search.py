@@ -7,10 +7,11 @@ accepted so far — and
    figure each, in worker processes);
 2. refits the best :attr:`Context.n_refit` of them fully (more, up to :attr:`Context.n_max`,
    when the best figure leaves the step well above the noise level and others tie with the
-   last kept: :func:`.screen.select`) (:func:`.runner.run_job`: every
-   nominal, accepted and new parameter together, from the base and from the nominal model),
-   then gives the best of them that ended above the noise level the wider search in a
-   second round (:func:`.widen.second_round`);
+   last kept: :func:`.screen.select`), and the best :attr:`Context.n_profile` by the joint
+   profile (:mod:`.joint_profile`, from its start: :func:`.screen.profile_picks`)
+   (:func:`.runner.run_job`: every nominal, accepted and new parameter together, from the
+   base and from the nominal model), then gives the best of them that ended above the noise
+   level the wider search in a second round (:func:`.widen.second_round`);
 3. scores them on held-out data (:mod:`.scoring`) and accepts the best only under the
    verdict rule of :func:`.scoring.accept` (the base above the held-out noise level, the
    improvement significant given that noise; the same rule at every step).
@@ -34,7 +35,7 @@ from . import scoring
 from .effects import Candidate
 from .refit import Nominal
 from .runner import Job, JobResult, run_job
-from .screen import Screening, screen, select
+from .screen import Screening, profile_picks, screen, select
 from .widen import second_round
 
 
@@ -63,6 +64,9 @@ class Context:
     n_max: tuple[int, int] = (6, 4)
     #: the held-out data's noise reference of the verdict rule (default: from ``heldout``)
     noise: scoring.NoiseReference | None = None
+    #: candidates refitted (from its start) by the screening's joint profile at the first
+    #: and at the later steps, on top of those :func:`.screen.select` keeps
+    n_profile: tuple[int, int] = (2, 1)
 
     def __post_init__(self) -> None:
         if self.space is None:
@@ -83,6 +87,8 @@ class Step:
             held-out score.
         screenings: every candidate's screening, in the order screened.
         refitted: indices into ``screenings`` of the candidates refitted fully.
+        by_profile: those of them the joint profile picked (:func:`.screen.profile_picks`),
+            refitted from its start.
         results, scores: the full refits, best score first.
         winner: the accepted effect's refit, or None.
         test: the verdict rule's figures for the best refit (:func:`.scoring.tests`).
@@ -93,6 +99,7 @@ class Step:
     base_score: float
     screenings: list[Screening]
     refitted: list[int]
+    by_profile: list[int] = field(default_factory=list)
     results: list[JobResult] = field(default_factory=list)
     scores: list[float] = field(default_factory=list)
     winner: JobResult | None = None
@@ -147,10 +154,12 @@ def _step(
     done = [s for s in screenings if s is not None]
     assert len(done) == len(cands)  # done[i] is the screening of cands[i]
     later = 0 if index == 0 else 1
+    picks = profile_picks(done, ctx.n_profile[later])
     chosen = select(done, ctx.n_refit[later], ctx.n_max[later])
-    step = Step(index, base, base_score, done, chosen)
-    jobs = {i: _job(ctx, base, _refit_candidate(done[i], cands[i]), done[i].start)
-            for i in chosen}  # fmt: skip
+    chosen += [i for i in picks if i not in chosen]
+    step = Step(index, base, base_score, done, chosen, picks)
+    jobs = {i: _job(ctx, base, _refit_candidate(done[i], cands[i]),
+                    done[i].refit_start(i in picks)) for i in chosen}  # fmt: skip
     futs = {pool.submit(run_job, jobs[i]): i for i in chosen}
     results, used = [], []
     for f in as_completed(futs):
