@@ -51,12 +51,10 @@ class Profile:
         cost: lowest training objective reached (as :meth:`.refit.Refit.cost`; inf when
             every point failed).
         new: the candidate's own new parameters (SI) there.
-        scale: the grid factor of the point it started from (1: the candidate's start).
     """
 
     cost: float
     new: tuple[float, ...]
-    scale: float
 
 
 def damped_step(J: np.ndarray, r: np.ndarray, damping: float) -> np.ndarray | None:
@@ -126,9 +124,9 @@ def joint_profile(
     grid, _ = scan_grid(cand, hints_hz)
     scales = [1.0, *grid[:: max(1, int(stride))]]
     s0 = refit.state0
-    best = Profile(float("inf"), tuple(float(v) for v in refit.new_values(s0)), 1.0)
-    for s, start in zip(scales, [s0, *refit.profile(s0, exps, scales[1:])], strict=True):
+    best = Profile(float("inf"), tuple(float(v) for v in refit.new_values(s0)))
+    for start in [s0, *refit.profile(s0, exps, scales[1:])]:
         c, st = short_joint_fit(refit, start, n_iter)
         if c < best.cost:
-            best = Profile(c, tuple(float(v) for v in refit.new_values(st)), float(s))
+            best = Profile(c, tuple(float(v) for v in refit.new_values(st)))
     return best

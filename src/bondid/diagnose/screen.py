@@ -152,14 +152,14 @@ def noise_cost(refit: Refit) -> float:
     return float(c) if c is not None and math.isfinite(c) else math.nan
 
 
-Figure = tuple[float, float, int | None, tuple, float, tuple[float, float]]
+Figure = tuple[float, float, int | None, tuple, float, tuple[float, float], Refit]
 
 
 def _figure(job: Job, n_starts: int, pick: int | None, noise: bool = True) -> Figure:
     """(objective after the new-only solve, screening figure, start option of the second
     origin, the new parameters (SI) where the figure was taken, the noise-level cost or NaN
     without ``noise``) of ``job``'s candidate; ``pick``: the only start option the second
-    origin tries."""
+    origin tries; last, the first origin's refit (the joint profile runs on it)."""
     cand = job.candidate
     assert cand is not None
     refit = build(job.urdf, job.nominal, job.train, job.options, job.accepted, cand).refit
@@ -178,14 +178,14 @@ def _figure(job: Job, n_starts: int, pick: int | None, noise: bool = True) -> Fi
     new = tuple(float(v) for v in refit.new_values(best[1]))
     floor = noise_cost(refit) if noise else math.nan
     if job.alt_urdf is None:
-        return best[0], figure, None, new, floor, (figure, math.nan)
+        return best[0], figure, None, new, floor, (figure, math.nan), refit
     alt = build(job.alt_urdf, job.nominal, job.train, job.options, job.accepted, cand).refit
     s_a, _, k = _alt_start(job, alt, [np.array(new)], pick)
     fig_a = predicted_cost(alt, s_a)
     both = (figure, fig_a)
     if fig_a < figure:
         figure, new = fig_a, tuple(float(v) for v in alt.new_values(s_a))
-    return best[0], figure, k, new, floor, both
+    return best[0], figure, k, new, floor, both, refit
 
 
 def screen(job: Job) -> Screening:
@@ -196,6 +196,7 @@ def screen(job: Job) -> Screening:
     assert cand is not None
     best = (math.inf, math.inf)
     chosen: Candidate | None = None
+    chosen_refit: Refit | None = None
     start: tuple = ()
     error = ""
     pick: int | None = 0  # the second origin starts from the first origin's best only
@@ -204,18 +205,17 @@ def screen(job: Job) -> Screening:
     for k, option in enumerate((cand, *cand.variants)):
         sub = replace(job, candidate=replace(option, variants=()))
         try:
-            c_new, c_fig, pick, new, f, b = _figure(sub, N_STARTS if k == 0 else 1, pick, k == 0)
+            c_new, c_fig, pick, new, f, b, r = _figure(sub, N_STARTS if k == 0 else 1, pick, k == 0)
             floor = f if k == 0 else floor
         except (BondidError, np.linalg.LinAlgError, ValueError) as exc:
             error = error or f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
             continue
         if c_fig < best[1]:
-            best, chosen, start, both = (c_new, c_fig), sub.candidate, new, b
+            best, chosen, start, both, chosen_refit = (c_new, c_fig), sub.candidate, new, b, r
     profile: tuple[float, tuple[float, ...]] = (math.inf, ())
-    if chosen is not None and needs_profile(best[1], floor):
+    if chosen is not None and chosen_refit is not None and needs_profile(best[1], floor):
         try:
-            refit = build(job.urdf, job.nominal, job.train, job.options, job.accepted, chosen).refit
-            pr = joint_profile(refit, chosen, job.hints_hz)
+            pr = joint_profile(chosen_refit, chosen, job.hints_hz)
             profile = (pr.cost, pr.new)
         except (BondidError, np.linalg.LinAlgError, ValueError) as exc:
             error = error or f"joint profile: {type(exc).__name__}"
