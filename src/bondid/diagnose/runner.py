@@ -117,6 +117,9 @@ class Job:
     #: the training noise level whose held-out figure is above :data:`.rescue.RESCUE_RATIO`
     #: times it is stuck too (:func:`.alternatives.stuck`; NaN: the training test alone)
     heldout_noise_db: float = float("nan")
+    #: the base's held-out score is above the held-out noise level (:mod:`.search`): the
+    #: screening runs the joint profile whatever the one-step figure (:func:`.screen.needs_profile`)
+    profile_always: bool = False
 
 
 @dataclass

@@ -35,7 +35,7 @@ from . import scoring
 from .effects import Candidate
 from .refit import Nominal
 from .runner import Job, JobResult, run_job
-from .screen import Screening, profile_picks, screen, select
+from .screen import Screening, heldout_unexplained, profile_picks, screen, select
 from .widen import second_round
 
 
@@ -115,14 +115,16 @@ def _job(
 ) -> Job:  # fmt: skip
     """A job on top of ``base`` (its model text, values and accepted effects); ``alt``: with
     the nominal model as second origin. Without the wider search: the step runs it in its
-    second round (:mod:`.widen`)."""
+    second round (:mod:`.widen`). The screening profiles every candidate when ``base`` is
+    unexplained on the held-out data (:func:`.screen.heldout_unexplained`)."""
     assert ctx.space is not None
+    level = ctx.noise.level_db if ctx.noise is not None else float("nan")
     return Job(
         base.urdf, ctx.space, ctx.train, ctx.heldout, ctx.full, cand, ctx.options,
         all_iter=ctx.refit_iter, n_starts=ctx.n_starts,
         alt_urdf=ctx.nominal.to_string() if alt else None, hints_hz=ctx.hints_hz,
         accepted=base.chain, start_new=start, wider=False,
-        heldout_noise_db=ctx.noise.level_db if ctx.noise is not None else float("nan"),
+        heldout_noise_db=level, profile_always=heldout_unexplained(base.heldout_rms, level),
     )  # fmt: skip
 
 
