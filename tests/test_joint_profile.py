@@ -12,11 +12,10 @@ import pytest
 from models import noisy_bonder_data
 
 from bondid.diagnose.joint_profile import damped_step, joint_profile, short_joint_fit
-from bondid.diagnose.rescue import RESCUE_RATIO
+from bondid.diagnose.rescue import RESCUE_RATIO, above_heldout_level
 from bondid.diagnose.screen import (
     UNEXPLAINED_RATIO,
     Screening,
-    heldout_unexplained,
     needs_profile,
     profile_picks,
 )
@@ -77,12 +76,12 @@ def test_the_profile_runs_only_where_the_figure_leaves_the_step_unexplained():
 
 def test_a_base_above_the_heldout_noise_level_is_unexplained():
     # gantry, withheld bridge->carriage tz compliance, harsh floor: 2.15 dB vs 0.88 dB
-    assert heldout_unexplained(2.149, 0.881)
+    assert above_heldout_level(2.149, 0.881)
     # the reference case's base, 1.02x its held-out noise level: the figures decide
-    assert not heldout_unexplained(1.02 * 0.7, 0.7)
-    assert heldout_unexplained(1.01 * RESCUE_RATIO, 1.0)
-    assert not heldout_unexplained(0.99 * RESCUE_RATIO, 1.0)
-    assert not heldout_unexplained(5.0, math.nan)  # no level: the figures decide
+    assert not above_heldout_level(1.02 * 0.7, 0.7)
+    assert above_heldout_level(1.01 * RESCUE_RATIO, 1.0)
+    assert not above_heldout_level(0.99 * RESCUE_RATIO, 1.0)
+    assert not above_heldout_level(5.0, math.nan)  # no level: the figures decide
 
 
 @pytest.fixture(scope="module")

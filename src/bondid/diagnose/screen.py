@@ -239,16 +239,6 @@ def screen(job: Job) -> Screening:
     )  # fmt: skip
 
 
-def heldout_unexplained(heldout_rms: float, level_db: float) -> bool:
-    """Is a base whose held-out weighted RMS is ``heldout_rms`` [dB] unexplained on the
-    held-out data: above :data:`.rescue.RESCUE_RATIO` times the held-out noise level
-    ``level_db`` [dB] (:func:`.rescue.above_heldout_level`; False without a level)? Its
-    screening then profiles every candidate (:func:`needs_profile`)."""
-    from .rescue import above_heldout_level
-
-    return above_heldout_level(heldout_rms, level_db)
-
-
 def needs_profile(figure: float, noise_cost: float, base_unexplained: bool = False) -> bool:
     """Does a candidate whose one-step figure is ``figure`` get the joint profile? Not when
     the figure already reaches :data:`UNEXPLAINED_RATIO` times the noise-level cost

@@ -34,8 +34,9 @@ from ..model.document import UrdfDocument
 from . import scoring
 from .effects import Candidate
 from .refit import Nominal
+from .rescue import above_heldout_level
 from .runner import Job, JobResult, run_job
-from .screen import Screening, heldout_unexplained, profile_picks, screen, select
+from .screen import Screening, profile_picks, screen, select
 from .widen import second_round
 
 
@@ -116,7 +117,7 @@ def _job(
     """A job on top of ``base`` (its model text, values and accepted effects); ``alt``: with
     the nominal model as second origin. Without the wider search: the step runs it in its
     second round (:mod:`.widen`). The screening profiles every candidate when ``base`` is
-    unexplained on the held-out data (:func:`.screen.heldout_unexplained`)."""
+    above the held-out noise level (:func:`.rescue.above_heldout_level`)."""
     assert ctx.space is not None
     level = ctx.noise.level_db if ctx.noise is not None else float("nan")
     return Job(
@@ -124,7 +125,7 @@ def _job(
         all_iter=ctx.refit_iter, n_starts=ctx.n_starts,
         alt_urdf=ctx.nominal.to_string() if alt else None, hints_hz=ctx.hints_hz,
         accepted=base.chain, start_new=start, wider=False,
-        heldout_noise_db=level, profile_always=heldout_unexplained(base.heldout_rms, level),
+        heldout_noise_db=level, profile_always=above_heldout_level(base.heldout_rms, level),
     )  # fmt: skip
 
 
