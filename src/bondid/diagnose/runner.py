@@ -21,8 +21,10 @@ data and on all data. Steps for a candidate:
 
 A rotational joint compliance whose refit ends above the noise level gets its pivot refined
 (:mod:`.pivot`) and both origins refitted there; another candidate with variants gets every
-other variant refitted fully (:mod:`.alternatives`); the lowest objective is kept. Still
-above it, with ``Job.wider``, the wider search (:func:`.alternatives.wider_search`).
+other variant refitted fully (:mod:`.alternatives`); the lowest objective is kept. A
+candidate with several springs (soft mounts, a flexible base) still above it gets the restart
+alternation from starts matched to the measured modes (:mod:`.modal_start`). Still above it,
+with ``Job.wider``, the wider search (:func:`.alternatives.wider_search`).
 
 Every solve is the optimisation core's (:mod:`.refit`: a :class:`~bondid.optim.FitProblem`
 with the candidate's parameters as more names, tied or as the FRF modifier's, the default
@@ -331,6 +333,7 @@ def _fit(job: Job) -> tuple[Augmented, State, Any]:
 
 def _run(job: Job, t0: float) -> JobResult:
     from .alternatives import stuck
+    from .modal_start import applies, modal_restarts
 
     extra: dict[str, Any] = {}
     if job.candidate is not None and job.candidate.variants:
@@ -347,6 +350,11 @@ def _run(job: Job, t0: float) -> JobResult:
         else:
             job, aug, state, res = other_variants(job, aug, state, res, extra)
         extra["variant"] = job.candidate.description  # type: ignore[union-attr]
+    if applies(job.candidate) and stuck(job, aug, state, res):
+        assert job.candidate is not None
+        aug, state, res, extra["modal starts"] = modal_restarts(
+            _setup(job.urdf, job), job.candidate, job.full, job.hints_hz, aug, state, res
+        )
     from_nominal = False
     if job.wider and job.candidate is not None and stuck(job, aug, state, res):
         from .alternatives import wider_search
