@@ -122,12 +122,11 @@ def modal_starts(
     base = refit.state0
     v0 = refit.new_values(base)
     idx = springs(cand)
+    lo, hi = (min(cand.scan_grid), max(cand.scan_grid)) if cand.scan_grid else (1e-4, 1e2)
+    grid = np.geomspace(lo, hi, MATCH_POINTS)
     scales = {1.0}
     if cand.ref_hz and cand.scan_grid:
-        lo, hi = min(cand.scan_grid), max(cand.scan_grid)
         scales |= {(h / cand.ref_hz) ** 2 for h in hints_hz if lo <= (h / cand.ref_hz) ** 2 <= hi}
-    grid = np.geomspace(min(cand.scan_grid), max(cand.scan_grid), MATCH_POINTS) if cand.scan_grid \
-        else np.geomspace(1e-4, 1e2, MATCH_POINTS)  # fmt: skip
     found: list[tuple[float, np.ndarray]] = []
     for g in sorted(scales):
         v = v0.copy()

@@ -341,22 +341,27 @@ def _run(job: Job, t0: float) -> JobResult:
         assert job.candidate is not None
         extra["variant"] = job.candidate.description
     aug, state, res = _fit(job)
-    if job.candidate is not None and stuck(job, aug, state, res):
+    # whether the refit is stuck, judged again only after a step that moved it
+    is_stuck = job.candidate is not None and stuck(job, aug, state, res)
+    if is_stuck:
         from .alternatives import at_refined_pivot, other_variants
         from .pivot import is_rotational_compliance
 
+        assert job.candidate is not None
         if is_rotational_compliance(job.candidate):
             job, aug, state, res, extra["pivot"] = at_refined_pivot(job, aug, state, res)
         else:
             job, aug, state, res = other_variants(job, aug, state, res, extra)
         extra["variant"] = job.candidate.description  # type: ignore[union-attr]
-    if applies(job.candidate) and stuck(job, aug, state, res):
+        is_stuck = stuck(job, aug, state, res)
+    if is_stuck and applies(job.candidate):
         assert job.candidate is not None
         aug, state, res, extra["modal starts"] = modal_restarts(
             _setup(job.urdf, job), job.candidate, job.full, job.hints_hz, aug, state, res
         )
+        is_stuck = stuck(job, aug, state, res)
     from_nominal = False
-    if job.wider and job.candidate is not None and stuck(job, aug, state, res):
+    if job.wider and is_stuck:
         from .alternatives import wider_search
 
         aug, state, res, extra["wider"] = wider_search(job, aug, state, res)
