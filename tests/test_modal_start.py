@@ -117,3 +117,51 @@ def test_modal_starts_match_the_measured_modes_better_than_the_candidates_start(
     rest = [i for i in range(len(c.parameters)) if i not in idx]
     for v in starts:
         np.testing.assert_allclose(v[rest], [c.parameters[i].initial for i in rest])
+
+
+def test_the_modal_step_tries_the_other_variants_while_stuck(monkeypatch):
+    """The job's own variant first; the other variants (elastic centres) only while the refit
+    is still stuck; the variant whose restart was kept becomes the job's candidate, and the
+    step stops there."""
+    from dataclasses import replace
+
+    from bondid.cost.problem import CostOptions
+    from bondid.diagnose import alternatives, runner
+
+    doc = UrdfDocument.load(ROOT / "urdf" / "bonder.urdf")
+    c = _mounts(doc)
+    assert len(c.variants) >= 2  # the test needs a variant after the one that is kept
+    options = (c, *c.variants)
+    kept_spec = c.variants[0].spec
+    tried: list[dict] = []
+
+    class Aug:
+        def __init__(self, spec):
+            self.spec = spec
+
+    def fake_setup(urdf, job):
+        return Aug(job.candidate.spec)
+
+    def fake_restarts(aug0, option, data, hints, aug, state, res, measured):
+        assert measured == [["m"]]  # identified once, passed to every variant
+        tried.append(option.spec)
+        if option.spec == kept_spec:
+            return aug0, "s2", "r2", "kept"
+        return aug, state, res, "not kept"
+
+    monkeypatch.setattr(runner, "_setup", fake_setup)
+    monkeypatch.setattr(ms, "modal_restarts", fake_restarts)
+    monkeypatch.setattr(ms, "measured_modes", lambda data: [["m"]])
+    monkeypatch.setattr(alternatives, "stuck", lambda job, aug, s, r: aug.spec != kept_spec)
+    job = runner.Job(doc.to_string(), None, [], [], [], replace(c, variants=()), CostOptions())  # type: ignore[arg-type]
+    job2, aug, state, res, note = ms.modal_step(job, options, Aug(c.spec), "s", "r")
+    assert tried == [c.spec, kept_spec]  # the third centre is not tried: no longer stuck
+    assert job2.candidate is not None and job2.candidate.spec == kept_spec
+    assert not job2.candidate.variants
+    assert aug.spec == kept_spec and (state, res) == ("s2", "r2")
+    assert note.startswith("not kept; variant ") and note.endswith(": kept")
+    # not stuck after the job's own variant: no other is tried
+    tried.clear()
+    monkeypatch.setattr(alternatives, "stuck", lambda job, aug, s, r: False)
+    job3, *_ = ms.modal_step(job, options, Aug(c.spec), "s", "r")
+    assert tried == [c.spec] and job3 is job

@@ -23,8 +23,9 @@ A rotational joint compliance whose refit ends above the noise level gets its pi
 (:mod:`.pivot`) and both origins refitted there; another candidate with variants gets every
 other variant refitted fully (:mod:`.alternatives`); the lowest objective is kept. A
 candidate with several springs (soft mounts, a flexible base) still above it gets the restart
-alternation from starts matched to the measured modes (:mod:`.modal_start`). Still above it,
-with ``Job.wider``, the wider search (:func:`.alternatives.wider_search`).
+alternation from starts matched to the measured modes (:mod:`.modal_start`), on its kept
+variant, then on each other variant while still above it. Still above it, with
+``Job.wider``, the wider search (:func:`.alternatives.wider_search`).
 
 Every solve is the optimisation core's (:mod:`.refit`: a :class:`~bondid.optim.FitProblem`
 with the candidate's parameters as more names, tied or as the FRF modifier's, the default
@@ -333,9 +334,10 @@ def _fit(job: Job) -> tuple[Augmented, State, Any]:
 
 def _run(job: Job, t0: float) -> JobResult:
     from .alternatives import stuck
-    from .modal_start import applies, modal_restarts
+    from .modal_start import applies, modal_step
 
     extra: dict[str, Any] = {}
+    options = () if job.candidate is None else (job.candidate, *job.candidate.variants)
     if job.candidate is not None and job.candidate.variants:
         job, _ = _screen_variants(job)
         assert job.candidate is not None
@@ -356,9 +358,8 @@ def _run(job: Job, t0: float) -> JobResult:
         is_stuck = stuck(job, aug, state, res)
     if is_stuck and applies(job.candidate):
         assert job.candidate is not None
-        aug, state, res, extra["modal starts"] = modal_restarts(
-            _setup(job.urdf, job), job.candidate, job.full, job.hints_hz, aug, state, res
-        )
+        job, aug, state, res, extra["modal starts"] = modal_step(job, options, aug, state, res)
+        extra["variant"] = job.candidate.description  # type: ignore[union-attr]
         is_stuck = stuck(job, aug, state, res)
     from_nominal = False
     if job.wider and is_stuck:
