@@ -151,6 +151,13 @@ def test_diagnosis_json_has_the_spec_keys(compliance_case, tmp_path):
     assert d["verdict"]["effect"] == "joint_compliance"
     g = d["verdict"]["gap_closed"]
     assert g == pytest.approx(1 - d["candidates"][0]["db_rms_after"] / d["gap"]["db_rms"])
+    # the refits the data cannot tell from the verdict: the rule's figures, from the scores
+    from bondid.diagnose import scoring
+
+    ties = scoring.indistinguishable(scores, d["scoring"]["steps"][0])
+    listed = d["verdict"]["indistinguishable_from"]
+    assert [t["score"] for t in listed] == [scores[j] for j, _ in ties]
+    assert listed == d["effects"][0]["indistinguishable_from"]
     # information weights (spec extension): which, how, and the unweighted figure kept
     assert d["gap"]["weighting"] == d["weighting"]["weighting"] == "auto"
     assert d["gap"]["db_rms_unweighted"] > 0 and "db_rms" in d["scoring"]
@@ -288,7 +295,8 @@ def test_two_withheld_effects_are_found_in_order(doc, tmp_path):
     accepts both (class and location), one per step, and no third."""
     from bondid.diagnose import diagnose, write_outputs
     from bondid.diagnose.effects import get_effect
-    from bondid.diagnose.report import gaps, summary, to_json_dict
+    from bondid.diagnose.report import gaps, to_json_dict
+    from bondid.diagnose.summary import summary
 
     e = get_effect("joint_compliance")
     c = next(c for c in e.candidates(doc) if c.location == "y_stage->z_stage:tz")

@@ -215,3 +215,22 @@ def test_the_threshold_is_the_chi_square_quantile_at_the_one_parameter_rate() ->
         t = scoring.lr_threshold(p)
         assert chi2.sf(2 * t, p) == pytest.approx(alpha, rel=1e-6)
         assert scoring.Z**2 < t < scoring.Z**2 * p
+
+
+def test_refits_the_data_cannot_tell_from_the_best_are_listed() -> None:
+    """With the noise reference: a refit whose Λ against the best is at most the
+    one-parameter threshold ties with it; one beyond does not; a failed refit never ties."""
+    thr = scoring.lr_threshold(1)
+    s1 = 1.2
+    # Λ = n (sⱼ² − s₁²) / L² just under and just over the threshold
+    under = math.sqrt(s1**2 + 0.99 * thr / REF.n_eff)
+    over = math.sqrt(s1**2 + 1.01 * thr / REF.n_eff)
+    test = scoring.tests(s1, 2.0, 1, REF)
+    got = scoring.indistinguishable([s1, under, over, math.inf], test)
+    assert [j for j, _ in got] == [1]
+    assert got[0][1] == pytest.approx(0.99 * thr)
+    # without a reference: the margins (a tie unless the best is 5 % and 0.05 dB lower)
+    plain = scoring.tests(1.0, 2.0, 1, None)
+    got = scoring.indistinguishable([1.0, 1.03, 1.2], plain)
+    assert [j for j, _ in got] == [1] and math.isnan(got[0][1])
+    assert scoring.indistinguishable([], test) == []

@@ -75,7 +75,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         from ..results import open_results
         from ..validation import check_inputs, load_model
         from .pipeline import Settings, diagnose
-        from .report import gaps, summary, to_json_dict, write_outputs
+        from .report import gaps, to_json_dict, write_outputs
+        from .summary import summary
 
         cli.check_workers(args.workers)
         if args.points < 20:

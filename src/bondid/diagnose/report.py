@@ -1,4 +1,5 @@
-"""What a diagnosis writes: ``diagnosis.json``, plots, URDF files, and the human summary.
+"""What a diagnosis writes: ``diagnosis.json``, plots and URDF files (the human summary:
+:mod:`.summary`).
 
 ``diagnosis.json`` keys (spec §4 plus extras):
 
@@ -12,7 +13,9 @@
   ``n_parameters``, ``detail`` (the variant the runner kept, e.g. a pivot), ``wall_s``,
   ``error``;
 * ``verdict`` — ``effect`` (or ``"none"``), ``location``, ``gap_closed``, plus
-  ``reason``, ``detail``, ``parameters`` with ``std``, ``where`` (gap by channel and band after it);
+  ``reason``, ``detail``, ``parameters`` with ``std``, ``where`` (gap by channel and band after it),
+  ``indistinguishable_from`` (the refits the data cannot tell from it, :func:`tied`; each
+  entry of ``effects`` has the same list for its step);
 * ``stages`` — the gap (total, per channel, per band) of the nominal model, after the
   parameter refit and after the winning effect; ``gap_closed_total`` (vs the nominal gap);
 * ``refit`` (the parameter refit: names, values, std, IPOPT stage), ``split``, ``settings``;
@@ -171,7 +174,20 @@ def effect_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
             "db_rms_after": w.db_rms, "heldout_db_rms_after": w.heldout_db_rms,
             "gap_closed": gap_closed(before, w.db_rms), "score": step.scores[0],
             "score_before": step.base_score, "test": step.test,
+            "indistinguishable_from": tied(step),
         })  # fmt: skip
+    return out
+
+
+def tied(step: Any) -> list[dict[str, Any]]:
+    """The step's refits the data cannot tell from its best (:func:`.scoring.
+    indistinguishable`): effect, location, held-out score [dB] and ``lr`` (Λ, null without a
+    noise reference), best score first."""
+    out = []
+    for j, lr in scoring.indistinguishable(step.scores, step.test):
+        r = step.results[j]
+        out.append({"effect": r.effect, "location": r.location, "score": step.scores[j],
+                    "lr": lr if math.isfinite(lr) else None})  # fmt: skip
     return out
 
 
@@ -192,6 +208,7 @@ def _verdict(
             "reason": scoring.reason(diag.steps[0].test, diag.scores[0], diag.baseline_score)
             + " (against the parameter refit)",
             "where": _gap_dict(reports["effect"], reports.get("effect_unweighted")),
+            "indistinguishable_from": tied(diag.steps[0]),
         }
     else:
         best = diag.scores[0] if diag.scores else math.nan
@@ -347,65 +364,3 @@ def _plots(diag: Diagnosis, reports: dict[str, GapReport], out_dir: Path) -> lis
             )
         )  # fmt: skip
     return out
-
-
-def summary(diag: Diagnosis, content: dict[str, Any]) -> str:
-    """A short human summary: gap, where, verdict, how far it shrinks."""
-    st = content["stages"]
-    g = content["gap"]
-    lines = [
-        f"gap (db_rms over {len(diag.channels)} channels): nominal {st['nominal']['db_rms']:.2f}"
-        f" dB -> after parameter refit {g['db_rms']:.2f} dB",
-    ]
-    ch = sorted(g["by_channel"].items(), key=lambda kv: -(kv[1] or 0))[:3]
-    lines.append("  worst channels: " + ", ".join(f"{c} {v:.2f} dB" for c, v in ch))
-    bands = sorted(g["by_band"], key=lambda b: -(b["db_rms"] or 0))[:3]
-    lines.append(
-        "  worst bands: "
-        + ", ".join(f"{b['f_lo_hz']:.0f}-{b['f_hi_hz']:.0f} Hz {b['db_rms']:.2f} dB" for b in bands)
-    )
-    miss = [m for m in g["modes"] if m["status"] == "missing"]
-    spur = [m for m in g["modes"] if m["status"] == "spurious"]
-    if g["modes"]:
-        lines.append(
-            f"  modes: {len(g['modes']) - len(miss) - len(spur)} paired, missing in the model at "
-            + (", ".join(f"{m['f_measured_hz']:.0f}" for m in miss) or "-")
-            + " Hz, spurious at "
-            + (", ".join(f"{m['f_model_hz']:.0f}" for m in spur) or "-")
-            + " Hz"
-        )
-    first = [c for c in content["candidates"] if c.get("step") == 1]
-    n_ref = sum(1 for c in first if c.get("refitted"))
-    lines.append(
-        f"candidates: {len(first)} screened, {n_ref} refitted (held-out score, dB; lower is"
-        " better):"
-    )
-    lines.append(f"  {'parameter refit only':42s} {diag.baseline_score:8.3f}")
-    for c in [c for c in first if c.get("refitted")][:5]:
-        lab = f"{c['effect']}@{c['location']}" if c["location"] else c["effect"]
-        sc = c["score"]
-        lines.append(f"  {lab:42s} {sc if sc is not None else float('nan'):8.3f}")
-    v = content["verdict"]
-    if v["effect"] == "none":
-        lines.append(f"verdict: none — {v['reason']}")
-    else:
-        pars = ", ".join(f"{n} = {p['value']:.4g}" for n, p in v["parameters"].items())
-        lines.append(
-            f"verdict: {v['effect']} at {v['location']} ({pars}); gap {g['db_rms']:.2f} ->"
-            f" {st['effect']['db_rms']:.2f} dB, gap_closed {v['gap_closed']:.2f}"
-        )
-    if content.get("effects"):
-        lines.append("effects: " + steps_line(g["db_rms"], content["effects"]))
-    lines.append(f"time {diag.wall_s:.1f} s")
-    return "\n".join(lines)
-
-
-def steps_line(refit_db: float, effects: Sequence[dict[str, Any]]) -> str:
-    """``parameters 7.80 → +joint compliance 3.10 → +actuator lag 1.90 dB`` (the weighted
-    gap after the parameter refit and after each accepted effect)."""
-    parts = [f"parameters {refit_db:.2f}"]
-    for e in effects:
-        name = str(e["effect"]).replace("_", " ")
-        at = f" at {e['location']}" if e.get("location") else ""
-        parts.append(f"+{name}{at} {e['db_rms_after']:.2f}")
-    return " → ".join(parts) + " dB"

@@ -36,6 +36,12 @@
 
   Without a noise reference (costs the noise level does not model) the former rule stands:
   lower by :data:`REL_MARGIN` of the base's score and by :data:`ABS_MARGIN_DB`.
+* **indistinguishable** (:func:`indistinguishable`): a refitted candidate whose score ``sⱼ``
+  the best one's does not beat by the significance part of the rule taken with one
+  parameter, ``n (sⱼ² − s₁²) / L² ≤ ½ χ²₁⁻¹(1 − α)`` (without a noise reference: not lower
+  by the margins). The data cannot tell it from the best (e.g. a sensor delay and an
+  actuator lag on a single input give nearly the same phase); ``diagnosis.json`` lists it
+  with the accepted effect, which is then only the best-scoring of the two.
 * ``gap_closed = 1 − db_rms_after / db_rms_before`` with ``before`` = the gap after the
   parameter refit (``gap.db_rms`` of ``diagnosis.json``), i.e. the share of the remaining gap
   the effect removes.
@@ -228,6 +234,27 @@ def accept(
 def clearly_better(candidate_score: float, baseline_score: float) -> bool:
     """The rule without a noise reference (the margins of the module docstring)."""
     return accept(candidate_score, baseline_score, 1, None)
+
+
+def indistinguishable(scores: Sequence[float], test: dict[str, Any]) -> list[tuple[int, float]]:
+    """The refits the data cannot tell from the best (module docstring): ``(j, Λⱼ)`` for
+    each ``j ≥ 1`` of ``scores`` (held-out scores [dB], best first) whose score the best
+    one's does not significantly beat, with ``Λⱼ = n (sⱼ² − s₁²) / L²`` (NaN without a noise
+    reference); ``test`` is the step's :func:`tests` of the best (its ``L`` and ``n``)."""
+    if not scores or not math.isfinite(scores[0]):
+        return []
+    s1 = scores[0]
+    out = []
+    for j, sj in enumerate(scores[1:], start=1):
+        if not math.isfinite(sj):
+            continue
+        if test.get("rule") == "noise":
+            lr = test["heldout_n_eff"] * (sj**2 - s1**2) / test["heldout_noise_level_db"] ** 2
+            if lr <= lr_threshold(1):
+                out.append((j, lr))
+        elif not clearly_better(s1, sj):
+            out.append((j, math.nan))
+    return out
 
 
 def rank(scores: Sequence[float]) -> list[int]:

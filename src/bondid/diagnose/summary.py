@@ -1,0 +1,80 @@
+"""The human summary of a diagnosis (what ``python -m bondid.diagnose`` prints), from the
+content of ``diagnosis.json`` (:func:`.report.to_json_dict`)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .pipeline import Diagnosis
+
+
+def summary(diag: Diagnosis, content: dict[str, Any]) -> str:
+    """A short human summary: gap, where, verdict, how far it shrinks."""
+    st = content["stages"]
+    g = content["gap"]
+    lines = [
+        f"gap (db_rms over {len(diag.channels)} channels): nominal {st['nominal']['db_rms']:.2f}"
+        f" dB -> after parameter refit {g['db_rms']:.2f} dB",
+    ]
+    ch = sorted(g["by_channel"].items(), key=lambda kv: -(kv[1] or 0))[:3]
+    lines.append("  worst channels: " + ", ".join(f"{c} {v:.2f} dB" for c, v in ch))
+    bands = sorted(g["by_band"], key=lambda b: -(b["db_rms"] or 0))[:3]
+    lines.append(
+        "  worst bands: "
+        + ", ".join(f"{b['f_lo_hz']:.0f}-{b['f_hi_hz']:.0f} Hz {b['db_rms']:.2f} dB" for b in bands)
+    )
+    miss = [m for m in g["modes"] if m["status"] == "missing"]
+    spur = [m for m in g["modes"] if m["status"] == "spurious"]
+    if g["modes"]:
+        lines.append(
+            f"  modes: {len(g['modes']) - len(miss) - len(spur)} paired, missing in the model at "
+            + (", ".join(f"{m['f_measured_hz']:.0f}" for m in miss) or "-")
+            + " Hz, spurious at "
+            + (", ".join(f"{m['f_model_hz']:.0f}" for m in spur) or "-")
+            + " Hz"
+        )
+    first = [c for c in content["candidates"] if c.get("step") == 1]
+    n_ref = sum(1 for c in first if c.get("refitted"))
+    lines.append(
+        f"candidates: {len(first)} screened, {n_ref} refitted (held-out score, dB; lower is"
+        " better):"
+    )
+    lines.append(f"  {'parameter refit only':42s} {diag.baseline_score:8.3f}")
+    for c in [c for c in first if c.get("refitted")][:5]:
+        lab = _label(c)
+        sc = c["score"]
+        lines.append(f"  {lab:42s} {sc if sc is not None else float('nan'):8.3f}")
+    v = content["verdict"]
+    if v["effect"] == "none":
+        lines.append(f"verdict: none — {v['reason']}")
+    else:
+        pars = ", ".join(f"{n} = {p['value']:.4g}" for n, p in v["parameters"].items())
+        lines.append(
+            f"verdict: {v['effect']} at {v['location']} ({pars}); gap {g['db_rms']:.2f} ->"
+            f" {st['effect']['db_rms']:.2f} dB, gap_closed {v['gap_closed']:.2f}"
+        )
+        ties = [f"{_label(t)} ({t['score']:.3f} dB)" for t in v["indistinguishable_from"]]
+        if ties:
+            lines.append("  the data do not tell it from: " + ", ".join(ties))
+    if content.get("effects"):
+        lines.append("effects: " + steps_line(g["db_rms"], content["effects"]))
+    lines.append(f"time {diag.wall_s:.1f} s")
+    return "\n".join(lines)
+
+
+def _label(c: dict[str, Any]) -> str:
+    """``effect@location`` (``effect`` alone without a location)."""
+    return f"{c['effect']}@{c['location']}" if c.get("location") else str(c["effect"])
+
+
+def steps_line(refit_db: float, effects: Sequence[dict[str, Any]]) -> str:
+    """``parameters 7.80 → +joint compliance 3.10 → +actuator lag 1.90 dB`` (the weighted
+    gap after the parameter refit and after each accepted effect)."""
+    parts = [f"parameters {refit_db:.2f}"]
+    for e in effects:
+        name = str(e["effect"]).replace("_", " ")
+        at = f" at {e['location']}" if e.get("location") else ""
+        parts.append(f"+{name}{at} {e['db_rms_after']:.2f}")
+    return " → ".join(parts) + " dB"
