@@ -205,6 +205,18 @@ def test_scores_two_effect_cases_and_screening() -> None:
     assert screening(case, _diag([sm], cands)) is True
 
 
+def test_a_true_effect_the_data_cannot_tell_from_the_claimed_one_counts_as_tied() -> None:
+    case = next(c for c in all_cases() if c.name == "gantry/sm+al/acc")
+    sm = {"effect": "soft_mounts", "location": "frame"}
+    sd = {"effect": "sensor_delay", "location": "gy", "indistinguishable_from": [
+        {"effect": "actuator_lag", "location": "gy", "score": 1.0, "lr": 2.0}]}  # fmt: skip
+    r = score(case, _diag([sm, sd]), db_truth=2.0)
+    assert not r["location_ok"] and r["named_or_tied"] is True
+    assert score(case, _diag([sm]), 2.0)["named_or_tied"] is False
+    none = next(c for c in all_cases() if not c.effects)
+    assert score(none, _diag([]), 2.0)["named_or_tied"] is None
+
+
 def test_final_model_at_the_noise_level() -> None:
     case = next(c for c in all_cases() if c.name == "gantry/sm+al/acc")
     sm = {"effect": "soft_mounts", "location": "frame", "db_rms_after": 2.5}

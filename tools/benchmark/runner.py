@@ -159,6 +159,19 @@ def screening(case: Case, diag: dict[str, Any]) -> bool | None:
     )  # fmt: skip
 
 
+def named_or_tied(case: Case, claimed: list[dict[str, Any]]) -> bool | None:
+    """Is every true effect (class and location) claimed, or listed by a claimed step as
+    one the data cannot tell from its effect (``indistinguishable_from``)? None on a "none"
+    case."""
+    if not case.effects:
+        return None
+    names = {(c.get("effect"), c.get("location")) for c in claimed}
+    for c in claimed:
+        ties = [t for t in c.get("indistinguishable_from") or [] if isinstance(t, dict)]
+        names |= {(t.get("effect"), t.get("location")) for t in ties}
+    return all((e.effect, e.location) in names for e in case.effects)
+
+
 def _gap_closed_final(diag: dict[str, Any], claimed: list[dict[str, Any]]) -> float:
     """gap_closed of the whole accepted list (its last step's, when it says), else the
     verdict's."""
@@ -213,4 +226,5 @@ def score(case: Case, diag: dict[str, Any], db_truth: float | None) -> dict[str,
         "gap_nominal": (stages.get("nominal") or {}).get("db_rms"), "gap_refit": before,
         "gap_closed": closed, "truth_gap_closed": truth_closed, "ratio": ratio,
         "screen_ok": screening(case, diag), "final_db": final, "at_noise": at_noise,
+        "named_or_tied": named_or_tied(case, claimed),
     }  # fmt: skip

@@ -75,6 +75,7 @@ def _group(rows: list[dict[str, Any]]) -> dict[str, Any]:
     double = [r for r in ok if len(r["truth"]) > 1]
     screened = [r["screen_ok"] for r in ok if r["screen_ok"] is not None]
     noise = [r["at_noise"] for r in ok if r.get("at_noise") is not None]
+    tied = [r["named_or_tied"] for r in ok if r.get("named_or_tied") is not None]
     return {
         "n": len(rows), "failed": len(rows) - len(ok),
         "class": _pct(sum(r["class_ok"] for r in single), len(single)),
@@ -88,6 +89,7 @@ def _group(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "t_ratio": _f(_median(time_ratio(r) for r in ok), ".1f"),
         "recall": f"{sum(screened)}/{len(screened)}" if screened else "n/a",
         "at_noise": _pct(sum(noise), len(noise)),
+        "tied": _pct(sum(tied), len(tied)),
     }  # fmt: skip
 
 
@@ -96,8 +98,8 @@ def summary_table(rows: list[dict[str, Any]]) -> str:
     head = ("| design | regime | cases (failed) | class right | location right | claimed on"
             " none | two-effect both found | third claimed | median ratio | median diagnose s"
             " | median fit s | median diag/fit | screening recall"
-            " | final model at noise |")  # fmt: skip
-    lines = [head, "|" + "---|" * 14]
+            " | final model at noise | named or tied |")  # fmt: skip
+    lines = [head, "|" + "---|" * 15]
     designs = list(dict.fromkeys(r["design"] for r in rows))
     regimes = list(dict.fromkeys(r["regime"] for r in rows))
     groups = [((d, g), [r for r in rows if r["design"] == d and r["regime"] == g])
@@ -112,6 +114,6 @@ def summary_table(rows: list[dict[str, Any]]) -> str:
         lines.append(
             f"| {d} | {g} | {s['n']} ({s['failed']}) | {s['class']} | {s['loc']} | {s['none']} |"
             f" {s['both']} | {s['third']} | {s['ratio']} | {s['diag_s']} | {s['fit_s']} |"
-            f" {s['t_ratio']} | {s['recall']} | {s['at_noise']} |"
+            f" {s['t_ratio']} | {s['recall']} | {s['at_noise']} | {s['tied']} |"
         )
     return "\n".join(lines) + "\n\n" + GOALS
