@@ -159,7 +159,7 @@ def test_the_modal_step_tries_the_other_variants_while_stuck(monkeypatch):
     assert job2.candidate is not None and job2.candidate.spec == kept_spec
     assert not job2.candidate.variants
     assert aug.spec == kept_spec and (state, res) == ("s2", "r2")
-    assert note.startswith("not kept; variant ") and note.endswith(": kept")
+    assert note == f"{c.description}: not kept; {c.variants[0].description}: kept"
     # not stuck after the job's own variant: no other is tried
     tried.clear()
     monkeypatch.setattr(alternatives, "stuck", lambda job, aug, s, r: False)
