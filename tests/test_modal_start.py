@@ -121,8 +121,9 @@ def test_modal_starts_match_the_measured_modes_better_than_the_candidates_start(
 
 def test_the_modal_step_tries_the_other_variants_while_stuck(monkeypatch):
     """The job's own variant first; the other variants (elastic centres) only while the refit
-    is still stuck; the variant whose restart was kept becomes the job's candidate, and the
-    step stops there."""
+    is still stuck, found from the effect (the job's candidate, the screening's choice, has
+    no variants of its own); the variant whose restart was kept becomes the job's candidate,
+    and the step stops there."""
     from dataclasses import replace
 
     from bondid.cost.problem import CostOptions
@@ -131,7 +132,6 @@ def test_the_modal_step_tries_the_other_variants_while_stuck(monkeypatch):
     doc = UrdfDocument.load(ROOT / "urdf" / "bonder.urdf")
     c = _mounts(doc)
     assert len(c.variants) >= 2  # the test needs a variant after the one that is kept
-    options = (c, *c.variants)
     kept_spec = c.variants[0].spec
     tried: list[dict] = []
 
@@ -154,7 +154,7 @@ def test_the_modal_step_tries_the_other_variants_while_stuck(monkeypatch):
     monkeypatch.setattr(ms, "measured_modes", lambda data: [["m"]])
     monkeypatch.setattr(alternatives, "stuck", lambda job, aug, s, r: aug.spec != kept_spec)
     job = runner.Job(doc.to_string(), None, [], [], [], replace(c, variants=()), CostOptions())  # type: ignore[arg-type]
-    job2, aug, state, res, note = ms.modal_step(job, options, Aug(c.spec), "s", "r")
+    job2, aug, state, res, note = ms.modal_step(job, Aug(c.spec), "s", "r")
     assert tried == [c.spec, kept_spec]  # the third centre is not tried: no longer stuck
     assert job2.candidate is not None and job2.candidate.spec == kept_spec
     assert not job2.candidate.variants
@@ -163,5 +163,5 @@ def test_the_modal_step_tries_the_other_variants_while_stuck(monkeypatch):
     # not stuck after the job's own variant: no other is tried
     tried.clear()
     monkeypatch.setattr(alternatives, "stuck", lambda job, aug, s, r: False)
-    job3, *_ = ms.modal_step(job, options, Aug(c.spec), "s", "r")
+    job3, *_ = ms.modal_step(job, Aug(c.spec), "s", "r")
     assert tried == [c.spec] and job3 is job

@@ -115,13 +115,11 @@ def at_refined_pivot(
     return job, aug, state, res, f"{note}; refitted there, not kept"
 
 
-def other_variants(
-    job: Job, aug: Augmented, state: State, res: Any, notes: dict[str, Any] | None = None
-) -> tuple[Job, Augmented, State, Any]:
-    """A refit above the noise level of a candidate with variants (e.g. the elastic centres
-    of soft mounts; the screening kept one on short starts): every other variant refitted
-    fully (both origins, the same start); the lowest objective is kept. A variant whose
-    refit fails is skipped and said in ``notes["variants"]`` (the job's ``extra``)."""
+def variant_options(job: Job) -> list[Candidate]:
+    """The job's candidate's options as its effect lists them on the nominal model (the
+    candidate of the same label and its variants, each without variants; those with another
+    number of new parameters left out). The job's own candidate may be one variant already
+    (the screening's choice), so its own ``variants`` are not enough."""
     from ..model.document import UrdfDocument
     from .effects import get_effect
 
@@ -129,13 +127,28 @@ def other_variants(
     assert cand is not None
     doc = UrdfDocument.from_string(job.alt_urdf if job.alt_urdf is not None else job.urdf)
     same = [c for c in get_effect(cand.effect).candidates(doc) if c.label == cand.label]
+    if not same:
+        return []
+    return [replace(v, variants=()) for v in (same[0], *same[0].variants)
+            if len(v.parameters) == len(cand.parameters)]  # fmt: skip
+
+
+def other_variants(
+    job: Job, aug: Augmented, state: State, res: Any, notes: dict[str, Any] | None = None
+) -> tuple[Job, Augmented, State, Any]:
+    """A refit above the noise level of a candidate with variants (e.g. the elastic centres
+    of soft mounts; the screening kept one on short starts): every other variant refitted
+    fully (both origins, the same start); the lowest objective is kept. A variant whose
+    refit fails is skipped and said in ``notes["variants"]`` (the job's ``extra``)."""
+    cand = job.candidate
+    assert cand is not None
     best = (aug.refit.cost(state), job, aug, state, res)
     failed: list[str] = []
     tried = 0
-    for v in [] if not same else (same[0], *same[0].variants):
-        if v.spec == cand.spec or len(v.parameters) != len(cand.parameters):
+    for v in variant_options(job):
+        if v.spec == cand.spec:
             continue
-        other = replace(job, candidate=replace(v, variants=()))
+        other = replace(job, candidate=v)
         tried += 1
         try:
             a2, s2, r2 = _fit(other)

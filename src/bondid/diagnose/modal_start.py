@@ -251,23 +251,23 @@ def modal_restarts(
 
 
 def modal_step(
-    job: Job, options: Sequence[Candidate], aug: Augmented, state: State, res: Any
+    job: Job, aug: Augmented, state: State, res: Any
 ) -> tuple[Job, Augmented, State, Any, str]:
-    """:func:`modal_restarts` for the job's candidate, then for each other of its ``options``
-    (the candidate and its variants, e.g. the elastic centres of soft mounts) while the refit
+    """:func:`modal_restarts` for the job's candidate, then for each other of its variants
+    (:func:`.alternatives.variant_options`, e.g. the elastic centres of soft mounts) while the refit
     is still :func:`.alternatives.stuck`: the restart alternation reaches the noise level only
     from the right variant (bonder_b/sm/coh: the diagnosis of stop 21 had kept the centre
     below the CoM, where it ended at 6.75× the noise level; from the bottom face's centre,
     the truth's, the step reaches 0.76×). The measured modes are identified once. Returns
     the job with the candidate kept, the refit and a note per variant tried
     ("<variant>: <note>", "; "-joined)."""
-    from .alternatives import stuck
+    from .alternatives import stuck, variant_options
     from .runner import _setup
 
     cand = job.candidate
     assert cand is not None
     measured = measured_modes(job.full)
-    order = [cand, *(o for o in options if o.spec != cand.spec)]
+    order = [cand, *(o for o in variant_options(job) if o.spec != cand.spec)]
     notes = []
     for k, option in enumerate(order):
         if k and not stuck(job, aug, state, res):

@@ -337,7 +337,6 @@ def _run(job: Job, t0: float) -> JobResult:
     from .modal_start import applies, modal_step
 
     extra: dict[str, Any] = {}
-    options = () if job.candidate is None else (job.candidate, *job.candidate.variants)
     if job.candidate is not None and job.candidate.variants:
         job, _ = _screen_variants(job)
         assert job.candidate is not None
@@ -358,7 +357,7 @@ def _run(job: Job, t0: float) -> JobResult:
         is_stuck = stuck(job, aug, state, res)
     if is_stuck and applies(job.candidate):
         assert job.candidate is not None
-        job, aug, state, res, extra["modal starts"] = modal_step(job, options, aug, state, res)
+        job, aug, state, res, extra["modal starts"] = modal_step(job, aug, state, res)
         extra["variant"] = job.candidate.description  # type: ignore[union-attr]
         is_stuck = stuck(job, aug, state, res)
     from_nominal = False
