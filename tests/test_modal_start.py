@@ -142,7 +142,7 @@ def test_the_modal_step_tries_the_other_variants_while_stuck(monkeypatch):
     def fake_setup(urdf, job):
         return Aug(job.candidate.spec)
 
-    def fake_restarts(aug0, option, data, hints, aug, state, res, measured):
+    def fake_restarts(job, aug0, option, aug, state, res, measured):
         assert measured == [["m"]]  # identified once, passed to every variant
         tried.append(option.spec)
         if option.spec == kept_spec:

@@ -3,8 +3,9 @@ at it on the training data but well above it on the held-out data (for :mod:`.ru
 a rotational joint compliance at a pivot refined continuously (:func:`at_refined_pivot`,
 :mod:`.pivot`), a candidate with variants at each other variant (:func:`other_variants`).
 Each alternative gets the full refit of both origins (:func:`.runner._fit`); the lowest
-objective is kept. An alternative whose model or refit fails (a numerical error) is skipped,
-and the failure is said in the job's notes (``candidates[].notes`` of ``diagnosis.json``).
+objective is kept unless it is bought with a worse held-out figure (:mod:`.keep`). An
+alternative whose model or refit fails (a numerical error) is skipped, and the failure is said
+in the job's notes (``candidates[].notes`` of ``diagnosis.json``).
 
 Then, still stuck, the two ways the fit itself gets out of a wrong basin
 (:func:`wider_search`): the refit from the candidate's own starting-point scans and start
@@ -27,6 +28,7 @@ import numpy as np
 from ..exceptions import BondidError
 from .augmented import Augmented
 from .effects import Candidate
+from .keep import held_of, replaces
 from .pivot import child_extent, refine_pivot
 from .refit import State
 from .rescue import above_noise
@@ -63,7 +65,7 @@ def stuck(job: Job, aug: Augmented, state: State, res: Any) -> bool:
     fit the training bands at the noise level with bent nominal parameters and miss the
     held-out ones (measured: a rotational compliance at the candidate's pivot, training
     1.19× the noise level, held-out 2.1×; at the refined pivot 1.13× and 1.5×). Which
-    alternative is kept is still decided on the training objective alone."""
+    alternative is kept: :mod:`.keep`."""
     from .evaluate import heldout_rms
     from .rescue import above_heldout_level
 
@@ -110,7 +112,7 @@ def at_refined_pivot(
     if moved.candidate.spec["pivot"] == job.candidate.spec["pivot"]:
         return job, aug, state, res, f"{note}; the pivot kept"
     aug2, state2, res2 = _fit(moved)
-    if aug2.refit.cost(state2) < aug.refit.cost(state):
+    if _better(job, aug, state, res, aug2, state2, res2):
         return moved, aug2, state2, res2, f"{note}; refitted there, kept"
     return job, aug, state, res, f"{note}; refitted there, not kept"
 
@@ -142,7 +144,7 @@ def other_variants(
     refit fails is skipped and said in ``notes["variants"]`` (the job's ``extra``)."""
     cand = job.candidate
     assert cand is not None
-    best = (aug.refit.cost(state), job, aug, state, res)
+    best = (job, aug, state, res)
     failed: list[str] = []
     tried = 0
     for v in variant_options(job):
@@ -155,12 +157,11 @@ def other_variants(
         except _SKIPPED as err:
             failed.append(_failure(f"variant {v.description!r}", err))
             continue
-        c2 = a2.refit.cost(s2)
-        if c2 < best[0]:
-            best = (c2, other, a2, s2, r2)
+        if _better(job, *best[1:], a2, s2, r2):
+            best = (other, a2, s2, r2)
     if failed and notes is not None:
         notes["variants"] = _failures_note(failed, tried, "other variants' refits")
-    return best[1:]
+    return best
 
 
 def with_own_scans(
@@ -175,7 +176,7 @@ def with_own_scans(
         aug2, state2, res2 = _fit(replace(job, start_new=()))
     except _SKIPPED as exc:
         return aug, state, res, f"own scans failed ({type(exc).__name__})"
-    return _lower(aug, state, res, aug2, state2, res2, "own scans")
+    return _lower(job, aug, state, res, aug2, state2, res2, "own scans")
 
 
 def continuation_from_nominal(
@@ -193,7 +194,7 @@ def continuation_from_nominal(
                                                  band_iter)  # fmt: skip
     except _SKIPPED as exc:
         return aug, state, res, f"{NOMINAL_LABEL} failed ({type(exc).__name__})"
-    return _lower(aug, state, res, alt_aug, s2, res2, NOMINAL_LABEL)
+    return _lower(job, aug, state, res, alt_aug, s2, res2, NOMINAL_LABEL)
 
 
 NOMINAL_LABEL = "continuation from the nominal model"
@@ -238,16 +239,24 @@ def wider_search(
     return aug, state, res, "; ".join(notes)
 
 
+def _better(
+    job: Job, aug: Augmented, state: State, res: Any, aug2: Augmented, state2: State, res2: Any
+) -> bool:
+    """Does the second refit replace the first (:func:`.keep.replaces`)?"""
+    return replaces(job, aug.refit.cost(state), held_of(job, aug, res),
+                    aug2.refit.cost(state2), held_of(job, aug2, res2))  # fmt: skip
+
+
 def _lower(
-    aug: Augmented, state: State, res: Any, aug2: Augmented, state2: State, res2: Any,
-    label: str,
+    job: Job, aug: Augmented, state: State, res: Any,
+    aug2: Augmented, state2: State, res2: Any, label: str,
 ) -> tuple[Augmented, State, Any, str]:  # fmt: skip
-    """The refit of lower objective, with a note of ``label``'s noise ratio."""
+    """The refit :func:`.keep.replaces` keeps, with a note of ``label``'s noise ratio."""
     from .rescue import noise_ratio_at
 
-    c, c2 = aug.refit.cost(state), aug2.refit.cost(state2)
-    note = kept_note(label, noise_ratio_at(aug2.refit, state2), c2 < c)
-    if c2 < c:
+    kept = _better(job, aug, state, res, aug2, state2, res2)
+    note = kept_note(label, noise_ratio_at(aug2.refit, state2), kept)
+    if kept:
         return aug2, state2, res2, note
     return aug, state, res, note
 

@@ -29,7 +29,7 @@ data at 0.78–0.79× the noise level. Two findings make the path back:
    ended at 5.85× the noise level; with the local searches, at 0.76×. Which start is right
    the matching cost does not tell reliably (on bonder_b/sm/coh two of four starts led to the
    noise level, not the best-matching one), so every distinct start gets the alternation and
-   the lowest training objective is kept.
+   the lowest training objective is kept, against the refit so far by :mod:`.keep`'s rule.
 3. **On every variant.** The alternation reaches the noise level only from the right variant
    of the candidate (e.g. the elastic centre of soft mounts), which the refits before it do
    not always keep, so :func:`modal_step` runs it on each other variant while the refit is
@@ -217,18 +217,18 @@ def alternation(
 
 
 def modal_restarts(
-    aug0: Augmented, cand: Candidate, data: Sequence[FrfData], hints_hz: Sequence[float],
-    aug: Augmented, state: State, res: Any,
+    job: Job, aug0: Augmented, cand: Candidate, aug: Augmented, state: State, res: Any,
     measured: Sequence[Sequence[IdentifiedMode]] | None = None,
 ) -> tuple[Augmented, State, Any, str]:  # fmt: skip
-    """The restart alternation from every start of :func:`modal_starts` on ``aug0`` (the
-    job's model augmented with its candidate ``cand``: the first origin), against the refit so far
-    (``aug``, ``state``, ``res``); the lowest training objective is kept. Returns it and a
+    """The restart alternation from every start of :func:`modal_starts` (on ``job``'s data
+    and hints) on ``aug0`` (the job's model augmented with its candidate ``cand``: the first
+    origin); the start of lowest training objective is compared with the refit so far
+    (``aug``, ``state``, ``res``) by :func:`.keep.replaces`. Returns the kept refit and a
     note (how many starts, the best one's noise ratio, kept or not; failures)."""
     from .alternatives import _SKIPPED, _failure, _lower
 
     refit = aug0.refit
-    starts = modal_starts(refit, cand, data, hints_hz, measured)
+    starts = modal_starts(refit, cand, job.full, job.hints_hz, measured)
     if not starts:
         return aug, state, res, "no measured mode to match"
     best: tuple[State, float, Any] | None = None
@@ -246,7 +246,9 @@ def modal_restarts(
         note += f", {len(failed)} failed (first: {failed[0]})"
     if best is None:
         return aug, state, res, note
-    aug, state, res, kept = _lower(aug, state, res, aug0, best[0], best[2], "restart alternation")
+    aug, state, res, kept = _lower(
+        job, aug, state, res, aug0, best[0], best[2], "restart alternation"
+    )
     return aug, state, res, f"{note}; {kept}"
 
 
@@ -274,9 +276,7 @@ def modal_step(
             break
         sub = replace(job, candidate=replace(option, variants=()))
         aug0 = _setup(job.urdf, sub)
-        aug, state, res, note = modal_restarts(
-            aug0, option, job.full, job.hints_hz, aug, state, res, measured
-        )
+        aug, state, res, note = modal_restarts(job, aug0, option, aug, state, res, measured)
         if aug is aug0:
             job = sub
         notes.append(f"{option.description}: {note}" if len(order) > 1 else note)

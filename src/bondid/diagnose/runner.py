@@ -17,7 +17,8 @@ data and on all data. Steps for a candidate:
    (:func:`direct`: the core's direct schedule with its presolve on the normalised complex
    error). The parameter refit that starts every candidate may have bent nominal parameters
    to mimic the missing effect; from the nominal values they can unbend. The lower training
-   objective of the two origins is kept.
+   objective of the two origins is kept, unless it is bought with a worse held-out figure
+   (:mod:`.keep`, the rule of every choice between two refits of a job).
 
 A rotational joint compliance whose refit ends above the noise level gets its pivot refined
 (:mod:`.pivot`) and both origins refitted there; another candidate with variants gets every
@@ -62,6 +63,7 @@ from ..exceptions import BondidError
 from ..optim.search import PRESOLVE_KIND, Step
 from .augmented import Augmented, build, chain_of
 from .effects import Candidate
+from .keep import held_of, replaces
 from .refit import Nominal, Refit, State
 from .rescue import rescue
 from .scan_grid import scan_grid
@@ -310,7 +312,8 @@ def _screen_variants(job: Job) -> tuple[Job, float]:
 
 
 def _fit(job: Job) -> tuple[Augmented, State, Any]:
-    """Both origins of the module docstring; the better (lower training objective)."""
+    """Both origins of the module docstring; the better (lower training objective, without a
+    worse held-out figure: :func:`.keep.replaces`)."""
     cand = job.candidate
     aug = _setup(job.urdf, job)
     found: list[np.ndarray] = []
@@ -327,7 +330,7 @@ def _fit(job: Job) -> tuple[Augmented, State, Any]:
         only = 0 if job.start_new else None
         s_a = _alt_start(job, alt.refit, found, only)[0]
         s_a, c_a, res_a = alt.refit.solve(s_a, direct(job.alt_iter, job.presolve_iter))
-        if c_a < c:
+        if replaces(job, c, held_of(job, aug, res), c_a, held_of(job, alt, res_a)):
             aug, s, res = alt, s_a, res_a
     return aug, s, res
 

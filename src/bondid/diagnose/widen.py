@@ -10,7 +10,8 @@ the step ranks) could still decide the step: it gets the wider search from its f
 result (:func:`run_widen`): the refit with its own scans (the screening's start dropped), then,
 if still above the noise level on the training data (only there has it something to find), the
 band continuation from the nominal model with the new parameters at their best values so far;
-the lower training objective of the first round and of each of these is kept. When the first
+the lower training objective of the first round and of each of these is kept, unless it is
+bought with a worse held-out figure (:mod:`.keep`). When the first
 round's refit stays, the result is the first round's (its note added); otherwise the kept refit
 gets the rescue (the staged schedule alone after the continuation from the nominal model, as in
 a job that runs the wider search itself) and is evaluated again.
@@ -35,6 +36,7 @@ from ..exceptions import BondidError
 from . import scoring
 from .alternatives import _SKIPPED, NOMINAL_LABEL, kept_note, nominal_continuation
 from .augmented import Augmented
+from .keep import held_of, known, replaces
 from .refit import State
 from .rescue import above_heldout_level, above_ratio, noise_ratio_at
 from .runner import Job, JobResult, _fit, finish
@@ -111,14 +113,17 @@ def _widen(w: Widen, t0: float) -> JobResult:
     cost, ratio = first.objective, first.noise_ratio
     notes: list[str] = []
 
+    held = known(first.heldout_rms)
+
     def compare(label: str, aug: Augmented, state: State, res: Any) -> None:
-        """Keep ``state`` when its objective is lower (the note of ``_lower``)."""
-        nonlocal best, cost, ratio
+        """Keep ``state`` when :func:`.keep.replaces` says so (the note of ``_lower``)."""
+        nonlocal best, cost, ratio, held
         c2, r2 = aug.refit.cost(state), noise_ratio_at(aug.refit, state)
-        kept = c2 < cost
+        held2 = held_of(job, aug, res)
+        kept = replaces(job, cost, held, c2, held2)
         notes.append(kept_note(label, r2, kept))
         if kept:
-            best, cost, ratio = (aug, state, res), c2, r2
+            best, cost, ratio, held = (aug, state, res), c2, r2, held2
 
     if job.start_new:
         try:
