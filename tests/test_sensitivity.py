@@ -228,7 +228,11 @@ def test_cli_writes_json_and_pngs(tmp_path, noisy):
         n_p,
         len(res["bands"]),
     )
-    assert len(res["channel_sensitivity"]["values"][0]) == 9
+    # the channels under the noise floor are left out (tests/test_channel_rule.py), the others
+    # each get a column
+    left_out = res["channels_left_out"]
+    assert set(left_out).isdisjoint(res["channels"])
+    assert len(res["channel_sensitivity"]["values"][0]) == len(res["channels"]) == 9 - len(left_out)
     ident = res["identifiability"]
     assert len(ident["singular_values"]) == n_p and ident["recommended"]
     assert all(set(r) == {"name", "std"} for r in ident["recommended"])

@@ -4,7 +4,7 @@ public layout of one data set's selection (:class:`DataSelection`)."""
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -147,3 +147,30 @@ def select_points(ds: FrfData, affine: AffineModel, opt: CostOptions) -> DataSel
         ds, affine, ds.freq_hz[used], a, cols, fidx, None if whole else flat, Hm, w, scale,
         names,
     )  # fmt: skip
+
+
+def informative_only(
+    datasets: Sequence[FrfData], options: CostOptions
+) -> tuple[CostOptions, dict[str, float], str]:
+    """``options`` limited to the informative channels when it names none
+    (:func:`bondid.data.weights.informative_channels`, the diagnosis's rule too), the channels
+    left out with their median information weight, and a note on them ("" when none is).
+    When no channel is informative, every one is kept (none is left out) and the note says
+    so."""
+    from ..data.weights import MIN_CHANNEL_WEIGHT, informative_channels, left_out_note
+
+    if options.channels is not None:
+        return options, {}, ""
+    keep, left_out = informative_channels(datasets, options.effective_weighting)
+    if not left_out:
+        return options, {}, ""
+    if not keep:
+        return (
+            options,
+            {},
+            (
+                f"every channel's median information weight is below {MIN_CHANNEL_WEIGHT} (median"
+                " SNR below 0 dB): all are fitted; check the data or name channels with --channels"
+            ),
+        )
+    return replace(options, channels=keep), left_out, left_out_note(left_out)

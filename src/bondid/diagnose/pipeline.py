@@ -33,7 +33,7 @@ import numpy as np
 
 from ..cost.problem import CostOptions
 from ..data.measurement import FrfData
-from ..data.weights import check_weighting
+from ..data.weights import MIN_CHANNEL_WEIGHT, check_weighting
 from ..exceptions import ConfigError, DataError
 from ..frf.aligned import model_frf
 from ..model.document import UrdfDocument
@@ -48,7 +48,8 @@ from .split import decimate, holdout_split, limit_bands
 
 #: default free parameters of the parameter refit (zero-valued springs/dampers are dropped)
 DEFAULT_FREE = ("all",)
-MIN_CHANNEL_COHERENCE = 0.5
+#: channels below this median information weight are left out (:func:`used_channels`)
+MIN_CHANNEL_COHERENCE = MIN_CHANNEL_WEIGHT
 
 
 @dataclass
@@ -108,8 +109,11 @@ class Diagnosis:
 
 def used_channels(datasets: Sequence[FrfData], requested: Sequence[str] | None) -> list[str]:
     """Channels to use: ``requested`` (checked), else every present channel whose median
-    coherence — the information weight, once :func:`diagnose` has put the weights there — is at
-    least :data:`MIN_CHANNEL_COHERENCE` (all present ones without coherence)."""
+    information weight — held in ``coherence`` once :func:`diagnose` has put the weights there
+    — is at least :data:`MIN_CHANNEL_COHERENCE` (:func:`bondid.data.weights.
+    informative_channels`, the rule of ``bondid.fit`` and ``bondid.sensitivity`` too)."""
+    from ..data.weights import informative_channels
+
     present: list[str] = []
     for d in datasets:
         present += [c for c in d.channels if c not in present]
@@ -120,15 +124,7 @@ def used_channels(datasets: Sequence[FrfData], requested: Sequence[str] | None) 
                 f"--channels: {', '.join(bad)} not in the data; valid: {', '.join(present)}"
             )
         return list(requested)
-    keep = []
-    for c in present:
-        cohs = []
-        for d in datasets:
-            if c in d.channels and d.coherence is not None:
-                o, _, i = c.rpartition(".")
-                cohs.append(d.coherence[d.outputs.index(o), d.inputs.index(i)])
-        if not cohs or np.nanmedian(np.concatenate(cohs)) >= MIN_CHANNEL_COHERENCE:
-            keep.append(c)
+    keep, _ = informative_channels(datasets, "coherence", MIN_CHANNEL_COHERENCE)
     if not keep:
         raise DataError(
             "every channel is below the noise floor (median information weight < 0.5, i.e. "

@@ -27,6 +27,7 @@ from ..cli import (
     warn_lines,
 )
 from ..cost.problem import CostOptions
+from ..cost.selection import informative_only
 from ..data.measurement import FrfData
 from ..exceptions import ConfigError, DependencyError, SolverError
 from ..model.document import UrdfDocument
@@ -235,13 +236,16 @@ def _load(args: argparse.Namespace, s: StudySettings) -> dict[str, Any]:
     if args.out is not None:
         check_out_dir(args.out, inputs, datasets)
     check_weights(s, datasets)
-    options = cost_options(s)
+    options, left_out, note = informative_only(datasets, cost_options(s))
+    if note:
+        warnings.append(note)
     names = resolve_names(doc, datasets, s, options)
     lower, upper = resolve_bounds(doc, names, s, max(float(d.freq_hz[-1]) for d in datasets))
     warnings += start_outside_bounds(doc, names, lower, upper)
     return {
         "inputs": inputs, "res": res, "doc": doc, "warnings": warnings, "datasets": datasets,
         "options": options, "names": names, "lower": lower, "upper": upper,
+        "left_out": left_out,
     }  # fmt: skip
 
 
@@ -330,7 +334,7 @@ def _body(args: argparse.Namespace) -> int:
         "study_file": None if s.source is None else str(s.source),
         "settings": s.to_json_dict(), "multistart": ms.spread(),
         "stages": [st.to_json_dict() for st in ms.best_run.stages] or None,
-        "warnings": warnings,
+        "warnings": warnings, "channels_left_out": w["left_out"],
     }  # fmt: skip
     content = None
     if res is not None:

@@ -76,6 +76,7 @@ def _run(args: argparse.Namespace) -> int:
     """Load the model and data, analyse, print the summary and write the results (``--out``)."""
     from .. import cli
     from ..cost import CostOptions
+    from ..cost.selection import informative_only
     from ..data.for_model import load_datasets
     from ..results import open_results
     from ..validation import check_inputs, load_model
@@ -96,6 +97,9 @@ def _run(args: argparse.Namespace) -> int:
     warnings += check_inputs(doc, datasets, args.data)
     channels = cli.split_names(args.channels) or None
     options = CostOptions(kind=args.cost, bands=args.band, channels=channels)
+    options, left_out, note = informative_only(datasets, options)
+    if note:
+        warnings.append(note)
     setup = make_setup(doc, datasets, options, cli.split_names(args.free),
                        cli.split_names(args.fixed))  # fmt: skip
     lin = linearise_cost(setup)
@@ -115,6 +119,7 @@ def _run(args: argparse.Namespace) -> int:
             cost_name=options.name, n_residuals=setup.problem.n_residuals, timing=timing,
         )  # fmt: skip
         content["warnings"] = warnings
+        content["channels_left_out"] = left_out
         output.write_json(res.path("sensitivity.json"), content)
         pngs = output.write_plots(res.tmp, local, sweep, title=doc.name)
         res.commit(warnings=warnings, main="sensitivity.json")
