@@ -165,3 +165,48 @@ def test_the_modal_step_tries_the_other_variants_while_stuck(monkeypatch):
     monkeypatch.setattr(alternatives, "stuck", lambda job, aug, s, r: False)
     job3, *_ = ms.modal_step(job, Aug(c.spec), "s", "r")
     assert tried == [c.spec] and job3 is job
+
+
+def test_the_modal_step_runs_only_where_the_job_allows_it(monkeypatch):
+    """A stuck soft-mount refit gets the modal step when ``Job.modal`` (the search sets it for
+    the screening's best candidates, ``search.modal_ranked``), and a note saying it was not
+    run otherwise."""
+    from dataclasses import replace
+
+    from bondid.cost.problem import CostOptions
+    from bondid.diagnose import alternatives, runner
+
+    doc = UrdfDocument.load(ROOT / "urdf" / "bonder.urdf")
+    c = replace(_mounts(doc), variants=())
+    calls: list[str] = []
+
+    def fake_step(job, aug, state, res):
+        calls.append(job.candidate.label)
+        return job, aug, state, res, "ran"
+
+    monkeypatch.setattr(runner, "_fit", lambda job: ("aug", "state", "res"))
+    monkeypatch.setattr(alternatives, "stuck", lambda job, aug, s, r: True)
+    monkeypatch.setattr(
+        alternatives, "other_variants", lambda job, aug, s, r, extra: (job, aug, s, r)
+    )
+    monkeypatch.setattr(ms, "modal_step", fake_step)
+    monkeypatch.setattr(runner, "finish", lambda job, aug, s, r, extra, t0, continuation: extra)
+    job = runner.Job(doc.to_string(), None, [], [], [], c, CostOptions(), wider=False)  # type: ignore[arg-type]
+    assert runner._run(job, 0.0)["modal starts"] == "ran" and calls == [c.label]
+    calls.clear()
+    extra = runner._run(replace(job, modal=False), 0.0)
+    assert extra["modal starts"] == runner.MODAL_SKIPPED and calls == []
+
+
+def test_modal_ranked_keeps_the_best_figures_and_profile_picks():
+    from types import SimpleNamespace
+
+    from bondid.diagnose.search import MODAL_TOP, modal_ranked
+
+    costs = [3.0, 1.0, float("inf"), 2.0, 5.0, 4.0, 6.0, 7.0]
+    picks = [5, 4, 0, 6]
+    screenings = [SimpleNamespace(cost=c) for c in costs]
+    got = modal_ranked(screenings, picks=picks)  # type: ignore[arg-type]
+    by_figure = [1, 3, 0, 5, 4, 6, 7]  # the finite figures, best first
+    assert got == {*by_figure[:MODAL_TOP], *picks[:MODAL_TOP]}
+    assert 2 not in got and 7 not in got  # no figure; the worst figure, not a pick

@@ -25,7 +25,7 @@ A rotational joint compliance whose refit ends above the noise level gets its pi
 other variant refitted fully (:mod:`.alternatives`); the lowest objective is kept. A
 candidate with several springs (soft mounts, a flexible base) still above it gets the restart
 alternation from starts matched to the measured modes (:mod:`.modal_start`), on its kept
-variant, then on each other variant while still above it. Still above it, with
+variant, then on each other variant while still above it (when ``Job.modal``). Still above it, with
 ``Job.wider``, the wider search (:func:`.alternatives.wider_search`).
 
 Every solve is the optimisation core's (:mod:`.refit`: a :class:`~bondid.optim.FitProblem`
@@ -125,6 +125,10 @@ class Job:
     #: the base's held-out score is above the held-out noise level (:mod:`.search`): the
     #: screening runs the joint profile whatever the one-step figure (:func:`.screen.needs_profile`)
     profile_always: bool = False
+    #: a stuck refit of a candidate with several springs may get the modal step
+    #: (:mod:`.modal_start`); the diagnosis's search allows it only to the candidates its
+    #: screening ranks best (:data:`.search.MODAL_TOP`)
+    modal: bool = True
 
 
 @dataclass
@@ -335,6 +339,10 @@ def _fit(job: Job) -> tuple[Augmented, State, Any]:
     return aug, s, res
 
 
+#: the note of a stuck refit whose job does not allow the modal step (``Job.modal``)
+MODAL_SKIPPED = "not run: the screening did not rank the candidate among the best of its step"
+
+
 def _run(job: Job, t0: float) -> JobResult:
     from .alternatives import stuck
     from .modal_start import applies, modal_step
@@ -358,7 +366,9 @@ def _run(job: Job, t0: float) -> JobResult:
             job, aug, state, res = other_variants(job, aug, state, res, extra)
         extra["variant"] = job.candidate.description  # type: ignore[union-attr]
         is_stuck = stuck(job, aug, state, res)
-    if is_stuck and applies(job.candidate):
+    if is_stuck and applies(job.candidate) and not job.modal:
+        extra["modal starts"] = MODAL_SKIPPED
+    elif is_stuck and applies(job.candidate):
         assert job.candidate is not None
         job, aug, state, res, extra["modal starts"] = modal_step(job, aug, state, res)
         extra["variant"] = job.candidate.description  # type: ignore[union-attr]

@@ -11,7 +11,9 @@ accepted so far — and
    profile (:mod:`.joint_profile`, from its start: :func:`.screen.profile_picks`)
    (:func:`.runner.run_job`: every nominal, accepted and new parameter together, from the
    base and from the nominal model), then gives the best of them that ended above the noise
-   level the wider search in a second round (:func:`.widen.second_round`);
+   level the wider search in a second round (:func:`.widen.second_round`); the modal step of
+   a stuck candidate with several springs (:mod:`.modal_start`, minutes per refit) runs only
+   for the :data:`MODAL_TOP` best candidates of the screening (:func:`modal_ranked`);
 3. scores them on held-out data (:mod:`.scoring`) and accepts the best only under the
    verdict rule of :func:`.scoring.accept` (the base above the held-out noise level, the
    improvement significant given that noise; the same rule at every step).
@@ -23,6 +25,7 @@ list of accepted effects, each with the gap after it, is ``effects`` in ``diagno
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from concurrent.futures import as_completed
 from dataclasses import dataclass, field, replace
@@ -38,6 +41,15 @@ from .rescue import above_heldout_level
 from .runner import Job, JobResult, run_job
 from .screen import Screening, profile_picks, screen, select
 from .widen import second_round
+
+#: the candidates of a step, best by the screening's one-step figure and by its joint profile,
+#: whose stuck refit may get the modal step. Measured over the kept outputs of stops 20–23
+#: (60 refits of soft mounts or a flexible base): every one that was the withheld effect and
+#: was refitted ranked first by the one-step figure or was a joint-profile pick (bonder/fb/
+#: harsh), while the modal step also ran on candidates ranked 9th to 17th (gantry/sm/acc's
+#: flexible base, 150 s; bonder_b/sd/nocoh's soft mounts in step 2, 393 s of a 592 s
+#: diagnosis), never kept there.
+MODAL_TOP = 2
 
 
 @dataclass
@@ -112,7 +124,7 @@ Progress = Callable[[str], None]
 
 def _job(
     ctx: Context, base: JobResult, cand: Candidate | None, start: tuple[float, ...] = (),
-    alt: bool = True,
+    alt: bool = True, modal: bool = True,
 ) -> Job:  # fmt: skip
     """A job on top of ``base`` (its model text, values and accepted effects); ``alt``: with
     the nominal model as second origin. Without the wider search: the step runs it in its
@@ -126,7 +138,17 @@ def _job(
         alt_urdf=ctx.nominal.to_string() if alt else None, hints_hz=ctx.hints_hz,
         accepted=base.chain, start_new=start, wider=False,
         heldout_noise_db=level, profile_always=above_heldout_level(base.heldout_rms, level),
+        modal=modal,
     )  # fmt: skip
+
+
+def modal_ranked(screenings: Sequence[Screening], picks: Sequence[int]) -> set[int]:
+    """Indices of the candidates whose stuck refit may get the modal step (``Job.modal``):
+    the :data:`MODAL_TOP` best by the screening's one-step figure and the first
+    :data:`MODAL_TOP` joint-profile picks (``picks``, best first)."""
+    order = sorted((i for i, s in enumerate(screenings) if math.isfinite(s.cost)),
+                   key=lambda i: screenings[i].cost)  # fmt: skip
+    return {*order[:MODAL_TOP], *picks[:MODAL_TOP]}
 
 
 def _open(ctx: Context, base: JobResult) -> list[Candidate]:
@@ -161,8 +183,10 @@ def _step(
     chosen = select(done, ctx.n_refit[later], ctx.n_max[later])
     chosen += [i for i in picks if i not in chosen]
     step = Step(index, base, base_score, done, chosen, picks)
+    modal_ok = modal_ranked(done, picks)
     jobs = {i: _job(ctx, base, _refit_candidate(done[i], cands[i]),
-                    done[i].refit_start(i in picks)) for i in chosen}  # fmt: skip
+                    done[i].refit_start(i in picks), modal=i in modal_ok)
+            for i in chosen}  # fmt: skip
     futs = {pool.submit(run_job, jobs[i]): i for i in chosen}
     results, used = [], []
     for f in as_completed(futs):
