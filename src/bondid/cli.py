@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import signal
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -163,8 +164,9 @@ MAX_FREQ = 100_000
 def run(body: Callable[[], int | None]) -> int:
     """Run a command body, mapping bondid errors onto the spec's exit codes.
 
-    Ctrl-C (SIGINT) prints ``interrupted`` and returns 130; worker processes are stopped and
-    no partial result is left (:mod:`bondid.interrupt`, :mod:`bondid.results`).
+    Ctrl-C (SIGINT) prints ``interrupted`` and returns 130, SIGTERM ``terminated`` and 143;
+    worker processes are stopped and no partial result is left (:mod:`bondid.interrupt`,
+    :mod:`bondid.results`).
     """
     from . import interrupt, results
 
@@ -206,8 +208,11 @@ def _run(body: Callable[[], int | None]) -> int:
         print(f"bad input: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        from . import interrupt
+
+        signum = interrupt.signal_number()
+        print("terminated" if signum == signal.SIGTERM else "interrupted", file=sys.stderr)
+        return 128 + signum
     return EXIT_OK if code is None else int(code)
 
 

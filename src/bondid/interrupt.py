@@ -9,8 +9,13 @@ SIGINT (:func:`ignore_in_worker`, a pool initializer) and are terminated by the 
 (:func:`kill_workers`, :func:`terminate_on_interrupt`), so a single Ctrl-C suffices and ends
 the run within a second or two.
 
-Nothing happens on import; :func:`install` changes the process's SIGINT handler and returns
-the previous one for :func:`restore`.
+SIGTERM (``kill``, a batch scheduler's time limit) is handled the same way: without it the
+process would die at once and leave its worker processes running as orphans (seen: a killed
+``bondid.diagnose`` left two workers computing for minutes). :func:`signal_number` tells which
+of the two arrived, so the command line exits 130 or 143 as shells report them.
+
+Nothing happens on import; :func:`install` changes the process's SIGINT and SIGTERM handlers
+and returns the previous ones for :func:`restore`.
 """
 
 from __future__ import annotations
@@ -23,31 +28,44 @@ from multiprocessing.context import SpawnContext, SpawnProcess
 from typing import Any
 
 _FLAG = threading.Event()
+#: the signals :func:`install` handles, and the last one that arrived
+_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+_LAST = [int(signal.SIGINT)]
 
 
 def _handler(signum: int, frame: Any) -> None:
+    _LAST[0] = int(signum)
     _FLAG.set()
     raise KeyboardInterrupt
 
 
 def install() -> Any:
-    """Record every SIGINT (then raise ``KeyboardInterrupt`` as Python does); returns the
-    previous handler. Does nothing outside the main thread (returns None)."""
+    """Record every SIGINT and SIGTERM (then raise ``KeyboardInterrupt`` as Python does on
+    SIGINT); returns the previous handlers. Does nothing outside the main thread (returns
+    None)."""
     if threading.current_thread() is not threading.main_thread():
         return None
     _FLAG.clear()
-    return signal.signal(signal.SIGINT, _handler)
+    _LAST[0] = int(signal.SIGINT)
+    return {sig: signal.signal(sig, _handler) for sig in _SIGNALS}
 
 
 def restore(previous: Any) -> None:
-    """Put back the handler :func:`install` returned (None: leave it)."""
+    """Put back the handlers :func:`install` returned (None: leave them)."""
     if previous is not None and threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGINT, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 def requested() -> bool:
-    """True once a SIGINT arrived since :func:`install`."""
+    """True once a SIGINT or SIGTERM arrived since :func:`install`."""
     return _FLAG.is_set()
+
+
+def signal_number() -> int:
+    """The signal that stopped the run (SIGINT when none was recorded: a plain
+    ``KeyboardInterrupt``)."""
+    return _LAST[0] if _FLAG.is_set() else int(signal.SIGINT)
 
 
 def check() -> None:

@@ -73,9 +73,9 @@ class Run:
                     out.add(int(d.name))
         return out
 
-    def interrupt(self) -> tuple[int, float]:
+    def interrupt(self, sig: int = signal.SIGINT) -> tuple[int, float]:
         t0 = time.monotonic()
-        self.p.send_signal(signal.SIGINT)
+        self.p.send_signal(sig)
         code = self.p.wait(timeout=30)
         return code, time.monotonic() - t0
 
@@ -148,6 +148,29 @@ def test_sigint_stops_worker_processes(command, n_up, settle, inputs, long_data,
     code, _ = r.interrupt()  # (the time it takes is measured, not asserted: shared CI cores)
     assert code == 130, "".join(r.err)
     assert not any(": done" in ln for ln in r.err)  # stopped, not finished
+    assert not _alive(workers)
+    assert not out.exists()
+    _no_litter(tmp_path)
+    assert "Traceback" not in "".join(r.err)
+
+
+def test_sigterm_stops_worker_processes_too(inputs, tmp_path):
+    """SIGTERM (``kill``, a scheduler's time limit) as Ctrl-C: exit 143, ``terminated``, the
+    workers gone (before, the parent died at once and left them computing), nothing
+    written."""
+    out = tmp_path / "out"
+    argv = ["--model", inputs["model"], "--data", inputs["d0"], inputs["d1"],
+            "--points", "60", "--workers", "2", "--effects", "joint_compliance"]  # fmt: skip
+    r = Run("diagnose", *argv, "--out", out, cwd=tmp_path)
+    t0 = time.monotonic()
+    while len(r.children()) < 2:
+        assert r.p.poll() is None and time.monotonic() - t0 < 60, "".join(r.err)
+        time.sleep(0.05)
+    time.sleep(1.5)
+    workers = r.children()
+    code, _ = r.interrupt(signal.SIGTERM)
+    assert code == 128 + signal.SIGTERM, "".join(r.err)
+    assert "terminated" in "".join(r.err)
     assert not _alive(workers)
     assert not out.exists()
     _no_litter(tmp_path)
