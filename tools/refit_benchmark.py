@@ -59,7 +59,8 @@ def cases(designs: list[str], regimes: list[str], n_seeds: int) -> list[Case]:
 
 def truth_score(model: Path, truth: Any, paths: list[Path]) -> float | None:
     """The truth model's weighted db_rms on the files, as ``bondid.fit`` (defaults) scores a
-    model: the same loading, receptance conversion and cost options."""
+    model: the same loading, receptance conversion, cost options and channels."""
+    from bondid.cost.selection import informative_only
     from bondid.data.for_model import load_datasets
     from bondid.fit.cli import cost_options
     from bondid.fit.outputs import db_rms_report
@@ -69,7 +70,9 @@ def truth_score(model: Path, truth: Any, paths: list[Path]) -> float | None:
     nominal = UrdfDocument.load(model)
     raw = load_datasets(nominal, paths)
     data = [d if d.quantity == "receptance" else d.to_quantity("receptance") for d in raw]
-    rep = db_rms_report(truth, truth, data, cost_options(StudySettings()))
+    # the channels the fit uses (those under the noise floor left out, as bondid.fit does)
+    options, _, _ = informative_only(data, cost_options(StudySettings()))
+    rep = db_rms_report(truth, truth, data, options)
     return rep["final"]
 
 
