@@ -57,3 +57,11 @@ def test_without_a_noise_level_the_held_out_figures_are_compared(level: float) -
 def test_an_unknown_held_out_figure_leaves_the_training_objective_to_decide() -> None:
     assert replaces(_job(0.5), 1.0, known(0.6), 0.9, known(math.nan))  # type: ignore[arg-type]
     assert replaces(_job(0.5), 1.0, known(math.nan), 0.9, known(2.0))  # type: ignore[arg-type]
+
+
+def test_the_note_says_why_a_lower_retry_was_refused() -> None:
+    from bondid.diagnose.alternatives import HELD_OUT_WORSE, kept_note
+
+    assert kept_note("restart", 0.94, False, lower=True).endswith(f"not kept ({HELD_OUT_WORSE})")
+    assert kept_note("restart", 1.5, False).endswith("not kept")
+    assert kept_note("restart", 0.94, True, lower=True).endswith("kept")

@@ -255,14 +255,22 @@ def _lower(
     from .rescue import noise_ratio_at
 
     kept = _better(job, aug, state, res, aug2, state2, res2)
-    note = kept_note(label, noise_ratio_at(aug2.refit, state2), kept)
+    lower = aug2.refit.cost(state2) < aug.refit.cost(state)
+    note = kept_note(label, noise_ratio_at(aug2.refit, state2), kept, lower)
     if kept:
         return aug2, state2, res2, note
     return aug, state, res, note
 
 
-def kept_note(label: str, ratio: float | None, kept: bool) -> str:
+#: the reason :func:`kept_note` gives for a retry with the lower training objective that
+#: :func:`.keep.replaces` refused
+HELD_OUT_WORSE = "its held-out figure is worse"
+
+
+def kept_note(label: str, ratio: float | None, kept: bool, lower: bool = False) -> str:
     """``"<label> to <ratio>x, kept"`` (or ``not kept``): what a retry reached (its training
-    db_rms over the predicted noise level) and whether it was kept."""
+    db_rms over the predicted noise level) and whether it was kept; ``lower``: its training
+    objective was the lower one, so a refusal was for its held-out figure (said)."""
     r = ratio if ratio is not None else float("nan")
-    return f"{label} to {r:.2f}x, {'kept' if kept else 'not kept'}"
+    said = "kept" if kept else f"not kept ({HELD_OUT_WORSE})" if lower else "not kept"
+    return f"{label} to {r:.2f}x, {said}"

@@ -121,7 +121,7 @@ def _widen(w: Widen, t0: float) -> JobResult:
         c2, r2 = aug.refit.cost(state), noise_ratio_at(aug.refit, state)
         held2 = held_of(job, aug, res)
         kept = replaces(job, cost, held, c2, held2)
-        notes.append(kept_note(label, r2, kept))
+        notes.append(kept_note(label, r2, kept, c2 < cost))
         if kept:
             best, cost, ratio, held = (aug, state, res), c2, r2, held2
 
