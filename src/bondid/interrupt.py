@@ -21,6 +21,7 @@ and returns the previous ones for :func:`restore`.
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
 import threading
 from collections.abc import Iterator
@@ -33,7 +34,16 @@ _SIGNALS = (signal.SIGINT, signal.SIGTERM)
 _LAST = [int(signal.SIGINT)]
 
 
+#: the process that installed the handlers: a forked worker inherits them, and there the
+#: signal must do what it does by default (its parent terminates it with SIGTERM)
+_OWNER = [0]
+
+
 def _handler(signum: int, frame: Any) -> None:
+    if os.getpid() != _OWNER[0]:
+        signal.signal(signum, signal.SIG_DFL)
+        os.kill(os.getpid(), signum)
+        return
     _LAST[0] = int(signum)
     _FLAG.set()
     raise KeyboardInterrupt
@@ -47,6 +57,7 @@ def install() -> Any:
         return None
     _FLAG.clear()
     _LAST[0] = int(signal.SIGINT)
+    _OWNER[0] = os.getpid()
     return {sig: signal.signal(sig, _handler) for sig in _SIGNALS}
 
 
@@ -75,8 +86,10 @@ def check() -> None:
 
 
 def ignore_in_worker(*_: Any) -> None:
-    """Pool initializer: the worker ignores SIGINT (its parent stops it)."""
+    """Pool initializer: the worker ignores SIGINT (its parent stops it) and dies quietly on
+    SIGTERM (a forked worker would otherwise keep the parent's handler)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 class _QuietStartProcess(SpawnProcess):
