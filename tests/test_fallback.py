@@ -12,8 +12,9 @@ from test_fit import FAR_SEEDS, REL, perturbed_start, synth
 from bondid.fit import default_bounds, fit
 from bondid.model import UrdfDocument, get_parameters, select_parameters
 from bondid.optim import FitProblem, run_to_noise
-from bondid.optim.fallback import NOISE_MARGIN, noise_ratio
+from bondid.optim.fallback import ITERATION_LIMIT, NOISE_MARGIN, noise_ratio, resume
 from bondid.optim.schedules import Strategy, direct
+from bondid.optim.search import run_search
 
 #: "at the noise level": within this factor of the truth model's own db_rms (issue 12)
 WITHIN = 1.10
@@ -85,3 +86,50 @@ def test_fallback_setting_from_the_study_and_the_command_line(tmp_path) -> None:
         study_from_dict({"model": "m.urdf", "data": ["d.csv"], "search": {"fallback": -1}})
     args = build_parser().parse_args(["--model", "m.urdf", "--data", "d.csv", "--fallback", "4"])
     assert resolve_settings(args).fallback == 4
+
+
+#: IPOPT iterations after which the direct fit (no presolve) from the near start is stopped:
+#: it needs 42 to converge (measured), so it stops at its limit far above the noise level
+SHORT = 12
+
+
+@pytest.fixture(scope="module")
+def near(case: dict) -> dict:
+    """The near start (±30 % on joints, ±10 % inertial) and the converged fit from it."""
+    start = perturbed_start(case["doc"], case["names"], seed=5, inertial=0.1)
+    p = FitProblem(case["doc"], case["data"], case["names"], lower=case["lo"],
+                   upper=case["hi"], start=start)  # fmt: skip
+    return {"problem": p, "full": run_search(p, direct(0))}
+
+
+def test_resume_continues_a_search_stopped_at_its_iteration_limit(case: dict, near: dict) -> None:
+    p, full = near["problem"], near["full"]
+    assert full.result.status == "Solve_Succeeded" and full.result.iterations > SHORT
+    short = run_search(p, direct(0), max_iter=SHORT)
+    assert short.result.status == ITERATION_LIMIT
+    assert noise_ratio(p, short.result.cost_final) > 2 * NOISE_MARGIN  # the premise
+    more = resume(p, short, max_iter=SHORT)
+    # the same minimum as the uninterrupted fit, with the search's own start kept
+    assert more.result.cost_final == pytest.approx(full.result.cost_final, rel=1e-6)
+    assert more.result.cost_initial == short.result.cost_initial
+    np.testing.assert_array_equal(more.result.initial, short.result.initial)
+    assert [s.name for s in more.steps] == ["all", "all, resumed"]
+    assert len(more.result.cost_history) > len(short.result.cost_history)
+
+
+def test_run_to_noise_resumes_the_kept_search(
+    case: dict, near: dict, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A search stopped at its limit above the noise level that no fallback improves (here:
+    none runs) is resumed and reaches the uninterrupted fit's minimum; the note says so."""
+    import bondid.optim.fallback as fallback
+
+    monkeypatch.setattr(fallback, "_fallbacks", lambda *args: [])
+    p = near["problem"]
+    res = run_to_noise(p, direct(0), max_iter=SHORT, fallback_bands=8).result
+    note = [n for n in res.notes if n.startswith("fallback:")]
+    assert note and "the first search resumed from its end point ended at 1.0" in note[0]
+    assert note[0].endswith("kept the first search, resumed")
+    assert math.sqrt(res.cost_final) <= WITHIN * math.sqrt(case["truth_cost"])
+    assert res.cost_final == pytest.approx(near["full"].result.cost_final, rel=1e-6)
+    assert res.iterations > SHORT  # both solves counted
