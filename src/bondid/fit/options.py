@@ -112,6 +112,12 @@ def build_parser() -> argparse.ArgumentParser:
         " run the band continuation with N bands from the same start and keep the better"
         " (default 8; 0 = off)",
     )  # fmt: skip
+    p.add_argument(
+        "--fallback-starts", type=int, metavar="N",
+        help="when a single-start fit still ends more than 30 %% above the predicted noise"
+        " level after the fallback, run a multistart of N starts (the first is the fit already"
+        " done) and keep the best (default 4; 0 = off)",
+    )  # fmt: skip
     add_drop_nan_arg(p)
     p.add_argument("--out", type=Path, default=None, help="folder for the results")
     p.add_argument("--quiet", action="store_true", help="no progress display")
@@ -206,3 +212,5 @@ def _search_settings(args: argparse.Namespace, s: StudySettings) -> None:
         s.presolve = int(_positive(args.presolve, "--presolve", 0) or 0)
     if args.fallback is not None:
         s.fallback = int(_positive(args.fallback, "--fallback", 0) or 0)
+    if args.fallback_starts is not None:
+        s.fallback_starts = int(_positive(args.fallback_starts, "--fallback-starts", 0) or 0)

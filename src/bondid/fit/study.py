@@ -51,6 +51,7 @@ Every section and key is optional::
     max_iter = 200                           # --max-iter
     presolve = 60                            # --presolve (0 = none)
     fallback = 8                             # --fallback (bands; 0 = off)
+    fallback_starts = 4                      # --fallback-starts (0 = off)
     [search.stage_bands]                     # staged fitting bands (Hz); default: from the modes
     stiffness = [[1.0, 300.0]]
     damping = [[350.0, 500.0], [800.0, 950.0]]
@@ -111,6 +112,7 @@ _SECTION_KEYS = {
         "max_iter",
         "presolve",
         "fallback",
+        "fallback_starts",
         "stage_bands",
     ),
 }
@@ -146,6 +148,10 @@ class StudySettings:
             (:data:`bondid.fit.solver.PRESOLVE_ITER`; 0 = none).
         fallback: bands of the band continuation run when a direct or staged search ends
             above the predicted noise level (:mod:`bondid.optim.fallback`); 0 = off.
+        fallback_starts: starts of the multistart run when the search (fallbacks
+            included) still ends above :data:`bondid.fit.multistart.STARTS_RATIO` times the
+            predicted noise level (:func:`bondid.fit.multistart.fallback_starts`); 0 or 1 =
+            off. Only for a single-start search with the fallback on.
         source: the study file, or None.
         points, gains: measurement points and transducer gains declared in the study
             (:mod:`bondid.model.points`); points_file: a TOML file with more of them.
@@ -177,6 +183,7 @@ class StudySettings:
     max_iter: int = 200
     presolve: int = 60
     fallback: int = 8
+    fallback_starts: int = 4
     source: Path | None = None
     points: list[Point] = field(default_factory=list)
     gains: dict[str, float] = field(default_factory=dict)
@@ -212,6 +219,7 @@ class StudySettings:
             "max_iter": self.max_iter,
             "presolve": self.presolve,
             "fallback": self.fallback,
+            "fallback_starts": self.fallback_starts,
             "points": [vars(p) for p in self.points],
             "gains": dict(self.gains),
             "points_file": None if self.points_file is None else str(self.points_file),
@@ -329,7 +337,7 @@ def _read_cost(doc: Mapping[str, Any], s: StudySettings, where: str) -> None:
 
 #: ``[search]`` integer keys: minimum value
 _SEARCH_INTS = {"multistart": 1, "seed": 0, "workers": 1, "continuation": 0, "max_iter": 0,
-                "presolve": 0, "fallback": 0}  # fmt: skip
+                "presolve": 0, "fallback": 0, "fallback_starts": 0}  # fmt: skip
 
 
 def _read_search(doc: Mapping[str, Any], s: StudySettings, where: str) -> None:

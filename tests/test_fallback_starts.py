@@ -1,0 +1,86 @@
+"""The fit's last tier (bondid.fit.multistart.fallback_starts): a single-start fit that still
+ends in another basin after its fallbacks gets the other starts of a multistart; known answer
+on synthetic bonder data, and the setting's plumbing."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from test_fit import FAR_SEEDS, REL, perturbed_start, synth
+
+from bondid.fit import default_bounds
+from bondid.fit.multistart import STARTS_RATIO, fallback_starts, run_multistart
+from bondid.model import UrdfDocument, get_parameters, select_parameters, set_parameters
+from bondid.optim import FitProblem
+from bondid.optim.fallback import noise_ratio
+from bondid.optim.schedules import Strategy
+
+#: "at the noise level": within this factor of the truth model's own db_rms (issue 12)
+WITHIN = 1.10
+#: starts of the tier in these tests (the default of --fallback-starts)
+N_STARTS = 4
+
+
+@pytest.fixture(scope="module")
+def stuck() -> dict:
+    """The bonder's 22 identifiable parameters, the model's values 30 % off (FAR_SEEDS[0]);
+    2 % noise. The band continuation and the staged schedule are switched off, so the
+    single-start fit (direct, resumed) stays in another basin (measured: 3.87× the level)."""
+    import bondid.optim.fallback as fallback
+
+    truth_doc = UrdfDocument.load("urdf/bonder.urdf")
+    names = select_parameters(
+        truth_doc, ["parasitic", "x_stage.mass", "y_stage.mass", "z_stage.mass",
+                    "x_stage.com.z", "y_stage.inertia.ixx", "z_stage.inertia.ixx"],
+    )  # fmt: skip
+    data = synth(truth_doc, 300, noise_seed=11)
+    doc = UrdfDocument.load("urdf/bonder.urdf")
+    far = perturbed_start(truth_doc, names, FAR_SEEDS[0], 0.3)
+    set_parameters(doc, dict(zip(names, far, strict=True)))
+    lo, hi = default_bounds(doc, names, rel=REL)
+    truth = FitProblem(truth_doc, data, names, lower=lo, upper=hi,
+                       start=get_parameters(truth_doc, names))  # fmt: skip
+    kw = {"lower": lo, "upper": hi, "strategy": Strategy(prior_width=0)}
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(fallback, "_fallbacks", lambda *args: [])
+        single = run_multistart(doc, data, names, n_starts=1, workers=1, **kw)
+        # in 2 worker processes (forked: they inherit the patch), as the command runs it
+        tier = fallback_starts(single, doc, data, names, n_starts=N_STARTS, workers=2, **kw)
+    return {"doc": doc, "data": data, "names": names, "kw": kw, "single": single, "tier": tier,
+            "truth_cost": truth.data_cost(truth.z0), "problem": truth}  # fmt: skip
+
+
+def test_a_fit_stuck_above_the_level_gets_the_other_starts(stuck: dict) -> None:
+    single, tier = stuck["single"], stuck["tier"]
+    ratio = noise_ratio(stuck["problem"], single.best.cost_final)
+    assert ratio is not None and ratio > STARTS_RATIO  # the premise
+    assert [r.index for r in tier.runs] == list(range(N_STARTS))
+    assert tier.runs[0] is single.runs[0]  # the search done is not run again
+    assert tier.best_index != 0
+    assert math.sqrt(tier.best.cost_final) <= WITHIN * math.sqrt(stuck["truth_cost"])
+    note = tier.best.notes[-1]
+    assert note.startswith("fallback starts: the fit ended at") and "kept start" in note
+    assert tier.spread()["n_runs"] == N_STARTS and tier.wall_s > single.wall_s
+
+
+def test_nothing_more_runs_without_the_premise(stuck: dict) -> None:
+    """Fewer than 2 starts, a multistart already, or a fit at the level: ``ms`` as it is."""
+    args = (stuck["doc"], stuck["data"], stuck["names"])
+    single, tier = stuck["single"], stuck["tier"]
+    assert fallback_starts(single, *args, n_starts=1, **stuck["kw"]) is single
+    assert fallback_starts(tier, *args, n_starts=N_STARTS, **stuck["kw"]) is tier
+
+
+def test_fallback_starts_setting(tmp_path) -> None:
+    from bondid.exceptions import ConfigError
+    from bondid.fit.cli import build_parser, resolve_settings
+    from bondid.fit.study import StudySettings, study_from_dict
+
+    assert StudySettings().fallback_starts == N_STARTS
+    s = study_from_dict({"model": "m.urdf", "data": ["d.csv"], "search": {"fallback_starts": 0}})
+    assert s.fallback_starts == 0 and s.to_json_dict()["fallback_starts"] == 0
+    with pytest.raises(ConfigError):
+        study_from_dict({"model": "m.urdf", "data": ["d.csv"], "search": {"fallback_starts": -2}})
+    argv = ["--model", "m.urdf", "--data", "d.csv", "--fallback-starts", "6"]
+    assert resolve_settings(build_parser().parse_args(argv)).fallback_starts == 6
