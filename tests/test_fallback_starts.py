@@ -61,6 +61,7 @@ def test_a_fit_stuck_above_the_level_gets_the_other_starts(stuck: dict) -> None:
     assert math.sqrt(tier.best.cost_final) <= WITHIN * math.sqrt(stuck["truth_cost"])
     note = tier.best.notes[-1]
     assert note.startswith("fallback starts: the fit ended at") and "kept start" in note
+    assert tier.best.notes[-2] == single.best.notes[-1]  # start 0's fallback note kept
     assert tier.spread()["n_runs"] == N_STARTS and tier.wall_s > single.wall_s
 
 

@@ -355,7 +355,9 @@ def fallback_starts(
         f" {len(jobs)} Latin-hypercube start(s) more (seed {seed}); kept start {pick}"
         f" at {r2 or math.nan:.2f}×"
     )
-    done[pick] = replace(done[pick], result=replace(kept, notes=[*kept.notes, note]))
+    # the start-0 search's fallback note too (what ran before the tier)
+    before = [n for n in best.notes if n.startswith("fallback:") and n not in kept.notes]
+    done[pick] = replace(done[pick], result=replace(kept, notes=[*kept.notes, *before, note]))
     return MultistartResult(done, pick, ms.wall_s + time.perf_counter() - t0)
 
 
