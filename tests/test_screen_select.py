@@ -133,3 +133,19 @@ def test_select_takes_ties_in_turn_by_site_and_by_the_second_origin():
     for k in seconds:
         s[k].by_origin = (s[k].cost, math.nan)
     assert select(s, 2, 4) == [0, 1, 4, 2]
+
+
+def test_select_takes_the_best_kept_site_first():
+    """Ties at several kept sites: those at the site of the better-ranked kept candidate come
+    first, whatever their own figure (bonder_b/jct/nocoh: the truth, another axis of the best
+    candidate's interface, came after a tie at the 4th kept candidate's site)."""
+    last = 4.0
+    tie = TIE_FRACTION * (last - NOISE)
+    s = _screens([2.0, last, last + 0.1 * tie, last + 0.2 * tie, last + 0.3 * tie])
+    s[0].location = "a->b:rz"  # the best kept candidate
+    s[1].location = "c->d:tx"  # the last kept one
+    s[2].location = "e"
+    s[3].location = "c->d:tz"  # a tie at the last kept candidate's site
+    s[4].location = "a->b:tz"  # a tie at the best kept candidate's site
+    assert select(s, 2, 3) == [0, 1, 4]
+    assert select(s, 2, 5) == [0, 1, 4, 3, 2]

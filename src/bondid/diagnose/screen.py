@@ -277,9 +277,12 @@ def select(screenings: list[Screening], n_refit: int, n_max: int | None = None) 
 
     Among ties the figure's order says nothing, so two other orders take turns:
 
-    - ties at the :func:`site` of a kept candidate first, then the others, each by figure (a
-      compliant interface shows at the screening through whichever of its axes the start
-      reaches: a rotation about an offset pivot moves the child much like a translation);
+    - ties at the :func:`site` of a kept candidate first, the site of the best kept one
+      first, then the others, each by figure (a compliant interface shows at the screening
+      through whichever of its axes the start reaches: a rotation about an offset pivot
+      moves the child much like a translation). Measured, bonder_b, withheld carriage→slide
+      tz compliance, no coherence: the rz axis there ranked 1st of 17, and the truth, tied at
+      the 13th figure, came after a tie at the 4th kept candidate's site and was not refitted;
     - by the figure from the second origin, the nominal model (``by_origin[1]``; when the
       step has one): the parameter refit may have absorbed the missing effect, and then it
       shows only from the nominal model (module docstring).
@@ -298,8 +301,10 @@ def select(screenings: list[Screening], n_refit: int, n_max: int | None = None) 
     last = screenings[keep[-1]].cost
     tol = TIE_FRACTION * (last - floor)
     ties = [i for i in order[n_refit:] if screenings[i].cost <= last + tol]
-    sites = {site(screenings[i]) for i in keep}
-    by_site = sorted(ties, key=lambda i: site(screenings[i]) not in sites)  # stable
+    rank: dict[str | None, int] = {}  # a kept site: the rank of its best kept candidate
+    for k, i in enumerate(keep):
+        rank.setdefault(site(screenings[i]), k)
+    by_site = sorted(ties, key=lambda i: rank.get(site(screenings[i]), len(keep)))  # stable
     second = [i for i in ties if math.isfinite(screenings[i].by_origin[1])]
     by_second = sorted(second, key=lambda i: screenings[i].by_origin[1])
     return keep + _interleaved(by_second, by_site)[: n_max - n_refit]
