@@ -1,4 +1,4 @@
-"""The fit's last tier (bondid.fit.multistart.fallback_starts): a single-start fit that still
+"""The fit's last tier (run_multistart's fallback_starts): a single-start fit that still
 ends in another basin after its fallbacks gets the other starts of a multistart; known answer
 on synthetic bonder data, and the setting's plumbing."""
 
@@ -10,7 +10,7 @@ import pytest
 from test_fit import FAR_SEEDS, REL, perturbed_start, synth
 
 from bondid.fit import default_bounds
-from bondid.fit.multistart import STARTS_RATIO, fallback_starts, run_multistart
+from bondid.fit.multistart import STARTS_RATIO, run_multistart
 from bondid.model import UrdfDocument, get_parameters, select_parameters, set_parameters
 from bondid.optim import FitProblem
 from bondid.optim.fallback import noise_ratio
@@ -44,33 +44,42 @@ def stuck() -> dict:
     kw = {"lower": lo, "upper": hi, "strategy": Strategy(prior_width=0)}
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(fallback, "_fallbacks", lambda *args: [])
-        single = run_multistart(doc, data, names, n_starts=1, workers=1, **kw)
         # in 2 worker processes (forked: they inherit the patch), as the command runs it
-        tier = fallback_starts(single, doc, data, names, n_starts=N_STARTS, workers=2, **kw)
-    return {"doc": doc, "data": data, "names": names, "kw": kw, "single": single, "tier": tier,
+        tier = run_multistart(
+            doc, data, names, n_starts=1, workers=2, fallback_starts=N_STARTS, **kw
+        )  # fmt: skip
+    return {"doc": doc, "data": data, "names": names, "kw": kw, "tier": tier,
             "truth_cost": truth.data_cost(truth.z0), "problem": truth}  # fmt: skip
 
 
 def test_a_fit_stuck_above_the_level_gets_the_other_starts(stuck: dict) -> None:
-    single, tier = stuck["single"], stuck["tier"]
-    ratio = noise_ratio(stuck["problem"], single.best.cost_final)
+    tier = stuck["tier"]
+    first = tier.runs[0].result  # the single search (start 0, the model's values)
+    ratio = noise_ratio(stuck["problem"], first.cost_final)
     assert ratio is not None and ratio > STARTS_RATIO  # the premise
     assert [r.index for r in tier.runs] == list(range(N_STARTS))
-    assert tier.runs[0] is single.runs[0]  # the search done is not run again
     assert tier.best_index != 0
     assert math.sqrt(tier.best.cost_final) <= WITHIN * math.sqrt(stuck["truth_cost"])
     note = tier.best.notes[-1]
     assert note.startswith("fallback starts: the fit ended at") and "kept start" in note
-    assert tier.best.notes[-2] == single.best.notes[-1]  # start 0's fallback note kept
-    assert tier.spread()["n_runs"] == N_STARTS and tier.wall_s > single.wall_s
+    assert tier.best.notes[-2] == first.notes[-1]  # start 0's fallback note kept
+    assert tier.spread()["n_runs"] == N_STARTS
 
 
-def test_nothing_more_runs_without_the_premise(stuck: dict) -> None:
-    """Fewer than 2 starts, a multistart already, or a fit at the level: ``ms`` as it is."""
-    args = (stuck["doc"], stuck["data"], stuck["names"])
-    single, tier = stuck["single"], stuck["tier"]
-    assert fallback_starts(single, *args, n_starts=1, **stuck["kw"]) is single
-    assert fallback_starts(tier, *args, n_starts=N_STARTS, **stuck["kw"]) is tier
+def test_no_fallback_starts_at_the_level_or_when_off(stuck: dict) -> None:
+    """A fit at the noise level (from the model's own values, the truth here) and a tier
+    switched off (fewer than 2 starts) run one search."""
+    kw = {**stuck["kw"], "n_starts": 1, "workers": 1}
+    truth_doc = UrdfDocument.load("urdf/bonder.urdf")
+    at_level = run_multistart(truth_doc, stuck["data"], stuck["names"], fallback_starts=4, **kw)
+    assert len(at_level.runs) == 1
+    assert not any("fallback" in n for n in at_level.best.notes)
+    import bondid.optim.fallback as fallback
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(fallback, "_fallbacks", lambda *args: [])
+        off = run_multistart(stuck["doc"], stuck["data"], stuck["names"], fallback_starts=1, **kw)
+    assert len(off.runs) == 1 and off.best.cost_final == stuck["tier"].runs[0].cost
 
 
 def test_fallback_starts_setting(tmp_path) -> None:

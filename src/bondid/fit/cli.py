@@ -252,7 +252,7 @@ def _load(args: argparse.Namespace, s: StudySettings) -> dict[str, Any]:
 def _search(s: StudySettings, w: dict[str, Any], quiet: bool) -> Any:
     """Run the multistart search with progress on stderr; its :class:`MultistartResult`."""
     from ..optim.schedules import Strategy
-    from .multistart import fallback_starts, run_multistart
+    from .multistart import run_multistart
 
     single = s.multistart == 1 or s.workers == 1
     prog = Progress(
@@ -264,15 +264,13 @@ def _search(s: StudySettings, w: dict[str, Any], quiet: bool) -> Any:
     def on_iteration(it: int, cost: float) -> None:
         prog.update(1, f"iteration {it} cost {cost:.4g}")
 
-    def on_run(done: int, total: int, out: Any, label: str = "start") -> None:
-        if not single or label != "start":
+    def on_run(done: int, total: int, out: Any) -> None:
+        tier = s.multistart == 1 and out.index > 0  # after a single search: fallback starts
+        if tier or not single:
             info = (
                 f"{out.result.status} cost {out.cost:.4g}" if out.result else f"failed: {out.error}"
             )
-            prog.update(1, f"{label} {out.index}: {info}")
-
-    def on_fallback_start(done: int, total: int, out: Any) -> None:
-        on_run(done, total, out, "fallback start")
+            prog.update(1, f"{'fallback start' if tier else 'start'} {out.index}: {info}")
 
     strategy = Strategy(
         staged=s.staged, continuation=s.continuation, stage_bands=s.stage_bands or None,
@@ -283,13 +281,8 @@ def _search(s: StudySettings, w: dict[str, Any], quiet: bool) -> Any:
         w["doc"], w["datasets"], w["names"], lower=w["lower"], upper=w["upper"],
         options=w["options"], n_starts=s.multistart, seed=s.seed, workers=s.workers,
         strategy=strategy, on_run=on_run, on_iteration=on_iteration,
+        fallback_starts=s.fallback_starts if strategy.fallback_bands else 0,
     )  # fmt: skip
-    if s.multistart == 1 and strategy.fallback_bands:
-        ms = fallback_starts(
-            ms, w["doc"], w["datasets"], w["names"], lower=w["lower"], upper=w["upper"],
-            options=w["options"], n_starts=s.fallback_starts, seed=s.seed, workers=s.workers,
-            strategy=strategy, on_run=on_fallback_start,
-        )  # fmt: skip
     prog.close(f"{ms.best.status}, cost {ms.best.cost_final:.4g}")
     return ms
 

@@ -37,10 +37,11 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 #: Called as each run finishes: (runs done, runs total, the finished run).
 RunProgress = Callable[[int, int, "RunOutcome"], None]
 
-#: :func:`fallback_starts` runs when a single-start fit ends above this multiple of the
-#: predicted noise level (db_rms). The prediction itself is off by up to 30 %: on the 24 fits
-#: of ``tools/refit_benchmark.py`` (stop 23) the truth model scored 0.95–1.30× it, so a fit
-#: above 1.3× is above what an exact model would score, not a low prediction.
+#: the fallback starts of :func:`run_multistart` run when a single-start fit ends above this
+#: multiple of the predicted noise level (db_rms). The prediction itself is off by up to
+#: 30 %: on the 24 fits of ``tools/refit_benchmark.py`` (stop 23) the truth model scored
+#: 0.95–1.30× it, so a fit above 1.3× is above what an exact model would score, not a low
+#: prediction.
 STARTS_RATIO = 1.3
 
 
@@ -246,6 +247,7 @@ def run_multistart(
     strategy: Strategy | None = None,
     on_run: RunProgress | None = None,
     on_iteration: Callable[[int, float], None] | None = None,
+    fallback_starts: int = 0,
 ) -> MultistartResult:
     """Search from ``n_starts`` starts (start 0 = the URDF values) and keep the best.
 
@@ -262,6 +264,12 @@ def run_multistart(
         on_run: called in this process as each run finishes.
         on_iteration: per-iteration progress ``(iteration, cost)``, only for runs done in
             this process (``workers == 1`` or a single start).
+        fallback_starts: the fit's last tier, for a single start (``n_starts == 1``): when
+            its search (fallbacks included, :func:`bondid.optim.fallback.run_to_noise`) still
+            ends above :data:`STARTS_RATIO` times the predicted noise level, starts 1 to
+            ``fallback_starts - 1`` of a ``fallback_starts``-start multistart run too (in
+            ``workers`` processes; ``on_run`` is called for each) and the best of all is kept,
+            its ``notes`` saying so. 0 or 1 = off.
 
     Returns:
         :class:`MultistartResult`; ``.best`` is the best :class:`FitResult` (a run whose
@@ -272,26 +280,31 @@ def run_multistart(
         ConfigError: bad start count.
     """
     t0 = time.perf_counter()
-    jobs = _jobs(doc, datasets, names, lower, upper, options, n_starts, seed, strategy)
-    if n_starts == 1 or workers <= 1:
-        done = _in_process(jobs, on_run, on_iteration)
-    else:
-        done = _in_pool(jobs, workers, on_run)
-    return MultistartResult(done, _best_index(done), time.perf_counter() - t0)
+    args = (doc, list(datasets), list(names), options or CostOptions(),
+            np.asarray(lower, dtype=float), np.asarray(upper, dtype=float))  # fmt: skip
+    jobs = _jobs(args, n_starts, seed, strategy)
+    done = _run(jobs, workers, on_run, on_iteration)
+    ms = MultistartResult(done, _best_index(done), time.perf_counter() - t0)
+    if n_starts == 1 and fallback_starts >= 2:
+        ms = _with_fallback_starts(ms, args, fallback_starts, seed, workers, strategy, on_run)
+    return ms
 
 
-def _jobs(
-    doc: UrdfDocument, datasets: Sequence[FrfData], names: Sequence[str], lower: np.ndarray,
-    upper: np.ndarray, options: CostOptions | None, n_starts: int, seed: int,
-    strategy: Strategy | None,
-) -> list[_Job]:  # fmt: skip
-    """The jobs of :func:`run_multistart`, one per start (:func:`lhs_starts`)."""
-    names = list(names)
-    lo = np.asarray(lower, dtype=float)
-    hi = np.asarray(upper, dtype=float)
+def _jobs(args: tuple, n_starts: int, seed: int, strategy: Strategy | None) -> list[_Job]:
+    """The jobs of :func:`run_multistart`, one per start (:func:`lhs_starts`); ``args``:
+    :attr:`_Job.problem_args`."""
+    doc, _, names, _, lo, hi = args
     starts = lhs_starts(np.clip(get_parameters(doc, names), lo, hi), lo, hi, n_starts, seed)
-    args = (doc, list(datasets), names, options or CostOptions(), lo, hi)
     return [_Job(i, args, starts[i], strategy or Strategy()) for i in range(n_starts)]
+
+
+def _run(
+    jobs: list[_Job], workers: int, on_run: RunProgress | None, on_iteration: Any = None
+) -> list[RunOutcome]:
+    """The jobs' outcomes, in their order: here for one job or one worker, else in a pool."""
+    if len(jobs) == 1 or workers <= 1:
+        return _in_process(jobs, on_run, on_iteration)
+    return _in_pool(jobs, workers, on_run)
 
 
 def _best_index(done: list[RunOutcome]) -> int:
@@ -307,53 +320,29 @@ def _best_index(done: list[RunOutcome]) -> int:
     return best.index
 
 
-def fallback_starts(
-    ms: MultistartResult,
-    doc: UrdfDocument,
-    datasets: Sequence[FrfData],
-    names: Sequence[str],
-    *,
-    lower: np.ndarray,
-    upper: np.ndarray,
-    options: CostOptions | None = None,
-    n_starts: int = 4,
-    seed: int = 0,
-    workers: int = 2,
-    strategy: Strategy | None = None,
-    on_run: RunProgress | None = None,
-) -> MultistartResult:
-    """The fit's last tier: when the single-start search ``ms`` (its fallbacks included,
-    :func:`bondid.optim.fallback.run_to_noise`) still ended above :data:`STARTS_RATIO` times
-    the predicted noise level: the other ``n_starts - 1`` starts that :func:`run_multistart`
-    runs with the same arguments (its start 0, the model's values, is the search done), and
-    the best of all. ``on_run`` is called as each of those runs finishes (counting those
-    runs only).
-
-    Returns:
-        ``ms`` itself when nothing more ran (at most :data:`STARTS_RATIO` times the level, no
-        prediction, fewer than 2 starts); otherwise a :class:`MultistartResult` of every run
-        whose best result's ``notes`` say what ran and which start was kept.
-    """
+def _with_fallback_starts(
+    ms: MultistartResult, args: tuple, n_starts: int, seed: int, workers: int,
+    strategy: Strategy | None, on_run: RunProgress | None,
+) -> MultistartResult:  # fmt: skip
+    """``ms`` (one start) with the fallback starts of :func:`run_multistart` when its search
+    ended above :data:`STARTS_RATIO` times the predicted noise level; ``ms`` itself when
+    nothing more ran."""
     best = ms.best
-    if n_starts < 2 or len(ms.runs) != 1:
-        return ms
     if not any(n.startswith("fallback:") for n in best.notes):
         return ms  # at the noise level from the first search (run_to_noise ran nothing more)
-    ratio = _noise_ratio(doc, datasets, names, lower, upper, options, best.cost_final)
+    ratio = _noise_ratio(args, best.cost_final)
     if ratio is None or ratio <= STARTS_RATIO:
         return ms
     t0 = time.perf_counter()
-    jobs = _jobs(doc, datasets, names, lower, upper, options, n_starts, seed, strategy)[1:]
-    runs = _in_pool(jobs, workers, on_run) if workers > 1 else _in_process(jobs, on_run, None)
-    done = [*ms.runs, *runs]
+    jobs = _jobs(args, n_starts, seed, strategy)[1:]  # start 0 is the search done
+    done = [*ms.runs, *_run(jobs, workers, on_run)]
     pick = _best_index(done)
     kept = done[pick].result
     assert kept is not None
-    r2 = _noise_ratio(doc, datasets, names, lower, upper, options, kept.cost_final)
     note = (
         f"fallback starts: the fit ended at {ratio:.2f}× the predicted noise level (db_rms);"
         f" {len(jobs)} Latin-hypercube start(s) more (seed {seed}); kept start {pick}"
-        f" at {r2 or math.nan:.2f}×"
+        f" at {_noise_ratio(args, kept.cost_final) or math.nan:.2f}×"
     )
     # the start-0 search's fallback note too (what ran before the tier)
     before = [n for n in best.notes if n.startswith("fallback:") and n not in kept.notes]
@@ -361,17 +350,12 @@ def fallback_starts(
     return MultistartResult(done, pick, ms.wall_s + time.perf_counter() - t0)
 
 
-def _noise_ratio(
-    doc: UrdfDocument, datasets: Sequence[FrfData], names: Sequence[str], lower: np.ndarray,
-    upper: np.ndarray, options: CostOptions | None, cost: float,
-) -> float | None:  # fmt: skip
-    """A data cost's db_rms over the predicted noise level on these data
-    (:func:`bondid.optim.fallback.noise_ratio`)."""
+def _noise_ratio(args: tuple, cost: float) -> float | None:
+    """A data cost's db_rms over the predicted noise level on the data of ``args``
+    (:attr:`_Job.problem_args`; :func:`bondid.optim.fallback.noise_ratio`)."""
     from ..optim.fallback import noise_ratio
     from ..optim.problem import FitProblem
 
-    problem = FitProblem(
-        doc, list(datasets), list(names), options=options or CostOptions(),
-        lower=np.asarray(lower, float), upper=np.asarray(upper, float),
-    )  # fmt: skip
+    doc, datasets, names, options, lo, hi = args
+    problem = FitProblem(doc, datasets, names, options=options, lower=lo, upper=hi)
     return noise_ratio(problem, cost)

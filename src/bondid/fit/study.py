@@ -150,7 +150,7 @@ class StudySettings:
             above the predicted noise level (:mod:`bondid.optim.fallback`); 0 = off.
         fallback_starts: starts of the multistart run when the search (fallbacks
             included) still ends above :data:`bondid.fit.multistart.STARTS_RATIO` times the
-            predicted noise level (:func:`bondid.fit.multistart.fallback_starts`); 0 or 1 =
+            predicted noise level (:func:`bondid.fit.multistart.run_multistart`); 0 or 1 =
             off. Only for a single-start search with the fallback on.
         source: the study file, or None.
         points, gains: measurement points and transducer gains declared in the study

@@ -146,8 +146,8 @@ def resume(problem: FitProblem, search: SearchResult, **kw: Any) -> SearchResult
 
     Returns:
         A :class:`SearchResult` whose ``result`` keeps ``search``'s start (``initial``,
-        ``cost_initial``) and joins both cost histories and notes; its steps are ``search``'s and the
-        resumed solve.
+        ``cost_initial``) and joins both cost histories and notes; its steps are
+        ``search``'s and the resumed solve.
     """
     budget = RESUME_FACTOR * int(kw.get("max_iter", MAX_ITER))
     first = search.result
