@@ -19,9 +19,12 @@ regime): the direct fit stopped at its iteration limit at 3.22 dB (600 iteration
 the continuation reached 1.301 dB, the truth model's own score 1.304 dB. In the accelerance
 regime (seed 630) the direct fit ended at 2.796 dB and the continuation at 3.46 dB, the
 staged schedule alone at 1.326 dB (truth 1.332 dB). On the second design in the harsh
-regime (seed 611) the direct fit, the continuation and the staged schedule all stopped at
-1.9–6.2× the predicted level, the kept one at its iteration limit; 600 more iterations from
-its end point reached 0.96× (the truth model: 0.97×).
+regime (seed 621), without the prior, the direct fit, the continuation and the staged
+schedule all stopped at 1.9–6.2× the predicted level, the kept one at its iteration limit;
+600 more iterations from its end point reached 0.96× (the truth model: 0.97×). With
+``bondid.fit``'s prior the kept continuation (1.39×, at its limit) resumed to 1.43×, not
+kept: a search in another basin is not helped by more iterations (``bondid.fit`` then runs
+its fallback starts, :func:`bondid.fit.multistart.run_multistart`).
 
 Costs without a noise-level prediction (kinds other than ``complex_log``/``log_magnitude``,
 the ``l1`` norm) never fall back.
