@@ -65,6 +65,14 @@ def test_profile_picks_the_lowest_finite_profiles_and_their_starts():
     assert _screen("e", math.inf, pstart=()).refit_start(True) == (1.0,)
 
 
+def test_the_refit_starts_where_the_screening_found_the_lower_figure():
+    """Not a profile pick: the profile's start all the same when its figure is the lower
+    (one-step figure 1.0 here), the one-step start otherwise."""
+    assert _screen("f", 0.8).refit_start(False) == (2.0,)
+    assert _screen("g", 1.2).refit_start(False) == (1.0,)
+    assert _screen("h", 0.8, pstart=()).refit_start(False) == (1.0,)
+
+
 def test_the_profile_runs_only_where_the_figure_leaves_the_step_unexplained():
     noise = 2.0
     assert not needs_profile(0.99 * UNEXPLAINED_RATIO * noise, noise)
