@@ -28,6 +28,7 @@ from ..data.measurement import FrfData
 from ..exceptions import ComputationError, ConfigError, SolverError
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameters
+from ..optim.fallback import ratio_to_level
 from ..optim.schedules import Strategy
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -330,7 +331,8 @@ def _with_fallback_starts(
     best = ms.best
     if not any(n.startswith("fallback:") for n in best.notes):
         return ms  # at the noise level from the first search (run_to_noise ran nothing more)
-    ratio = _noise_ratio(args, best.cost_final)
+    c_noise = _noise_cost(args)
+    ratio = ratio_to_level(best.cost_final, c_noise)
     if ratio is None or ratio <= STARTS_RATIO:
         return ms
     t0 = time.perf_counter()
@@ -342,7 +344,7 @@ def _with_fallback_starts(
     note = (
         f"fallback starts: the fit ended at {ratio:.2f}× the predicted noise level (db_rms);"
         f" {len(jobs)} Latin-hypercube start(s) more (seed {seed}); kept start {pick}"
-        f" at {_noise_ratio(args, kept.cost_final) or math.nan:.2f}×"
+        f" at {ratio_to_level(kept.cost_final, c_noise) or math.nan:.2f}×"
     )
     # the start-0 search's fallback note too (what ran before the tier)
     before = [n for n in best.notes if n.startswith("fallback:") and n not in kept.notes]
@@ -350,12 +352,12 @@ def _with_fallback_starts(
     return MultistartResult(done, pick, ms.wall_s + time.perf_counter() - t0)
 
 
-def _noise_ratio(args: tuple, cost: float) -> float | None:
-    """A data cost's db_rms over the predicted noise level on the data of ``args``
-    (:attr:`_Job.problem_args`; :func:`bondid.optim.fallback.noise_ratio`)."""
-    from ..optim.fallback import noise_ratio
+def _noise_cost(args: tuple) -> float | None:
+    """The predicted noise-level cost of the data of ``args`` (:attr:`_Job.problem_args`;
+    :func:`bondid.cost.noise_level.noise_level_cost`, as the fit's fallback takes it)."""
+    from ..cost.noise_level import noise_level_cost
     from ..optim.problem import FitProblem
 
     doc, datasets, names, options, lo, hi = args
     problem = FitProblem(doc, datasets, names, options=options, lower=lo, upper=hi)
-    return noise_ratio(problem, cost)
+    return noise_level_cost(problem.frf)

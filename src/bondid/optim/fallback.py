@@ -108,9 +108,16 @@ def run_to_noise(
         The kept :class:`SearchResult`; its ``result.notes`` say which fallbacks ran and which
         search was kept, and ``result.iterations``/``wall_s`` count every search.
     """
+    from ..cost.noise_level import noise_level_cost
+
     t0 = time.perf_counter()
     first = run_search(problem, steps, **kw)
-    ratio = noise_ratio(problem, first.result.cost_final)
+    c_noise = noise_level_cost(problem.frf)  # the data's, whatever the parameters
+
+    def level_ratio(search: SearchResult) -> float | None:
+        return ratio_to_level(search.result.cost_final, c_noise)
+
+    ratio = level_ratio(first)
     if fallback_bands < 2 or ratio is None or ratio <= NOISE_MARGIN:
         return first
     pre = max((s.presolve for s in steps), default=0) if presolve_iter is None else presolve_iter
@@ -120,18 +127,18 @@ def run_to_noise(
     for label, build in schedules:
         other = run_search(problem, build(), **kw)
         iterations += other.result.iterations
-        r2 = noise_ratio(problem, other.result.cost_final)
+        r2 = level_ratio(other)
         said.append(f"the {label} from the same start ended at {r2 or math.nan:.2f}×")
         if _better(keep, other):
             keep, kept = other, label
-        best = noise_ratio(problem, keep.result.cost_final)
+        best = level_ratio(keep)
         if keep.result.status != "failed" and best is not None and best <= NOISE_MARGIN:
             break
-    best = noise_ratio(problem, keep.result.cost_final)
+    best = level_ratio(keep)
     if keep.result.status == ITERATION_LIMIT and best is not None and best > NOISE_MARGIN:
         resumed = resume(problem, keep, **kw)
         iterations += resumed.result.iterations
-        r2 = noise_ratio(problem, resumed.result.cost_final)
+        r2 = level_ratio(resumed)
         said.append(f"the {kept} resumed from its end point ended at {r2 or math.nan:.2f}×")
         if _better(keep, resumed):
             keep, kept = resumed, f"{kept}, resumed"
