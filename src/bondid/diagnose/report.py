@@ -10,7 +10,9 @@
 * ``candidates`` — best first: ``effect``, ``location``, ``parameters`` {name: value},
   ``db_rms_after``, ``gap_closed``, ``heldout_db_rms_after``, ``score`` (see
   :mod:`.scoring`), plus ``parameters_std``, ``heldout_weighted_rms``, ``train_weighted_rms``,
-  ``n_parameters``, ``detail`` (the variant the runner kept, e.g. a pivot), ``wall_s``,
+  ``n_parameters``, ``strength_z`` (the data's determination of the effect's strength,
+  :func:`.scoring.strength_z`; the verdict's test is taken on the best-scoring refit with
+  ``strength_z ≥ z``), ``detail`` (the variant the runner kept, e.g. a pivot), ``wall_s``,
   ``error``;
 * ``verdict`` — ``effect`` (or ``"none"``), ``location``, ``gap_closed``, plus
   ``reason``, ``detail``, ``parameters`` with ``std``, ``where`` (gap by channel and band after it),
@@ -101,6 +103,7 @@ def _refit_entry(r: Any, sc: float, before: float) -> dict[str, Any]:
         "heldout_weighted_rms": r.heldout_rms,
         "train_weighted_rms": r.train_rms,
         "n_parameters": r.n_own,
+        "strength_z": scoring.strength_z(r) if not r.error else None,
         "detail": r.extra.get("variant"),
         "notes": {k: str(v) for k, v in r.extra.items() if k != "variant"} or None,
         "wall_s": r.wall_s,
@@ -181,11 +184,13 @@ def effect_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
 
 def tied(step: Any) -> list[dict[str, Any]]:
     """The step's refits the data cannot tell from its best (:func:`.scoring.
-    indistinguishable`): effect, location, held-out score [dB] and ``lr`` (Λ, null without a
-    noise reference), best score first."""
+    indistinguishable`) and whose effect strength they determine: effect, location, held-out
+    score [dB] and ``lr`` (Λ, null without a noise reference), best score first."""
     out = []
     for j, lr in scoring.indistinguishable(step.scores, step.test):
         r = step.results[j]
+        if not scoring.determined(r):
+            continue
         out.append({"effect": r.effect, "location": r.location, "score": step.scores[j],
                     "lr": lr if math.isfinite(lr) else None})  # fmt: skip
     return out

@@ -14,9 +14,10 @@ accepted so far — and
    level the wider search in a second round (:func:`.widen.second_round`); the modal step of
    a stuck candidate with several springs (:mod:`.modal_start`, minutes per refit) runs only
    for the :data:`MODAL_TOP` best candidates of the screening (:func:`modal_ranked`);
-3. scores them on held-out data (:mod:`.scoring`) and accepts the best only under the
-   verdict rule of :func:`.scoring.accept` (the base above the held-out noise level, the
-   improvement significant given that noise; the same rule at every step).
+3. scores them on held-out data (:mod:`.scoring`) and accepts the best whose effect
+   strength the data determine (:func:`.scoring.determined`) only under the verdict rule of
+   :func:`.scoring.accept` (the base above the held-out noise level, the improvement
+   significant given that noise; the same rule at every step).
 
 The search stops at the first step that accepts nothing, or after
 :attr:`Context.max_effects` accepted effects. The first accepted effect is the verdict; the
@@ -102,7 +103,9 @@ class Step:
         refitted: indices into ``screenings`` of the candidates refitted fully.
         by_profile: those of them the joint profile picked (:func:`.screen.profile_picks`),
             refitted from its start.
-        results, scores: the full refits, best score first.
+        results, scores: the full refits: those whose effect strength the data determine
+            (:func:`.scoring.determined`) best score first, then the others best first; the
+            verdict's test is taken on the first.
         winner: the accepted effect's refit, or None.
         test: the verdict rule's figures for the best refit (:func:`.scoring.tests`).
     """
@@ -163,6 +166,15 @@ def _refit_candidate(s: Screening, cand: Candidate) -> Candidate:
     return s.variant if s.variant is not None else cand
 
 
+def verdict_order(results: Sequence[JobResult], scores: Sequence[float]) -> list[int]:
+    """Indices of ``results`` (held-out ``scores`` [dB], same order) as a step lists them: the
+    refits whose effect strength the data determine (:func:`.scoring.determined`) best score
+    first, then the others best first. The verdict's test is taken on the first."""
+    ranked = scoring.rank(scores)
+    order = [i for i in ranked if scoring.determined(results[i])]
+    return order + [i for i in ranked if i not in order]
+
+
 def _step(
     ctx: Context, pool: Any, index: int, base: JobResult, base_score: float, progress: Progress
 ) -> Step:
@@ -199,16 +211,21 @@ def _step(
     results = second_round(pool, used, results,
                            lambda label: progress(f"step {index + 1} widened {label}"))  # fmt: skip
     scores = [scoring.score(r.heldout_rms, r.n_train, r.n_new) for r in results]
-    order = scoring.rank(scores)
+    order = verdict_order(results, scores)
     step.results = [results[i] for i in order]
     step.scores = [scores[i] for i in order]
-    if step.results:
+    if step.results and not scoring.determined(step.results[0]):
+        why = "no refit determines its effect's strength (value/std < z)"
+        step.test = {"accepted": False, "rule": "none", "why": why}
+    elif step.results:
         best = step.results[0]
         # p of the test: this step's own candidate parameters (best.n_new also counts the
         # effects accepted before, already in the base)
         step.test = scoring.tests(step.scores[0], base_score, best.n_own, ctx.noise)
         if step.test["accepted"]:
             step.winner = best
+    if step.results:
+        step.test["strength_z"] = scoring.strength_z(step.results[0])
     return step
 
 

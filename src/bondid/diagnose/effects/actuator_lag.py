@@ -26,7 +26,7 @@ class ActuatorLag(Effect):
     is_modifier = True
 
     def candidates(self, doc: UrdfDocument) -> list[Candidate]:
-        p = NewParameter("T", T0, 1e-9, 5e-2, "s", scan=1.0)
+        p = NewParameter("T", T0, 1e-9, 5e-2, "s", scan=1.0, strength=True)
         return per_joint_candidates(self, doc, p, SCAN, "lag on input(s)")
 
     def modifier(self, candidate, values, freq_hz, outputs, inputs):

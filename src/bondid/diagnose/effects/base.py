@@ -45,6 +45,10 @@ class NewParameter:
         members: ``((URDF parameter name, factor), ...)``: the URDF values it sets
             (structural candidates); empty for modifier parameters.
         scan: exponent in the starting-point scan (see the module docstring).
+        strength: the parameter sets how far the effect is from absent (a stiffness, whose
+            compliance vanishes as it grows; a delay or a lag time). The verdict asks the data
+            to determine at least one of a candidate's strength parameters
+            (:func:`bondid.diagnose.scoring.strength_z`).
     """
 
     name: str
@@ -54,6 +58,7 @@ class NewParameter:
     unit: str
     members: tuple[tuple[str, float], ...] = ()
     scan: float = 0.0
+    strength: bool = False
 
 
 @dataclass(frozen=True)

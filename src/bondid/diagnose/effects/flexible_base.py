@@ -79,10 +79,13 @@ class FlexibleBase(Effect):
         params = (
             NewParameter("mass", M, M / 3, M * 3, "kg", mass),
             NewParameter("top_mass", top, top / 5, top * 5, "kg", ((f"{root}.mass", 1.0),)),
-            NewParameter("shear_x_stiffness", ks, ks * lo, ks * hi, "N/m", shear_kx, scan=1.0),
-            NewParameter("shear_y_stiffness", ks, ks * lo, ks * hi, "N/m", shear_ky, scan=1.0),
+            NewParameter("shear_x_stiffness", ks, ks * lo, ks * hi, "N/m", shear_kx, scan=1.0,
+                         strength=True),
+            NewParameter("shear_y_stiffness", ks, ks * lo, ks * hi, "N/m", shear_ky, scan=1.0,
+                         strength=True),
             NewParameter("shear_damping", ds, ds * 1e-3, ds * 1e3, "N*s/m", shear_d, scan=0.5),
-            NewParameter("compression_stiffness", kc, kc * lo, kc * hi, "N/m", comp_k, scan=1.0),
+            NewParameter("compression_stiffness", kc, kc * lo, kc * hi, "N/m", comp_k, scan=1.0,
+                         strength=True),
             NewParameter("compression_damping", dc, dc * 1e-3, dc * 1e3, "N*s/m", comp_d,
                          scan=0.5),
         )  # fmt: skip

@@ -104,7 +104,7 @@ class JointCompliance(Effect):
         params = (
             NewParameter(
                 "stiffness", k0, k0 * (3.0 / F_REF_HZ) ** 2, k0 * (40000 / F_REF_HZ) ** 2,
-                unit_k, ((f"{jname}.stiffness", 1.0),), scan=1.0,
+                unit_k, ((f"{jname}.stiffness", 1.0),), scan=1.0, strength=True,
             ),
             NewParameter(
                 "damping", d0, d0 * 1e-3, d0 * 1e3, unit_d, ((f"{jname}.damping", 1.0),), scan=0.5,

@@ -32,7 +32,7 @@ class SensorDelay(Effect):
     is_modifier = True
 
     def candidates(self, doc: UrdfDocument) -> list[Candidate]:
-        p = NewParameter("tau", TAU0, 1e-9, 5e-3, "s", scan=1.0)
+        p = NewParameter("tau", TAU0, 1e-9, 5e-3, "s", scan=1.0, strength=True)
         return per_joint_candidates(self, doc, p, SCAN, "delay on output(s)")
 
     def modifier(self, candidate, values, freq_hz, outputs, inputs):

@@ -91,7 +91,7 @@ class SoftMounts(Effect):
             params.append(
                 NewParameter(
                     f"stiffness_{ax}", k0, k0 * (0.3 / F0_HZ) ** 2, k0 * (3000 / F0_HZ) ** 2,
-                    unit, ((f"{PREFIX}_{ax}.stiffness", 1.0),), scan=1.0,
+                    unit, ((f"{PREFIX}_{ax}.stiffness", 1.0),), scan=1.0, strength=True,
                 )
             )  # fmt: skip
         for group, axes, sl in (("zeta_t", TRANSLATIONS, slice(0, 3)),
