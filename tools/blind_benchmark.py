@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import sys
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -38,7 +39,7 @@ sys.path[:0] = [str(ROOT / "src"), str(ROOT / "tools")]
 from benchmark.cases import QUICK, Case, all_cases  # noqa: E402
 from benchmark.designs import DESIGNS  # noqa: E402
 from benchmark.regimes import REGIMES  # noqa: E402
-from benchmark.runner import Settings, run_case  # noqa: E402
+from benchmark.runner import STOPPING, Settings, run_case, terminate_children  # noqa: E402
 from benchmark.tables import case_table, summary_table  # noqa: E402
 
 
@@ -117,6 +118,8 @@ def main(argv: list[str] | None = None) -> int:
             truth = [[e.effect, e.location] for e in c.effects]
             r = {"case": c.name, "design": c.design, "regime": c.regime, "truth": truth,
                  "error": repr(exc)}  # fmt: skip
+        if STOPPING.is_set():  # a case cut short by SIGTERM is not a result
+            return r
         got = r.get("error") or ", ".join(f"{e}@{loc}" for e, loc in r["claimed"]) or "none"
         took = f"diagnose {r.get('diagnosis_s', 0):.0f} s, fit {r.get('fit_s', 0):.0f} s"
         print(f"{c.name}: {got} (truth {c.label} @ {c.where}) {took}", flush=True)
@@ -125,6 +128,11 @@ def main(argv: list[str] | None = None) -> int:
             args.out.write_text(json.dumps(done, indent=2, default=float) + "\n")
         return r
 
+    def stop(signum: int, _frame: Any) -> None:  # rows so far are on disk already
+        terminate_children()
+        os._exit(128 + signum)
+
+    signal.signal(signal.SIGTERM, stop)
     with ThreadPoolExecutor(max_workers=args.jobs) as pool:
         rows = list(pool.map(one, cases))
     print()

@@ -10,6 +10,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,13 +41,45 @@ class Settings:
     keep: Path | None = None
 
 
+#: the subprocesses running now (:func:`terminate_children` stops them with the benchmark)
+_LIVE: set[subprocess.Popen] = set()
+_LIVE_LOCK = threading.Lock()
+#: set by :func:`terminate_children`: no subprocess starts after it
+STOPPING = threading.Event()
+
+
 def _run(cmd: list[str]) -> tuple[subprocess.CompletedProcess, float]:
     env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
     for v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
         env.setdefault(v, "1")
     t0 = time.perf_counter()
-    proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
-    return proc, time.perf_counter() - t0
+    with subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                          env=env) as p:  # fmt: skip
+        with _LIVE_LOCK:
+            _LIVE.add(p)
+            if STOPPING.is_set():  # started while the benchmark was being stopped
+                p.terminate()
+        try:
+            out, err = p.communicate()
+        finally:
+            with _LIVE_LOCK:
+                _LIVE.discard(p)
+    return subprocess.CompletedProcess(cmd, p.returncode, out, err), time.perf_counter() - t0
+
+
+def terminate_children(grace_s: float = 30.0) -> None:
+    """Stop the running diagnoses and fits (SIGTERM, which they handle; SIGKILL after
+    ``grace_s``), so that a stopped benchmark leaves no orphan working on."""
+    with _LIVE_LOCK:
+        STOPPING.set()
+        live = list(_LIVE)
+    for p in live:
+        p.terminate()
+    for p in live:
+        try:
+            p.wait(grace_s)
+        except subprocess.TimeoutExpired:
+            p.kill()
 
 
 def _error(proc: subprocess.CompletedProcess) -> str:
