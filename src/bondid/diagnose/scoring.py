@@ -274,7 +274,9 @@ def reason(test: dict[str, Any], candidate_score: float, baseline_score: float) 
                      f" >= {MIN_EXCESS_SHARE:.0%})")  # fmt: skip
     pair = test.get("pair") or {}
     other = pair.get("second") or pair.get("first")
-    if other:
+    if pair.get("why"):
+        parts.append(f"held for a second effect: {pair['why']}")
+    elif other:
         parts.append(
             f"held with {other}: together they remove {pair['excess_share']:.0%} of the excess"
             f" (LR {pair['lr']:.1f}, threshold {pair['lr_threshold']:.1f}):"
