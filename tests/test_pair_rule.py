@@ -114,26 +114,3 @@ def test_only_a_refusal_for_the_share_alone_is_held() -> None:
     assert not scoring.short_of_share(scoring.tests(0.5, 0.52, 1, REF))  # base at the level
     assert not scoring.short_of_share(scoring.tests(0.6, s0, 1, REF))  # accepted outright
     assert not scoring.short_of_share({"accepted": False, "rule": "none", "why": "x"})
-
-
-def test_a_held_step_without_a_determined_second_effect_says_so(monkeypatch) -> None:
-    s0, sa = 3.0, 2.7
-    calls = _scripted(monkeypatch, {0: [("a@x", sa)], 1: [("b@y", 1.0)]})
-    # the second step's only refit leaves its strength undetermined (value/std = 0.5)
-    real = search._step
-
-    def undetermined(*args):
-        step = real(*args)
-        if args[2] == 1:
-            step.results = [_refit("b@y", z=0.5)]
-            step.test = {"accepted": False, "rule": "none", "why": "undetermined"}
-        return step
-
-    monkeypatch.setattr(search, "_step", undetermined)
-    steps = search.search(_Ctx(), None, _baseline(s0))
-    assert len(calls) == 2 and len(steps) == 1 and steps[0].winner is None
-    assert steps[0].test["pair"] == {"accepted": False, "second": None,
-                                     "why": "no determined second effect"}  # fmt: skip
-    assert "held for a second effect: no determined second effect" in scoring.reason(
-        steps[0].test, sa, s0
-    )

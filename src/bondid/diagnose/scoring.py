@@ -274,9 +274,7 @@ def reason(test: dict[str, Any], candidate_score: float, baseline_score: float) 
                      f" >= {MIN_EXCESS_SHARE:.0%})")  # fmt: skip
     pair = test.get("pair") or {}
     other = pair.get("second") or pair.get("first")
-    if pair.get("why"):
-        parts.append(f"held for a second effect: {pair['why']}")
-    elif other:
+    if other:
         parts.append(
             f"held with {other}: together they remove {pair['excess_share']:.0%} of the excess"
             f" (LR {pair['lr']:.1f}, threshold {pair['lr_threshold']:.1f}):"

@@ -237,8 +237,8 @@ def _pair(first: Step, second: Step, noise: scoring.NoiseReference | None) -> di
     refit passed every test but the share; ``second`` searched from it. Accepted when the
     second's best is determined and significant against the first (its LR test) and the two
     together pass the whole rule against ``first``'s base (``p`` = both effects' parameters).
-    (Where the first step refitted the second effect alone, it scored no better than the
-    first there, so the first is then significant against it too.)"""
+    (The first is then also significant against the second alone: that one scored no better
+    than the first at the first step.)"""
     if not second.results or not scoring.determined(second.results[0]):
         return {"accepted": False, "second": None, "why": "no determined second effect"}
     a, b = first.results[0], second.results[0]
