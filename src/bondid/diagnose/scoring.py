@@ -48,13 +48,6 @@
   Replayed on 114 kept diagnosis outputs of stops 19–24 (189 steps), every accepted effect
   at a withheld place had ``z ≥ 19``; the rule changed 6 steps, each a claim at a wrong
   place (``z`` 0.03–0.69) that it removes, and no other.
-* **two effects at once** (:func:`short_of_share`, :func:`.search._pair`): when two effects
-  are missing, each refit alone leaves the other's misfit, and the nominal parameters bent
-  toward both; measured on the kept outputs of stops 19–24, the true effect of three of the
-  two-effect cases was refused at 23–25 % of the excess with LR 163–413. A step whose best
-  refit fails only the share is therefore held, the next step searches from it, and both are
-  accepted when together they pass the whole rule against the held step's base (``p`` the
-  parameters of both) and the second is significant against the first.
 * **indistinguishable** (:func:`indistinguishable`): a refitted candidate whose score ``sⱼ``
   the best one's does not beat by the significance part of the rule taken with one
   parameter, ``n (sⱼ² − s₁²) / L² ≤ ½ χ²₁⁻¹(1 − α)`` (without a noise reference: not lower
@@ -272,24 +265,7 @@ def reason(test: dict[str, Any], candidate_score: float, baseline_score: float) 
     elif test["excess_share"] < MIN_EXCESS_SHARE:
         parts.append(f"removes {test['excess_share']:.0%} of the excess over the noise (needs"
                      f" >= {MIN_EXCESS_SHARE:.0%})")  # fmt: skip
-    pair = test.get("pair") or {}
-    other = pair.get("second") or pair.get("first")
-    if other:
-        parts.append(
-            f"held with {other}: together they remove {pair['excess_share']:.0%} of the excess"
-            f" (LR {pair['lr']:.1f}, threshold {pair['lr_threshold']:.1f}):"
-            + (" both accepted" if pair["accepted"] else " not accepted")
-        )
     return "; ".join(parts)
-
-
-def short_of_share(test: dict[str, Any]) -> bool:
-    """True when a step's test (:func:`tests`) refused its best refit only for the share of the
-    excess it removes: the base above the noise level, the LR significant."""
-    return (
-        test.get("rule") == "noise" and bool(test.get("base_above_noise"))
-        and test["lr"] > test["lr_threshold"] and test["excess_share"] < MIN_EXCESS_SHARE
-    )  # fmt: skip
 
 
 def accept(

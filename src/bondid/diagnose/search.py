@@ -19,10 +19,7 @@ accepted so far — and
    :func:`.scoring.accept` (the base above the held-out noise level, the improvement
    significant given that noise; the same rule at every step).
 
-A step whose best refit fails the rule only for the share of the excess it removes is held,
-and accepted together with the next step's effect when the two pass the rule together
-(:func:`_pair`, :func:`.scoring.short_of_share`: two missing effects, each refit leaving the
-other's misfit). The search stops at the first step that accepts nothing, or after
+The search stops at the first step that accepts nothing, or after
 :attr:`Context.max_effects` accepted effects. The first accepted effect is the verdict; the
 list of accepted effects, each with the gap after it, is ``effects`` in ``diagnosis.json``.
 """
@@ -232,64 +229,21 @@ def _step(
     return step
 
 
-def _pair(first: Step, second: Step, noise: scoring.NoiseReference | None) -> dict[str, Any]:
-    """The share rule taken on two effects together (module docstring): ``first``'s best
-    refit passed every test but the share; ``second`` searched from it. Accepted when the
-    second's best is determined and significant against the first (its LR test) and the two
-    together pass the whole rule against ``first``'s base (``p`` = both effects' parameters).
-    (The first is then also significant against the second alone: that one scored no better
-    than the first at the first step.)"""
-    if not second.results or not scoring.determined(second.results[0]):
-        return {"accepted": False, "second": None, "why": "no determined second effect"}
-    a, b = first.results[0], second.results[0]
-    own = second.test
-    together = scoring.tests(second.scores[0], first.base_score, a.n_own + b.n_own, noise)
-    ok = (own.get("rule") == "noise" and own["lr"] > own["lr_threshold"]
-          and bool(together["accepted"]))  # fmt: skip
-    return {
-        "accepted": bool(ok), "second": b.label,
-        "excess_share": together.get("excess_share"), "lr": together.get("lr"),
-        "lr_threshold": together.get("lr_threshold"), "second_lr": own.get("lr"),
-    }  # fmt: skip
-
-
 def search(
     ctx: Context, pool: Any, baseline: JobResult, progress: Progress | None = None
 ) -> list[Step]:
     """Steps of the search from the parameter refit ``baseline`` (module docstring); the
-    last step is the one that accepted nothing (unless ``max_effects`` were accepted).
-
-    A step whose best refit passes every test of the rule but the share
-    (:func:`.scoring.short_of_share`: two missing effects each leave the other's misfit, so
-    neither alone removes a quarter of the excess) is held: the next step searches from it,
-    and both are accepted when they pass the rule together (:func:`_pair`); otherwise the
-    search ends there and the held step's ``test["pair"]`` says why (the step searched from
-    the held model is not kept)."""
+    last step is the one that accepted nothing (unless ``max_effects`` were accepted)."""
     say = progress or (lambda _label: None)
     base = replace(baseline, chain=())
     base_score = scoring.score(base.heldout_rms, base.n_train, 0)
     steps: list[Step] = []
-    index = 0
-    while index < ctx.max_effects:
+    for index in range(ctx.max_effects):
         step = _step(ctx, pool, index, base, base_score, say)
         steps.append(step)
-        held = step.results[0] if step.results else None
-        if (step.winner is None and held is not None and index + 1 < ctx.max_effects
-                and scoring.short_of_share(step.test) and _open(ctx, held)):  # fmt: skip
-            say(f"step {index + 1}: {held.label} held, to be tested with the next effect")
-            nxt = _step(ctx, pool, index + 1, held, step.scores[0], say)
-            step.test["pair"] = _pair(step, nxt, ctx.noise)
-            if not step.test["pair"]["accepted"]:
-                break
-            step.winner, step.test["accepted"] = held, True
-            nxt.winner, nxt.test["accepted"] = nxt.results[0], True
-            nxt.test["pair"] = {**step.test["pair"], "second": None, "first": held.label}
-            steps.append(nxt)
-            step, index = nxt, index + 1
         if step.winner is None or not _open(ctx, step.winner):
             break
         base, base_score = step.winner, step.scores[0]
-        index += 1
     return steps
 
 
