@@ -26,10 +26,12 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT / "src"), str(ROOT / "tools")]
 
+import numpy as np  # noqa: E402
 from benchmark.cases import all_cases  # noqa: E402
 
 from bondid.diagnose import scoring  # noqa: E402
 from bondid.diagnose.effects import get_effects  # noqa: E402
+from bondid.diagnose.effects.base import Candidate, NewParameter  # noqa: E402
 
 
 def _strength_names() -> dict[str, set[str]]:
@@ -45,15 +47,18 @@ def _strength_names() -> dict[str, set[str]]:
 
 
 def strength_z(entry: dict[str, Any], strength: dict[str, set[str]]) -> float:
-    """``scoring.strength_z`` from a ``candidates`` entry of ``diagnosis.json``."""
+    """``scoring.strength_z`` of a ``candidates`` entry of ``diagnosis.json``."""
+    from types import SimpleNamespace
+
     names = strength.get(entry["effect"], set())
     vals, std = entry.get("parameters") or {}, entry.get("parameters_std") or {}
-    zs = []
-    for n, v in vals.items():
-        if n in names:
-            s = std.get(n)
-            zs.append(math.inf if s == 0 else abs(v) / s if s and math.isfinite(s) else 0.0)
-    return max(zs) if zs else math.inf
+    params = tuple(NewParameter(n, 1.0, 1.0, 1.0, "", strength=n in names) for n in vals)
+    result = SimpleNamespace(
+        candidate=Candidate(entry["effect"], entry["location"], params), n_own=len(params),
+        values=np.array(list(vals.values()), float),
+        std=np.array([np.nan if std.get(n) is None else std[n] for n in vals], float),
+    )  # fmt: skip
+    return scoring.strength_z(result)
 
 
 def replay(path: Path, strength: dict[str, set[str]]) -> list[str]:
