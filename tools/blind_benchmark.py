@@ -24,7 +24,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import signal
 import sys
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -39,7 +38,7 @@ sys.path[:0] = [str(ROOT / "src"), str(ROOT / "tools")]
 from benchmark.cases import QUICK, Case, all_cases  # noqa: E402
 from benchmark.designs import DESIGNS  # noqa: E402
 from benchmark.regimes import REGIMES  # noqa: E402
-from benchmark.runner import STOPPING, Settings, run_case, terminate_children  # noqa: E402
+from benchmark.runner import STOPPING, Settings, run_case, stop_on_sigterm  # noqa: E402
 from benchmark.tables import case_table, summary_table  # noqa: E402
 
 
@@ -128,11 +127,7 @@ def main(argv: list[str] | None = None) -> int:
             args.out.write_text(json.dumps(done, indent=2, default=float) + "\n")
         return r
 
-    def stop(signum: int, _frame: Any) -> None:  # rows so far are on disk already
-        terminate_children()
-        os._exit(128 + signum)
-
-    signal.signal(signal.SIGTERM, stop)
+    stop_on_sigterm()
     with ThreadPoolExecutor(max_workers=args.jobs) as pool:
         rows = list(pool.map(one, cases))
     print()

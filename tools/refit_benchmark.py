@@ -37,7 +37,7 @@ import numpy as np  # noqa: E402
 from benchmark.cases import Case  # noqa: E402
 from benchmark.designs import DESIGNS, design  # noqa: E402
 from benchmark.regimes import REGIMES, measure  # noqa: E402
-from benchmark.runner import _error, _run  # noqa: E402
+from benchmark.runner import STOPPING, _error, _run, stop_on_sigterm  # noqa: E402
 from benchmark.truth import signal_factor, truth_model  # noqa: E402
 
 #: a fit within this factor of the truth's own db_rms is "at the noise level"
@@ -169,12 +169,15 @@ def main(argv: list[str] | None = None) -> int:
             r = run_case(c, a.freq, extra)
         except Exception as exc:  # one broken case must not lose the others
             r = {"case": c.name, "design": c.design, "regime": c.regime, "error": repr(exc)}
+        if STOPPING.is_set():  # a case cut short by SIGTERM is not a result
+            return r
         print(json.dumps(r, default=float), flush=True)
         done.append(r)
         if a.out:
             a.out.write_text(json.dumps(done, indent=1, default=float) + "\n")
         return r
 
+    stop_on_sigterm()
     with ThreadPoolExecutor(max_workers=a.jobs) as pool:
         rows = list(pool.map(one, todo))
     print(table(rows))

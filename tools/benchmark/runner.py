@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -80,6 +81,18 @@ def terminate_children(grace_s: float = 30.0) -> None:
             p.wait(grace_s)
         except subprocess.TimeoutExpired:
             p.kill()
+
+
+def stop_on_sigterm() -> None:
+    """Install the benchmarks' SIGTERM handler: stop the running subprocesses
+    (:func:`terminate_children`) and exit at once; the rows written so far stay on disk, and
+    a case cut short is not a result (its runner sees :data:`STOPPING` set)."""
+
+    def stop(signum: int, _frame: Any) -> None:
+        terminate_children()
+        os._exit(128 + signum)
+
+    signal.signal(signal.SIGTERM, stop)
 
 
 def _error(proc: subprocess.CompletedProcess) -> str:

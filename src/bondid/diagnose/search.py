@@ -214,18 +214,20 @@ def _step(
     order = verdict_order(results, scores)
     step.results = [results[i] for i in order]
     step.scores = [scores[i] for i in order]
-    if step.results and not scoring.determined(step.results[0]):
+    if not step.results:
+        return step
+    best = step.results[0]
+    z = scoring.strength_z(best)
+    if z < scoring.Z:  # verdict_order put the determined refits first: none is
         why = "no refit determines its effect's strength (value/std < z)"
         step.test = {"accepted": False, "rule": "none", "why": why}
-    elif step.results:
-        best = step.results[0]
+    else:
         # p of the test: this step's own candidate parameters (best.n_new also counts the
         # effects accepted before, already in the base)
         step.test = scoring.tests(step.scores[0], base_score, best.n_own, ctx.noise)
         if step.test["accepted"]:
             step.winner = best
-    if step.results:
-        step.test["strength_z"] = scoring.strength_z(step.results[0])
+    step.test["strength_z"] = z
     return step
 
 
