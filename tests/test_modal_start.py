@@ -33,15 +33,16 @@ def _mounts(doc: UrdfDocument):
     return get_effect("soft_mounts").candidates(doc)[0]
 
 
-def test_only_candidates_with_several_springs_get_modal_starts():
+def test_only_structural_candidates_get_modal_starts():
     doc = UrdfDocument.load(ROOT / "urdf" / "bonder.urdf")
     assert ms.applies(_mounts(doc)) and len(ms.springs(_mounts(doc))) == 6
+    assert not ms.single(_mounts(doc))
     fb = get_effect("flexible_base").candidates(doc)
-    assert fb and all(ms.applies(c) for c in fb)
+    assert fb and all(ms.applies(c) and not ms.single(c) for c in fb)
     jc = get_effect("joint_compliance").candidates(doc)
-    assert jc and not any(ms.applies(c) for c in jc)
+    assert jc and all(ms.applies(c) and ms.single(c) for c in jc)
     assert not any(ms.applies(c) for c in get_effect("sensor_delay").candidates(doc))
-    assert not ms.applies(None)
+    assert not ms.applies(None) and not ms.single(None)
 
 
 @pytest.fixture(scope="module")
@@ -170,7 +171,8 @@ def test_the_modal_step_tries_the_other_variants_while_stuck(monkeypatch):
 def test_the_modal_step_runs_only_where_the_job_allows_it(monkeypatch):
     """A stuck soft-mount refit gets the modal step when ``Job.modal`` (the search sets it for
     the screening's best candidates, ``search.modal_ranked``), and a note saying it was not
-    run otherwise."""
+    run otherwise; a stuck single-spring refit gets it either way, on its other variants
+    only when ``Job.modal``."""
     from dataclasses import replace
 
     from bondid.cost.problem import CostOptions
@@ -180,8 +182,8 @@ def test_the_modal_step_runs_only_where_the_job_allows_it(monkeypatch):
     c = replace(_mounts(doc), variants=())
     calls: list[str] = []
 
-    def fake_step(job, aug, state, res):
-        calls.append(job.candidate.label)
+    def fake_step(job, aug, state, res, others):
+        calls.append((job.candidate.label, others))
         return job, aug, state, res, "ran"
 
     monkeypatch.setattr(runner, "_fit", lambda job: ("aug", "state", "res"))
@@ -192,10 +194,15 @@ def test_the_modal_step_runs_only_where_the_job_allows_it(monkeypatch):
     monkeypatch.setattr(ms, "modal_step", fake_step)
     monkeypatch.setattr(runner, "finish", lambda job, aug, s, r, extra, t0, continuation: extra)
     job = runner.Job(doc.to_string(), None, [], [], [], c, CostOptions(), wider=False)  # type: ignore[arg-type]
-    assert runner._run(job, 0.0)["modal starts"] == "ran" and calls == [c.label]
+    assert runner._run(job, 0.0)["modal starts"] == "ran" and calls == [(c.label, True)]
     calls.clear()
     extra = runner._run(replace(job, modal=False), 0.0)
     assert extra["modal starts"] == runner.MODAL_SKIPPED and calls == []
+    jc = next(j for j in get_effect("joint_compliance").candidates(doc) if not j.variants)
+    for modal in (True, False):
+        calls.clear()
+        extra = runner._run(replace(job, candidate=jc, modal=modal), 0.0)
+        assert extra["modal starts"] == "ran" and calls == [(jc.label, modal)]
 
 
 def test_modal_ranked_keeps_the_best_figures_and_profile_picks():
@@ -210,3 +217,64 @@ def test_modal_ranked_keeps_the_best_figures_and_profile_picks():
     by_figure = [1, 3, 0, 5, 4, 6, 7]  # the finite figures, best first
     assert got == {*by_figure[:MODAL_TOP], *picks[:MODAL_TOP]}
     assert 2 not in got and 7 not in got  # no figure; the worst figure, not a pick
+
+
+#: the withheld compliance of the single-spring case: the interface and its mode [Hz]
+JC_LABEL = "joint_compliance@x_stage->y_stage:tz"
+JC_HZ = 900.0
+
+
+@pytest.fixture(scope="module")
+def jc_case():
+    """Data of the bonder with errors on FEW and a withheld x→y tz compliance (mode near
+    JC_HZ); the nominal model, the candidate and the truth's new values."""
+    from bondid.diagnose.augmented import with_values
+    from bondid.model.parameters import get_parameters
+
+    doc = UrdfDocument.load(ROOT / "urdf" / "bonder.urdf")
+    c = next(c for c in get_effect("joint_compliance").candidates(doc) if c.label == JC_LABEL)
+    truth = doc.copy()
+    for name, v, f in zip(FEW, get_parameters(doc, FEW), ERRORS, strict=True):
+        set_parameter(truth, name, float(v) * f)
+    g = (JC_HZ / c.ref_hz) ** 2
+    new = np.array([q.initial for q in c.parameters]) * np.array([g, np.sqrt(g)])
+    data = noisy_bonder_data(get_effect("joint_compliance").augment(truth, with_values(c, new)))
+    return doc, c, data, new
+
+
+def test_placed_starts_put_the_spring_at_the_hints_then_the_worst_matched_modes(jc_case):
+    doc, c, data, _ = jc_case
+    refit = _refit(doc, c, data).refit
+    measured = [list(m) for m in ms.measured_modes(data)]
+    v0 = refit.new_values(refit.state0)
+    hint = 700.0
+    beyond = c.ref_hz * np.sqrt(max(c.scan_grid)) * 2  # a scale outside the scan range
+    starts = ms.placed_starts(refit, c, data, (beyond, hint, hint * 1.05), measured)
+    assert 1 <= len(starts) <= ms.PLACED_STARTS
+    # the hint first (the one beyond the scan range skipped), the damping at its start value
+    np.testing.assert_allclose(starts[0], [v0[0] * (hint / c.ref_hz) ** 2, v0[1]])
+    placed_hz = [c.ref_hz * np.sqrt(v[0] / v0[0]) for v in starts]
+    for a in range(len(placed_hz)):  # no two within SAME_MODE (the second hint was one)
+        for b in range(a):
+            assert abs(np.log(placed_hz[a] / placed_hz[b])) >= np.log(ms.SAME_MODE) - 1e-12
+    # the measured modes after the hint: inside the data's band, worst matched first
+    terms = dict((f, t) for t, f in ms.mode_mismatch(refit, refit.state0, measured, data))
+    after = [terms[min(terms, key=lambda f: abs(f - h))] for h in placed_hz[1:]]
+    assert after == sorted(after, reverse=True)
+    assert all(data[0].freq_hz[0] <= h <= data[0].freq_hz[-1] for h in placed_hz)
+    # a candidate with several springs gets none
+    assert ms.placed_starts(refit, _mounts(doc), data, (hint,), measured) == []
+
+
+def test_the_alternation_from_a_placed_start_finds_a_single_spring(jc_case):
+    """Known answer: no hint given, the first placed start (the measured mode the nominal
+    model matches worst) and the restart alternation end with the compliance's stiffness
+    within SPRING_FACTOR of the truth's."""
+    doc, c, data, new = jc_case
+    refit = _refit(doc, c, data).refit
+    starts = ms.placed_starts(refit, c, data, (), ms.measured_modes(data))
+    assert starts
+    state, cost, _ = ms.alternation(refit, starts[0])
+    assert np.isfinite(cost)
+    ratio = refit.new_values(state)[0] / new[0]
+    assert 1 / SPRING_FACTOR < ratio < SPRING_FACTOR, ratio

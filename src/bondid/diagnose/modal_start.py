@@ -34,6 +34,19 @@ data at 0.78–0.79× the noise level. Two findings make the path back:
    of the candidate (e.g. the elastic centre of soft mounts), which the refits before it do
    not always keep, so :func:`modal_step` runs it on each other variant while the refit is
    still stuck.
+4. **One spring: starts placed at the measured modes.** A candidate with a single spring (a
+   joint compliance) is stuck the same way: the parameter refit has bent the nominal
+   parameters around the missing mode, so the new mode first makes the fit worse and every
+   local refit runs the spring stiff (measured, bonder_b with a withheld carriage→slide tz
+   compliance, accelerance data: every refit ended at 1.29× the training noise level with
+   the stiffness at 8·10¹⁰ N/m). The matching search does not leave that end either (its one
+   start stayed rigid: the bent model already pairs every measured mode). The alternation
+   from the spring placed so that the candidate's mode sits at a measured mode reached 0.71×
+   from each of the five in-band modes tried (243–684 Hz); four wrong candidates of the same
+   case ended at 1.02–1.29× from the same starts. So a single spring's starts are
+   :func:`placed_starts` (the missing modes first, then the measured modes the model matches
+   worst, :data:`PLACED_STARTS` in all), then the matching search's; the alternation stops at
+   the first start that ends at the training noise level (:data:`.rescue.RESCUE_RATIO`).
 """
 
 from __future__ import annotations
@@ -73,47 +86,107 @@ ROUNDS = 2
 ROUND_ITER = 100
 #: starts whose springs all agree within this factor are the same start
 SAME_START = 1.05
+#: starts of a single spring placed at measured modes (module docstring, point 4), and the
+#: factor in frequency within which two modes give one start
+PLACED_STARTS = 3
+SAME_MODE = 1.1
 
 
 def springs(cand: Candidate) -> list[int]:
-    """Indices of ``cand``'s stiffnesses (new parameters scanned with exponent 1)."""
-    return [i for i, q in enumerate(cand.parameters) if q.scan == 1.0]
+    """Indices of ``cand``'s stiffnesses (structural new parameters, i.e. with URDF members,
+    scanned with exponent 1; a delay or a lag time is scanned so too, but is no spring)."""
+    return [i for i, q in enumerate(cand.parameters) if q.scan == 1.0 and q.members]
 
 
 def applies(cand: Candidate | None) -> bool:
-    """Does ``cand`` add several springs (the case this module is for)?"""
-    return cand is not None and len(springs(cand)) >= 2
+    """Does ``cand`` add a spring (the case this module is for)?"""
+    return cand is not None and len(springs(cand)) >= 1
+
+
+def single(cand: Candidate | None) -> bool:
+    """Does ``cand`` add exactly one spring (:func:`placed_starts`)?"""
+    return cand is not None and len(springs(cand)) == 1
 
 
 def matching_cost(
     refit: Refit, state: State, measured: Sequence[Sequence[IdentifiedMode]],
     data: Sequence[FrfData],
 ) -> float:  # fmt: skip
-    """How far the modes of the model at ``state`` are from the measured ones: over the
-    measured modes of every data set, ``min_j ((ln f_j/f)/σ)² + w (1 − MAC_j)`` over the
-    model's modes ``j`` (capped at :data:`MISS_COST`); inf where the model fails."""
+    """How far the modes of the model at ``state`` are from the measured ones: the sum of
+    :func:`mode_mismatch`; inf where the model fails."""
     from ..exceptions import BondidError
+
+    try:
+        return float(sum(c for c, _ in mode_mismatch(refit, state, measured, data)))
+    except (BondidError, np.linalg.LinAlgError, ValueError):
+        return float("inf")
+
+
+def mode_mismatch(
+    refit: Refit, state: State, measured: Sequence[Sequence[IdentifiedMode]],
+    data: Sequence[FrfData],
+) -> list[tuple[float, float]]:  # fmt: skip
+    """(term, frequency [Hz]) of every measured mode of every data set: the term is
+    ``min_j ((ln f_j/f)/σ)² + w (1 − MAC_j)`` over the modes ``j`` of the model at ``state``,
+    capped at :data:`MISS_COST`. Raises what the model raises where it fails."""
     from .modal_id import model_modes
     from .pairing import mac_matrix
 
+    out: list[tuple[float, float]] = []
+    affines = refit.at(state).frf.affines
+    for meas, d, am in zip(measured, data, affines, strict=True):
+        if not meas:
+            continue
+        mm = model_modes(am.linear_model(), data=d)
+        if not mm:
+            out += [(MISS_COST, a.f_hz) for a in meas]
+            continue
+        mac = mac_matrix(meas, mm)
+        f = np.array([b.f_hz for b in mm])
+        for i, a in enumerate(meas):
+            c = (np.log(f / a.f_hz) / SIGMA_F) ** 2 + MAC_WEIGHT * (1.0 - mac[i])
+            out.append((min(float(np.min(c)), MISS_COST), a.f_hz))
+    return out
+
+
+def placed_starts(
+    refit: Refit, cand: Candidate, data: Sequence[FrfData], hints_hz: Sequence[float],
+    measured: Sequence[Sequence[IdentifiedMode]],
+) -> list[np.ndarray]:  # fmt: skip
+    """Starts ``(n_new,)`` (SI) of a single-spring candidate (module docstring, point 4): the
+    spring scaled by ``(f/ref_hz)²`` so that the candidate's mode sits at ``f``, for the
+    missing modes ``hints_hz`` first, then the measured modes inside their data set's band
+    that the model at ``refit``'s start matches worst (:func:`mode_mismatch`); modes within
+    :data:`SAME_MODE` of one already taken, and scales outside the candidate's scan range,
+    are skipped; at most :data:`PLACED_STARTS`. Empty without a reference frequency."""
+    from ..exceptions import BondidError
+
+    if not cand.ref_hz or not cand.scan_grid or not single(cand):
+        return []
+    inside = [
+        [m for m in meas if d.freq_hz[0] <= m.f_hz <= d.freq_hz[-1]]
+        for meas, d in zip(measured, data, strict=True)
+    ]
     try:
-        affines = refit.at(state).frf.affines
-        total = 0.0
-        for meas, d, am in zip(measured, data, affines, strict=True):
-            if not meas:
-                continue
-            mm = model_modes(am.linear_model(), data=d)
-            if not mm:
-                total += MISS_COST * len(meas)
-                continue
-            mac = mac_matrix(meas, mm)
-            f = np.array([b.f_hz for b in mm])
-            for i, a in enumerate(meas):
-                c = (np.log(f / a.f_hz) / SIGMA_F) ** 2 + MAC_WEIGHT * (1.0 - mac[i])
-                total += min(float(np.min(c)), MISS_COST)
+        ranked = sorted(mode_mismatch(refit, refit.state0, inside, data), key=lambda t: -t[0])
     except (BondidError, np.linalg.LinAlgError, ValueError):
-        return float("inf")
-    return total
+        ranked = []
+    lo, hi = min(cand.scan_grid), max(cand.scan_grid)
+    i = springs(cand)[0]
+    v0 = refit.new_values(refit.state0)
+    taken: list[float] = []
+    out: list[np.ndarray] = []
+    for f in [*hints_hz, *(f for _, f in ranked)]:
+        g = (f / cand.ref_hz) ** 2
+        if not lo <= g <= hi or any(abs(np.log(f / t)) < np.log(SAME_MODE) for t in taken):
+            continue
+        taken.append(f)
+        v = v0.copy()
+        v[i] = v0[i] * g
+        out.append(v)
+        if len(out) == PLACED_STARTS:
+            break
+    return out
 
 
 def measured_modes(data: Sequence[FrfData]) -> list[list[IdentifiedMode]]:
@@ -137,11 +210,13 @@ def modal_starts(
     """Distinct starts ``(n_new,)`` (SI) of ``cand``'s new parameters, springs matched to the
     measured modes of ``data`` (module docstring; ``measured``: those modes, when already
     identified by :func:`measured_modes`), the other new parameters at their start values;
-    best matching first. Empty when no data set has an identified mode."""
+    best matching first, after a single spring's :func:`placed_starts`. Empty when no data
+    set has an identified mode."""
     if measured is None:
         measured = measured_modes(data)
     if not any(measured):
         return []
+    placed = placed_starts(refit, cand, data, hints_hz, measured)
     v0 = refit.new_values(refit.state0)
     idx = springs(cand)
     lo, hi = (min(cand.scan_grid), max(cand.scan_grid)) if cand.scan_grid else (1e-4, 1e2)
@@ -158,7 +233,7 @@ def modal_starts(
                 found.append((c, v))
     found.sort(key=lambda t: t[0])
     out: list[np.ndarray] = []
-    for _, v in found:
+    for v in [*placed, *(v for _, v in found)]:
         if all(np.max(np.abs(np.log(v[idx] / u[idx]))) > np.log(SAME_START) for u in out):
             out.append(v)
     return out
@@ -223,9 +298,12 @@ def modal_restarts(
     """The restart alternation from every start of :func:`modal_starts` (on ``job``'s data
     and hints) on ``aug0`` (the job's model augmented with its candidate ``cand``: the first
     origin); the start of lowest training objective is compared with the refit so far
-    (``aug``, ``state``, ``res``) by :func:`.keep.replaces`. Returns the kept refit and a
-    note (how many starts, the best one's noise ratio, kept or not; failures)."""
+    (``aug``, ``state``, ``res``) by :func:`.keep.replaces`; the starts after one that ends at
+    the training noise level (:func:`.rescue.above_noise`) are not tried. Returns the kept
+    refit and a note (starts tried of found, the best one's noise ratio, kept or not;
+    failures)."""
     from .alternatives import _SKIPPED, _failure, _lower
+    from .rescue import above_noise
 
     refit = aug0.refit
     starts = modal_starts(refit, cand, job.full, job.hints_hz, measured)
@@ -233,7 +311,9 @@ def modal_restarts(
         return aug, state, res, "no measured mode to match"
     best: tuple[State, float, Any] | None = None
     failed: list[str] = []
+    tried = 0
     for v in starts:
+        tried += 1
         try:
             s, c, r = alternation(refit, v)
         except _SKIPPED as err:
@@ -241,7 +321,9 @@ def modal_restarts(
             continue
         if best is None or c < best[1]:
             best = (s, c, r)
-    note = f"{len(starts)} start(s) from the measured modes"
+        if not above_noise(refit, best[0]):
+            break
+    note = f"{tried} of {len(starts)} start(s) from the measured modes"
     if failed:
         note += f", {len(failed)} failed (first: {failed[0]})"
     if best is None:
@@ -253,14 +335,15 @@ def modal_restarts(
 
 
 def modal_step(
-    job: Job, aug: Augmented, state: State, res: Any
+    job: Job, aug: Augmented, state: State, res: Any, others: bool = True
 ) -> tuple[Job, Augmented, State, Any, str]:
-    """:func:`modal_restarts` for the job's candidate, then for each other of its variants
-    (:func:`.alternatives.variant_options`, e.g. the elastic centres of soft mounts) while the refit
-    is still :func:`.alternatives.stuck`: the restart alternation reaches the noise level only
-    from the right variant (bonder_b/sm/coh: the diagnosis of stop 21 had kept the centre
-    below the CoM, where it ended at 6.75× the noise level; from the bottom face's centre,
-    the truth's, the step reaches 0.76×). The measured modes are identified once. Returns
+    """:func:`modal_restarts` for the job's candidate, then (``others``) for each other of its
+    variants (:func:`.alternatives.variant_options`, e.g. the elastic centres of soft mounts)
+    while the refit is still :func:`.alternatives.stuck`: the restart alternation reaches the
+    noise level only from the right variant (bonder_b/sm/coh: the diagnosis of stop 21 had
+    kept the centre below the CoM, where it ended at 6.75× the noise level; from the bottom
+    face's centre, the truth's, the step reaches 0.76×). The measured modes are identified
+    once. Returns
     the job with the candidate kept, the refit and a note per variant tried
     ("<variant>: <note>", "; "-joined)."""
     from .alternatives import stuck, variant_options
@@ -269,7 +352,7 @@ def modal_step(
     cand = job.candidate
     assert cand is not None
     measured = measured_modes(job.full)
-    order = [cand, *(o for o in variant_options(job) if o.spec != cand.spec)]
+    order = [cand, *(o for o in variant_options(job) if o.spec != cand.spec and others)]
     notes = []
     for k, option in enumerate(order):
         if k and not stuck(job, aug, state, res):

@@ -23,9 +23,11 @@ data and on all data. Steps for a candidate:
 A rotational joint compliance whose refit ends above the noise level gets its pivot refined
 (:mod:`.pivot`) and both origins refitted there; another candidate with variants gets every
 other variant refitted fully (:mod:`.alternatives`); the lowest objective is kept. A
-candidate with several springs (soft mounts, a flexible base) still above it gets the restart
-alternation from starts matched to the measured modes (:mod:`.modal_start`), on its kept
-variant, then on each other variant while still above it (when ``Job.modal``). Still above it, with
+structural candidate still above it gets the restart alternation from starts at the measured
+modes (:mod:`.modal_start`) on its kept variant, then on each other variant while still above
+it: a candidate with several springs (soft mounts, a flexible base) only when ``Job.modal``,
+one with a single spring (a joint compliance) always on its kept variant, on the others when
+``Job.modal``. Still above it, with
 ``Job.wider``, the wider search (:func:`.alternatives.wider_search`).
 
 Every solve is the optimisation core's (:mod:`.refit`: a :class:`~bondid.optim.FitProblem`
@@ -125,8 +127,9 @@ class Job:
     #: the base's held-out score is above the held-out noise level (:mod:`.search`): the
     #: screening runs the joint profile whatever the one-step figure (:func:`.screen.needs_profile`)
     profile_always: bool = False
-    #: a stuck refit of a candidate with several springs may get the modal step
-    #: (:mod:`.modal_start`); the diagnosis's search allows it only to the candidates its
+    #: a stuck refit of a candidate with several springs may get the modal step, one with a
+    #: single spring on its other variants (:mod:`.modal_start`; on its kept variant it always
+    #: does); the diagnosis's search allows it only to the candidates its
     #: screening ranks best (:data:`.search.MODAL_TOP`)
     modal: bool = True
 
@@ -345,7 +348,7 @@ MODAL_SKIPPED = "not run: the screening did not rank the candidate among the bes
 
 def _run(job: Job, t0: float) -> JobResult:
     from .alternatives import stuck
-    from .modal_start import applies, modal_step
+    from .modal_start import applies, modal_step, single
 
     extra: dict[str, Any] = {}
     if job.candidate is not None and job.candidate.variants:
@@ -366,11 +369,13 @@ def _run(job: Job, t0: float) -> JobResult:
             job, aug, state, res = other_variants(job, aug, state, res, extra)
         extra["variant"] = job.candidate.description  # type: ignore[union-attr]
         is_stuck = stuck(job, aug, state, res)
-    if is_stuck and applies(job.candidate) and not job.modal:
+    if is_stuck and applies(job.candidate) and not (job.modal or single(job.candidate)):
         extra["modal starts"] = MODAL_SKIPPED
     elif is_stuck and applies(job.candidate):
         assert job.candidate is not None
-        job, aug, state, res, extra["modal starts"] = modal_step(job, aug, state, res)
+        job, aug, state, res, extra["modal starts"] = modal_step(
+            job, aug, state, res, others=job.modal
+        )
         extra["variant"] = job.candidate.description  # type: ignore[union-attr]
         is_stuck = stuck(job, aug, state, res)
     from_nominal = False
