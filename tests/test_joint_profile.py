@@ -73,6 +73,23 @@ def test_the_refit_starts_where_the_screening_found_the_lower_figure():
     assert _screen("h", 0.8, pstart=()).refit_start(False) == (1.0,)
 
 
+def test_placed_picks_and_the_start_of_a_placed_pick():
+    """The lowest finite placed-alternation figures, best first; a placed pick starts at the
+    alternation's end, and so does any candidate whose placed figure is the lowest of its
+    three figures (one-step 1.0 here)."""
+    from dataclasses import replace
+
+    from bondid.diagnose.screen import placed_picks
+
+    s = [replace(_screen(k, 0.9), placed_cost=c, placed_start=(3.0,))
+         for k, c in (("a", 0.5), ("b", math.inf), ("c", 0.2), ("d", 2.0))]  # fmt: skip
+    assert placed_picks(s, 1) == [2] and placed_picks(s, 9) == [2, 0, 3]
+    assert s[3].refit_start(False, True) == (3.0,)  # picked: its end, whatever the figures
+    assert s[0].refit_start(False) == (3.0,)  # 0.5 below the profile's 0.9 and 1.0
+    assert s[3].refit_start(False) == (2.0,)  # 2.0: the profile's (0.9) is the lowest
+    assert replace(s[0], placed_start=()).refit_start(False, True) == (2.0,)
+
+
 def test_the_profile_runs_only_where_the_figure_leaves_the_step_unexplained():
     noise = 2.0
     assert not needs_profile(0.99 * UNEXPLAINED_RATIO * noise, noise)

@@ -131,10 +131,10 @@ def run(
                              True, s.ipopt_iter, s.refit_iter)  # fmt: skip
     t_base = time.perf_counter() - t0
     base_train = seen.get("train", float("nan"))
-    _, by_ds, _, _ = _where(doc, p.full, base, p.channels, s.modes)
+    _, by_ds, _, _, measured = _where(doc, p.full, base, p.channels, s.modes)
     ctx = Context(doc, p.names, p.train, p.held, p.full, p.options, p.candidates,
                   missing_mode_hints(by_ds), s.refit_iter, s.n_starts, space=p.space,
-                  noise=p.noise)  # fmt: skip
+                  noise=p.noise, measured=measured)  # fmt: skip
     match = [c for c in p.candidates
              if c.effect == truth.effect and c.location == truth.location]  # fmt: skip
     if not match:

@@ -203,6 +203,26 @@ def measured_modes(data: Sequence[FrfData]) -> list[list[IdentifiedMode]]:
     return out
 
 
+def job_modes(job: Job) -> list[list[IdentifiedMode]]:
+    """The modes identified in each of ``job``'s full data sets: those it carries
+    (``Job.measured``), else :func:`measured_modes`."""
+    if job.measured and len(job.measured) == len(job.full):
+        return [list(m) for m in job.measured]
+    return measured_modes(job.full)
+
+
+def placed_alternation(job: Job, refit: Refit, cand: Candidate) -> tuple[float, tuple] | None:
+    """The screening's figure of a single-spring candidate (:mod:`.screen`): one round of the
+    restart alternation on ``refit`` from its first :func:`placed_starts` (``job``'s missing
+    modes and measured modes); (training objective, new parameters (SI) there), or None when
+    there is no start."""
+    starts = placed_starts(refit, cand, job.full, job.hints_hz, job_modes(job))
+    if not starts:
+        return None
+    state, cost, _ = alternation(refit, starts[0], rounds=1)
+    return cost, tuple(float(v) for v in refit.new_values(state))
+
+
 def modal_starts(
     refit: Refit, cand: Candidate, data: Sequence[FrfData], hints_hz: Sequence[float] = (),
     measured: Sequence[Sequence[IdentifiedMode]] | None = None,
@@ -351,7 +371,7 @@ def modal_step(
 
     cand = job.candidate
     assert cand is not None
-    measured = measured_modes(job.full)
+    measured = job_modes(job)
     order = [cand, *(o for o in variant_options(job) if o.spec != cand.spec and others)]
     notes = []
     for k, option in enumerate(order):

@@ -268,11 +268,12 @@ def diagnose(
     try:
         baseline, fit_info = _refit_baseline(pool, doc, p, s)
         say("parameter refit")
-        modes, by_ds, anti, bands = _where(doc, p.full, baseline, p.channels, s.modes)
+        modes, by_ds, anti, bands, measured = _where(doc, p.full, baseline, p.channels, s.modes)
         ctx = Context(
             doc, p.names, p.train, p.held, p.full, p.options, p.candidates,
             missing_mode_hints(by_ds), s.refit_iter, s.n_starts, (s.n_refit, s.n_refit_later),
             s.max_effects, p.space, (s.n_refit_max, s.n_refit_max_later), p.noise,
+            measured=measured,
         )  # fmt: skip
         steps = search(ctx, pool, baseline, say)
         nominal_H = [model_frf(doc, d) for d in p.full]
@@ -349,8 +350,10 @@ def _where(
     baseline: JobResult,
     channels: list[str],
     do_modes: bool,
-) -> tuple[list[dict[str, Any]], list[list[dict[str, Any]]], list[dict[str, Any]], list]:
-    """Modes (measured vs refitted model), anti-resonance shifts and automatic bands."""
+) -> tuple[list[dict[str, Any]], list[list[dict[str, Any]]], list[dict[str, Any]], list, tuple]:
+    """Modes (measured vs refitted model), anti-resonance shifts, automatic bands and the modes
+    identified in each data set (a tuple of tuples of :class:`.modal_id.IdentifiedMode`;
+    empty without ``do_modes``)."""
     from ..linear.affine import build_affine_model
     from ..modes.bands import Feature
     from .antiresonance import antiresonance_shifts
@@ -360,6 +363,7 @@ def _where(
     by_ds: list[list[dict[str, Any]]] = []
     anti: list[dict[str, Any]] = []
     feats: list[Feature] = []
+    measured: list[tuple] = []
     for k, (d, H) in enumerate(zip(full, baseline.full_H, strict=True)):
         rows: list[dict[str, Any]] = []
         error: dict[str, Any] | None = None
@@ -372,6 +376,7 @@ def _where(
             except Exception as exc:
                 meas = []
                 error = {"error": f"modal identification failed: {exc}"}
+            measured.append(tuple(meas))
             lm = build_affine_model(refit_doc, d.operating_point, outputs=d.outputs)
             mask = np.array([[f"{o}.{i}" in channels for i in lm.inputs] for o in lm.outputs])
             mod = model_modes(lm.linear_model(), freq_hz=d.freq_hz, channel_mask=mask)
@@ -393,4 +398,4 @@ def _where(
     ]
     bands = gap_bands(full[0].freq_hz, feats)
     modes = by_ds[0] if by_ds else []
-    return modes, by_ds, anti, bands
+    return modes, by_ds, anti, bands, tuple(measured)

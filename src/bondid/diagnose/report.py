@@ -118,11 +118,14 @@ def _sqrt_or_none(cost: float) -> float | None:
 
 def _refitted_by(step: Any, s: Any) -> str | None:
     """Why the screening ``s`` of ``step`` was refitted fully: ``"joint profile"`` when the
-    joint profile picked it (from its start), ``"figure"`` when the one-step figure alone
-    did, None when it was not refitted."""
+    joint profile picked it (from its start), ``"placed alternation"`` when that picked it
+    (from its end), ``"figure"`` when the one-step figure alone did, None when it was not
+    refitted."""
     i = step.screenings.index(s)
     if i in step.by_profile:
         return "joint profile"
+    if i in step.by_placed:
+        return "placed alternation"
     return "figure" if i in step.refitted else None
 
 
@@ -132,8 +135,10 @@ def candidate_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
     its screening figures (``screening_db``: the predicted training RMS [dB];
     ``screening_new_only_db``: after its new parameters alone; ``screening_by_origin_db``:
     the figure from the step's base and from the nominal model, null where not taken;
-    ``screening_profile_db``: the joint profile's, :mod:`.joint_profile`), ``refitted`` and
-    ``refitted_by`` (``"figure"``, ``"joint profile"`` (from its start) or null)."""
+    ``screening_profile_db``: the joint profile's, :mod:`.joint_profile`;
+    ``screening_placed_db``: the placed alternation's of a joint compliance, null where not
+    run), ``refitted`` and ``refitted_by`` (``"figure"``, ``"joint profile"`` (from its
+    start), ``"placed alternation"`` (from its end) or null)."""
     out: list[dict[str, Any]] = []
     for step in diag.steps:
         by_label = {r.label: (r, sc) for r, sc in zip(step.results, step.scores, strict=True)}
@@ -148,6 +153,7 @@ def candidate_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
                 if math.isfinite(s.cost_new_only) else None,
                 "screening_by_origin_db": [_sqrt_or_none(c) for c in s.by_origin],
                 "screening_profile_db": _sqrt_or_none(s.profile_cost),
+                "screening_placed_db": _sqrt_or_none(s.placed_cost),
                 "screening_wall_s": s.wall_s, "refitted": s.label in by_label,
                 "refitted_by": _refitted_by(step, s),
             }  # fmt: skip

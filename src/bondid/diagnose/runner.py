@@ -132,6 +132,9 @@ class Job:
     #: does); the diagnosis's search allows it only to the candidates its
     #: screening ranks best (:data:`.search.MODAL_TOP`)
     modal: bool = True
+    #: the modes identified in each of ``full`` (tuples of :class:`.modal_id.IdentifiedMode`),
+    #: for the starts of :mod:`.modal_start`; empty: identified there when needed
+    measured: tuple = ()
 
 
 @dataclass

@@ -8,7 +8,9 @@ accepted so far — and
 2. refits the best :attr:`Context.n_refit` of them fully (more, up to :attr:`Context.n_max`,
    when the best figure leaves the step well above the noise level and others tie with the
    last kept: :func:`.screen.select`), and the best :attr:`Context.n_profile` by the joint
-   profile (:mod:`.joint_profile`, from its start: :func:`.screen.profile_picks`)
+   profile (:mod:`.joint_profile`, from its start: :func:`.screen.profile_picks`) and the
+   best :attr:`Context.n_placed` by the placed alternation of a joint compliance (from its
+   end: :func:`.screen.placed_picks`)
    (:func:`.runner.run_job`: every nominal, accepted and new parameter together, from the
    base and from the nominal model), then gives the best of them that ended above the noise
    level the wider search in a second round (:func:`.widen.second_round`); the modal step of
@@ -40,7 +42,7 @@ from .effects import Candidate
 from .refit import Nominal
 from .rescue import above_heldout_level
 from .runner import Job, JobResult, run_job
-from .screen import Screening, profile_picks, screen, select
+from .screen import Screening, placed_picks, profile_picks, screen, select
 from .widen import second_round
 
 #: the candidates of a step, best by the screening's one-step figure and by its joint profile,
@@ -81,6 +83,12 @@ class Context:
     #: candidates refitted (from its start) by the screening's joint profile at the first
     #: and at the later steps, on top of those :func:`.screen.select` keeps
     n_profile: tuple[int, int] = (2, 1)
+    #: candidates refitted (from its end) by the screening's placed alternation
+    #: (:func:`.screen.placed_picks`) at the first and at the later steps
+    n_placed: tuple[int, int] = (1, 1)
+    #: the modes identified in each full data set (:mod:`.modal_id`; empty: identified
+    #: where a job needs them)
+    measured: tuple = ()
 
     def __post_init__(self) -> None:
         if self.space is None:
@@ -103,6 +111,8 @@ class Step:
         refitted: indices into ``screenings`` of the candidates refitted fully.
         by_profile: those of them the joint profile picked (:func:`.screen.profile_picks`),
             refitted from its start.
+        by_placed: those the placed alternation picked (:func:`.screen.placed_picks`),
+            refitted from its end.
         results, scores: the full refits: those whose effect strength the data determine
             (:func:`.scoring.determined`) best score first, then the others best first; the
             verdict's test is taken on the first.
@@ -116,6 +126,7 @@ class Step:
     screenings: list[Screening]
     refitted: list[int]
     by_profile: list[int] = field(default_factory=list)
+    by_placed: list[int] = field(default_factory=list)
     results: list[JobResult] = field(default_factory=list)
     scores: list[float] = field(default_factory=list)
     winner: JobResult | None = None
@@ -141,7 +152,7 @@ def _job(
         alt_urdf=ctx.nominal.to_string() if alt else None, hints_hz=ctx.hints_hz,
         accepted=base.chain, start_new=start, wider=False,
         heldout_noise_db=level, profile_always=above_heldout_level(base.heldout_rms, level),
-        modal=modal,
+        modal=modal, measured=ctx.measured,
     )  # fmt: skip
 
 
@@ -192,12 +203,13 @@ def _step(
     assert len(done) == len(cands)  # done[i] is the screening of cands[i]
     later = 0 if index == 0 else 1
     picks = profile_picks(done, ctx.n_profile[later])
+    placed = placed_picks(done, ctx.n_placed[later])
     chosen = select(done, ctx.n_refit[later], ctx.n_max[later])
-    chosen += [i for i in picks if i not in chosen]
-    step = Step(index, base, base_score, done, chosen, picks)
+    chosen += [i for i in [*picks, *placed] if i not in chosen]
+    step = Step(index, base, base_score, done, chosen, picks, placed)
     modal_ok = modal_ranked(done, picks)
     jobs = {i: _job(ctx, base, _refit_candidate(done[i], cands[i]),
-                    done[i].refit_start(i in picks), modal=i in modal_ok)
+                    done[i].refit_start(i in picks, i in placed), modal=i in modal_ok)
             for i in chosen}  # fmt: skip
     futs = {pool.submit(run_job, jobs[i]): i for i in chosen}
     results, used = [], []
