@@ -45,8 +45,10 @@ data at 0.78–0.79× the noise level. Two findings make the path back:
    from each of the five in-band modes tried (243–684 Hz); four wrong candidates of the same
    case ended at 1.02–1.29× from the same starts. So a single spring's starts are
    :func:`placed_starts` (the missing modes first, then the measured modes the model matches
-   worst, :data:`PLACED_STARTS` in all), then the matching search's; the alternation stops at
-   the first start that ends at the training noise level (:data:`.rescue.RESCUE_RATIO`).
+   worst, :data:`PLACED_STARTS` in all); the alternation stops at the first start that ends
+   at the training noise level (:data:`.rescue.RESCUE_RATIO`). It runs on the kept variant
+   only: on the other pivots of two rotational compliances of the same case it took 836 and
+   865 s of worker time per candidate, for nothing kept.
 """
 
 from __future__ import annotations
@@ -230,13 +232,14 @@ def modal_starts(
     """Distinct starts ``(n_new,)`` (SI) of ``cand``'s new parameters, springs matched to the
     measured modes of ``data`` (module docstring; ``measured``: those modes, when already
     identified by :func:`measured_modes`), the other new parameters at their start values;
-    best matching first, after a single spring's :func:`placed_starts`. Empty when no data
+    best matching first; a single spring's are its :func:`placed_starts`. Empty when no data
     set has an identified mode."""
     if measured is None:
         measured = measured_modes(data)
     if not any(measured):
         return []
-    placed = placed_starts(refit, cand, data, hints_hz, measured)
+    if single(cand):
+        return placed_starts(refit, cand, data, hints_hz, measured)
     v0 = refit.new_values(refit.state0)
     idx = springs(cand)
     lo, hi = (min(cand.scan_grid), max(cand.scan_grid)) if cand.scan_grid else (1e-4, 1e2)
@@ -253,7 +256,7 @@ def modal_starts(
                 found.append((c, v))
     found.sort(key=lambda t: t[0])
     out: list[np.ndarray] = []
-    for v in [*placed, *(v for _, v in found)]:
+    for _, v in found:
         if all(np.max(np.abs(np.log(v[idx] / u[idx]))) > np.log(SAME_START) for u in out):
             out.append(v)
     return out

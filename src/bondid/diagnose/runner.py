@@ -26,8 +26,8 @@ other variant refitted fully (:mod:`.alternatives`); the lowest objective is kep
 structural candidate still above it gets the restart alternation from starts at the measured
 modes (:mod:`.modal_start`) on its kept variant, then on each other variant while still above
 it: a candidate with several springs (soft mounts, a flexible base) only when ``Job.modal``,
-one with a single spring (a joint compliance) always on its kept variant, on the others when
-``Job.modal``. Still above it, with
+one with a single spring (a joint compliance) always, on its kept variant only. Still above
+it, with
 ``Job.wider``, the wider search (:func:`.alternatives.wider_search`).
 
 Every solve is the optimisation core's (:mod:`.refit`: a :class:`~bondid.optim.FitProblem`
@@ -127,9 +127,9 @@ class Job:
     #: the base's held-out score is above the held-out noise level (:mod:`.search`): the
     #: screening runs the joint profile whatever the one-step figure (:func:`.screen.needs_profile`)
     profile_always: bool = False
-    #: a stuck refit of a candidate with several springs may get the modal step, one with a
-    #: single spring on its other variants (:mod:`.modal_start`; on its kept variant it always
-    #: does); the diagnosis's search allows it only to the candidates its
+    #: a stuck refit of a candidate with several springs may get the modal step
+    #: (:mod:`.modal_start`; one with a single spring always gets it, on its kept variant
+    #: only); the diagnosis's search allows it only to the candidates its
     #: screening ranks best (:data:`.search.MODAL_TOP`)
     modal: bool = True
     #: the modes identified in each of ``full`` (tuples of :class:`.modal_id.IdentifiedMode`),
@@ -377,7 +377,7 @@ def _run(job: Job, t0: float) -> JobResult:
     elif is_stuck and applies(job.candidate):
         assert job.candidate is not None
         job, aug, state, res, extra["modal starts"] = modal_step(
-            job, aug, state, res, others=job.modal
+            job, aug, state, res, others=job.modal and not single(job.candidate)
         )
         extra["variant"] = job.candidate.description  # type: ignore[union-attr]
         is_stuck = stuck(job, aug, state, res)
