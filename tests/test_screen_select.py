@@ -149,3 +149,11 @@ def test_select_takes_the_best_kept_site_first():
     s[4].location = "a->b:tz"  # a tie at the best kept candidate's site
     assert select(s, 2, 3) == [0, 1, 4]
     assert select(s, 2, 5) == [0, 1, 4, 3, 2]
+
+
+def test_a_candidate_picked_twice_is_refitted_once():
+    from bondid.diagnose.search import refit_indices
+
+    assert refit_indices([3, 1], [5, 1], [5, 7]) == [3, 1, 5, 7]
+    assert refit_indices([], [2], [2]) == [2]
+    assert refit_indices([4], [], []) == [4]

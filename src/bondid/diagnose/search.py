@@ -156,6 +156,14 @@ def _job(
     )  # fmt: skip
 
 
+def refit_indices(*orders: Sequence[int]) -> list[int]:
+    """The candidates a step refits: those of every order (the figure's selection, the
+    joint profile's picks, the placed alternation's), in turn, each once (a candidate picked
+    twice is refitted once: two refits of one label would be two results for one
+    candidate)."""
+    return list(dict.fromkeys(i for o in orders for i in o))
+
+
 def modal_ranked(screenings: Sequence[Screening], picks: Sequence[int]) -> set[int]:
     """Indices of the candidates whose stuck refit may get the modal step (``Job.modal``):
     the :data:`MODAL_TOP` best by the screening's one-step figure and the first
@@ -204,8 +212,7 @@ def _step(
     later = 0 if index == 0 else 1
     picks = profile_picks(done, ctx.n_profile[later])
     placed = placed_picks(done, ctx.n_placed[later])
-    chosen = select(done, ctx.n_refit[later], ctx.n_max[later])
-    chosen += [i for i in [*picks, *placed] if i not in chosen]
+    chosen = refit_indices(select(done, ctx.n_refit[later], ctx.n_max[later]), picks, placed)
     step = Step(index, base, base_score, done, chosen, picks, placed)
     modal_ok = modal_ranked(done, picks)
     jobs = {i: _job(ctx, base, _refit_candidate(done[i], cands[i]),
