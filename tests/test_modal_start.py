@@ -278,3 +278,23 @@ def test_the_alternation_from_a_placed_start_finds_a_single_spring(jc_case):
     assert np.isfinite(cost)
     ratio = refit.new_values(state)[0] / new[0]
     assert 1 / SPRING_FACTOR < ratio < SPRING_FACTOR, ratio
+
+
+def test_the_screenings_placed_alternation_finds_a_single_spring(jc_case):
+    """The screening's figure (one round from the first placed start): below the objective
+    at the candidate's start, at new values whose stiffness is within SPRING_FACTOR of the
+    truth's; the job's own identified modes are used when it carries them."""
+    from types import SimpleNamespace
+
+    doc, c, data, new = jc_case
+    refit = _refit(doc, c, data).refit
+    measured = tuple(tuple(m) for m in ms.measured_modes(data))
+    job = SimpleNamespace(full=data, hints_hz=(), measured=measured)
+    got = ms.placed_alternation(job, refit, c)  # type: ignore[arg-type]
+    assert got is not None
+    cost, values = got
+    assert cost < refit.cost(refit.state0)
+    assert 1 / SPRING_FACTOR < values[0] / new[0] < SPRING_FACTOR, values
+    # no identified mode and no hint: no start, no figure
+    empty = SimpleNamespace(full=data, hints_hz=(), measured=((),) * len(data))
+    assert ms.placed_alternation(empty, refit, c) is None  # type: ignore[arg-type]
