@@ -283,7 +283,8 @@ def test_the_alternation_from_a_placed_start_finds_a_single_spring(jc_case):
 def test_the_screenings_placed_alternation_finds_a_single_spring(jc_case):
     """The screening's figure (one round from the first placed start): below the objective
     at the candidate's start, at new values whose stiffness is within SPRING_FACTOR of the
-    truth's; the job's own identified modes are used when it carries them."""
+    truth's; the job's own identified modes are used when it carries them; none for a
+    candidate with several springs."""
     from types import SimpleNamespace
 
     doc, c, data, new = jc_case
@@ -295,6 +296,20 @@ def test_the_screenings_placed_alternation_finds_a_single_spring(jc_case):
     cost, values = got
     assert cost < refit.cost(refit.state0)
     assert 1 / SPRING_FACTOR < values[0] / new[0] < SPRING_FACTOR, values
-    # no identified mode and no hint: no start, no figure
-    empty = SimpleNamespace(full=data, hints_hz=(), measured=((),) * len(data))
-    assert ms.placed_alternation(empty, refit, c) is None  # type: ignore[arg-type]
+    # a candidate with several springs has no placed start, so no figure
+    assert ms.placed_alternation(job, refit, _mounts(doc)) is None  # type: ignore[arg-type]
+
+
+def test_placed_starts_fall_back_on_the_models_modes(jc_case):
+    """No mode identified and none missing: the starts put the candidate's mode at the
+    model's own in-band modes, lowest first (inside the scan range)."""
+    doc, c, data, _ = jc_case
+    refit = _refit(doc, c, data).refit
+    starts = ms.placed_starts(refit, c, data, (), [[] for _ in data])
+    assert 1 <= len(starts) <= ms.PLACED_STARTS
+    v0 = refit.new_values(refit.state0)
+    placed_hz = [c.ref_hz * np.sqrt(v[0] / v0[0]) for v in starts]
+    assert placed_hz == sorted(placed_hz)
+    lo, hi = c.ref_hz * np.sqrt(min(c.scan_grid)), c.ref_hz * np.sqrt(max(c.scan_grid))
+    model_hz = [f for f in ms._model_modes_hz(refit, data) if lo <= f <= hi]
+    np.testing.assert_allclose(placed_hz[0], model_hz[0])

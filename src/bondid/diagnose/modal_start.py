@@ -160,7 +160,10 @@ def placed_starts(
     missing modes ``hints_hz`` first, then the measured modes inside their data set's band
     that the model at ``refit``'s start matches worst (:func:`mode_mismatch`); modes within
     :data:`SAME_MODE` of one already taken, and scales outside the candidate's scan range,
-    are skipped; at most :data:`PLACED_STARTS`. Empty without a reference frequency."""
+    are skipped; at most :data:`PLACED_STARTS`. When none of those gives a start (e.g. under
+    a harsh noise floor only a rigid-body mode was identified, and no mode is missing), the
+    model's own modes inside the data's band at the start, lowest first: the refitted model
+    puts them where the measured peaks are. Empty without a reference frequency."""
     from ..exceptions import BondidError
 
     if not cand.ref_hz or not cand.scan_grid or not single(cand):
@@ -174,21 +177,47 @@ def placed_starts(
     except (BondidError, np.linalg.LinAlgError, ValueError):
         ranked = []
     lo, hi = min(cand.scan_grid), max(cand.scan_grid)
+    ref = float(cand.ref_hz)
     i = springs(cand)[0]
     v0 = refit.new_values(refit.state0)
     taken: list[float] = []
     out: list[np.ndarray] = []
-    for f in [*hints_hz, *(f for _, f in ranked)]:
-        g = (f / cand.ref_hz) ** 2
-        if not lo <= g <= hi or any(abs(np.log(f / t)) < np.log(SAME_MODE) for t in taken):
-            continue
-        taken.append(f)
-        v = v0.copy()
-        v[i] = v0[i] * g
-        out.append(v)
-        if len(out) == PLACED_STARTS:
-            break
+
+    def place(freqs: Sequence[float]) -> None:
+        for f in freqs:
+            g = (f / ref) ** 2
+            if len(out) == PLACED_STARTS or not lo <= g <= hi:
+                continue
+            if any(abs(np.log(f / t)) < np.log(SAME_MODE) for t in taken):
+                continue
+            taken.append(f)
+            v = v0.copy()
+            v[i] = v0[i] * g
+            out.append(v)
+
+    place([*hints_hz, *(f for _, f in ranked)])
+    if not out:
+        place(_model_modes_hz(refit, data))
     return out
+
+
+def _model_modes_hz(refit: Refit, data: Sequence[FrfData]) -> list[float]:
+    """Frequencies [Hz] of the modes of the model at ``refit``'s start inside each data set's
+    band, ascending (none where the model fails)."""
+    from ..exceptions import BondidError
+    from .modal_id import model_modes
+
+    try:
+        affines = refit.at(refit.state0).frf.affines
+        found = [
+            m.f_hz
+            for d, am in zip(data, affines, strict=True)
+            for m in model_modes(am.linear_model(), data=d)
+            if d.freq_hz[0] <= m.f_hz <= d.freq_hz[-1]
+        ]
+    except (BondidError, np.linalg.LinAlgError, ValueError):
+        return []
+    return sorted(found)
 
 
 def measured_modes(data: Sequence[FrfData]) -> list[list[IdentifiedMode]]:
@@ -233,13 +262,13 @@ def modal_starts(
     measured modes of ``data`` (module docstring; ``measured``: those modes, when already
     identified by :func:`measured_modes`), the other new parameters at their start values;
     best matching first; a single spring's are its :func:`placed_starts`. Empty when no data
-    set has an identified mode."""
+    set has an identified mode (several springs)."""
     if measured is None:
         measured = measured_modes(data)
-    if not any(measured):
-        return []
     if single(cand):
         return placed_starts(refit, cand, data, hints_hz, measured)
+    if not any(measured):
+        return []
     v0 = refit.new_values(refit.state0)
     idx = springs(cand)
     lo, hi = (min(cand.scan_grid), max(cand.scan_grid)) if cand.scan_grid else (1e-4, 1e2)
