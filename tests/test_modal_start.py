@@ -10,6 +10,7 @@ import pytest
 from models import noisy_bonder_data
 
 from bondid.diagnose import modal_start as ms
+from bondid.diagnose import mode_match
 from bondid.diagnose.effects import get_effect
 from bondid.model import UrdfDocument, set_parameter
 
@@ -152,7 +153,7 @@ def test_the_modal_step_tries_the_other_variants_while_stuck(monkeypatch):
 
     monkeypatch.setattr(runner, "_setup", fake_setup)
     monkeypatch.setattr(ms, "modal_restarts", fake_restarts)
-    monkeypatch.setattr(ms, "measured_modes", lambda data: [["m"]])
+    monkeypatch.setattr(mode_match, "measured_modes", lambda data: [["m"]])
     monkeypatch.setattr(alternatives, "stuck", lambda job, aug, s, r: aug.spec != kept_spec)
     job = runner.Job(doc.to_string(), None, [], [], [], replace(c, variants=()), CostOptions())  # type: ignore[arg-type]
     job2, aug, state, res, note = ms.modal_step(job, Aug(c.spec), "s", "r")
@@ -311,5 +312,5 @@ def test_placed_starts_fall_back_on_the_models_modes(jc_case):
     placed_hz = [c.ref_hz * np.sqrt(v[0] / v0[0]) for v in starts]
     assert placed_hz == sorted(placed_hz)
     lo, hi = c.ref_hz * np.sqrt(min(c.scan_grid)), c.ref_hz * np.sqrt(max(c.scan_grid))
-    model_hz = [f for f in ms._model_modes_hz(refit, data) if lo <= f <= hi]
+    model_hz = [f for f in ms.model_modes_hz(refit, data) if lo <= f <= hi]
     np.testing.assert_allclose(placed_hz[0], model_hz[0])

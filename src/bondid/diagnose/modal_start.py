@@ -62,6 +62,7 @@ import numpy as np
 from ..optim.search import Step
 from .augmented import Augmented
 from .effects import Candidate
+from .mode_match import job_modes, matching_cost, measured_modes, mode_mismatch, model_modes_hz
 from .refit import Refit, State
 
 if TYPE_CHECKING:
@@ -78,11 +79,6 @@ MATCH_POINTS = 21
 LOCAL_SPAN = 10.0
 #: coordinate sweeps of the matching search (it stops earlier when a sweep moves nothing)
 MATCH_SWEEPS = 2
-#: relative frequency error that costs as much as a MAC of 0.75 in the matching cost
-SIGMA_F = 0.1
-MAC_WEIGHT = 4.0
-#: cost of a measured mode no model mode comes near (a capped term: 8 = 0.28 in ln f)
-MISS_COST = 8.0
 #: rounds of the restart alternation and IPOPT iterations of each of its solves
 ROUNDS = 2
 ROUND_ITER = 100
@@ -108,47 +104,6 @@ def applies(cand: Candidate | None) -> bool:
 def single(cand: Candidate | None) -> bool:
     """Does ``cand`` add exactly one spring (:func:`placed_starts`)?"""
     return cand is not None and len(springs(cand)) == 1
-
-
-def matching_cost(
-    refit: Refit, state: State, measured: Sequence[Sequence[IdentifiedMode]],
-    data: Sequence[FrfData],
-) -> float:  # fmt: skip
-    """How far the modes of the model at ``state`` are from the measured ones: the sum of
-    :func:`mode_mismatch`; inf where the model fails."""
-    from ..exceptions import BondidError
-
-    try:
-        return float(sum(c for c, _ in mode_mismatch(refit, state, measured, data)))
-    except (BondidError, np.linalg.LinAlgError, ValueError):
-        return float("inf")
-
-
-def mode_mismatch(
-    refit: Refit, state: State, measured: Sequence[Sequence[IdentifiedMode]],
-    data: Sequence[FrfData],
-) -> list[tuple[float, float]]:  # fmt: skip
-    """(term, frequency [Hz]) of every measured mode of every data set: the term is
-    ``min_j ((ln f_j/f)/σ)² + w (1 − MAC_j)`` over the modes ``j`` of the model at ``state``,
-    capped at :data:`MISS_COST`. Raises what the model raises where it fails."""
-    from .modal_id import model_modes
-    from .pairing import mac_matrix
-
-    out: list[tuple[float, float]] = []
-    affines = refit.at(state).frf.affines
-    for meas, d, am in zip(measured, data, affines, strict=True):
-        if not meas:
-            continue
-        mm = model_modes(am.linear_model(), data=d)
-        if not mm:
-            out += [(MISS_COST, a.f_hz) for a in meas]
-            continue
-        mac = mac_matrix(meas, mm)
-        f = np.array([b.f_hz for b in mm])
-        for i, a in enumerate(meas):
-            c = (np.log(f / a.f_hz) / SIGMA_F) ** 2 + MAC_WEIGHT * (1.0 - mac[i])
-            out.append((min(float(np.min(c)), MISS_COST), a.f_hz))
-    return out
 
 
 def placed_starts(
@@ -197,49 +152,8 @@ def placed_starts(
 
     place([*hints_hz, *(f for _, f in ranked)])
     if not out:
-        place(_model_modes_hz(refit, data))
+        place(model_modes_hz(refit, data))
     return out
-
-
-def _model_modes_hz(refit: Refit, data: Sequence[FrfData]) -> list[float]:
-    """Frequencies [Hz] of the modes of the model at ``refit``'s start inside each data set's
-    band, ascending (none where the model fails)."""
-    from ..exceptions import BondidError
-    from .modal_id import model_modes
-
-    try:
-        affines = refit.at(refit.state0).frf.affines
-        found = [
-            m.f_hz
-            for d, am in zip(data, affines, strict=True)
-            for m in model_modes(am.linear_model(), data=d)
-            if d.freq_hz[0] <= m.f_hz <= d.freq_hz[-1]
-        ]
-    except (BondidError, np.linalg.LinAlgError, ValueError):
-        return []
-    return sorted(found)
-
-
-def measured_modes(data: Sequence[FrfData]) -> list[list[IdentifiedMode]]:
-    """The modes identified in each data set (:func:`.modal_id.identify_modes`); a set whose
-    identification fails has none (as in the gap report)."""
-    from .modal_id import identify_modes
-
-    out: list[list[IdentifiedMode]] = []
-    for d in data:
-        try:
-            out.append(list(identify_modes(d)))
-        except Exception:  # a set whose identification fails adds nothing
-            out.append([])
-    return out
-
-
-def job_modes(job: Job) -> list[list[IdentifiedMode]]:
-    """The modes identified in each of ``job``'s full data sets: those it carries
-    (``Job.measured``), else :func:`measured_modes`."""
-    if job.measured and len(job.measured) == len(job.full):
-        return [list(m) for m in job.measured]
-    return measured_modes(job.full)
 
 
 def placed_alternation(job: Job, refit: Refit, cand: Candidate) -> tuple[float, tuple] | None:
