@@ -24,10 +24,10 @@ A rotational joint compliance whose refit ends above the noise level gets its pi
 (:mod:`.pivot`) and both origins refitted there; another candidate with variants gets every
 other variant refitted fully (:mod:`.alternatives`); the lowest objective is kept. A
 structural candidate still above it gets the restart alternation from starts at the measured
-modes (:mod:`.modal_start`) on its kept variant, then on each other variant while still above
-it: a candidate with several springs (soft mounts, a flexible base) only when ``Job.modal``,
-one with a single spring (a joint compliance) always, on its kept variant only. Still above
-it, with
+modes (:mod:`.modal_start`): one with several springs (soft mounts, a flexible base) only
+when ``Job.modal``, on its kept variant, then on each other variant while still above it; one
+with a single spring (a joint compliance) always, on its kept variant only. Still above it,
+with
 ``Job.wider``, the wider search (:func:`.alternatives.wider_search`).
 
 Every solve is the optimisation core's (:mod:`.refit`: a :class:`~bondid.optim.FitProblem`
