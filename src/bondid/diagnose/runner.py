@@ -24,10 +24,9 @@ A rotational joint compliance whose refit ends above the noise level gets its pi
 (:mod:`.pivot`) and both origins refitted there; another candidate with variants gets every
 other variant refitted fully (:mod:`.alternatives`); the lowest objective is kept. A
 structural candidate still above it gets the restart alternation from starts at the measured
-modes (:mod:`.modal_start`): one with several springs (soft mounts, a flexible base) only
-when ``Job.modal``, on its kept variant, then on each other variant while still above it; one
-with a single spring (a joint compliance) always, on its kept variant only. Still above it,
-with
+modes (:mod:`.modal_start`) when ``Job.modal``: one with several springs (soft mounts, a
+flexible base) on its kept variant, then on each other variant while still above it; one with
+a single spring (a joint compliance) on its kept variant only. Still above it, with
 ``Job.wider``, the wider search (:func:`.alternatives.wider_search`).
 
 Every solve is the optimisation core's (:mod:`.refit`: a :class:`~bondid.optim.FitProblem`
@@ -127,10 +126,9 @@ class Job:
     #: the base's held-out score is above the held-out noise level (:mod:`.search`): the
     #: screening runs the joint profile whatever the one-step figure (:func:`.screen.needs_profile`)
     profile_always: bool = False
-    #: a stuck refit of a candidate with several springs may get the modal step
-    #: (:mod:`.modal_start`; one with a single spring always gets it, on its kept variant
-    #: only); the diagnosis's search allows it only to the candidates its
-    #: screening ranks best (:data:`.search.MODAL_TOP`)
+    #: a stuck refit of a structural candidate may get the modal step (:mod:`.modal_start`);
+    #: the diagnosis's search allows it only to the candidates its screening ranks best
+    #: (:data:`.search.MODAL_TOP`, and the placed alternation's picks)
     modal: bool = True
     #: the modes identified in each of ``full`` (tuples of :class:`.modal_id.IdentifiedMode`),
     #: for the starts of :mod:`.modal_start`; empty: identified there when needed
@@ -372,12 +370,12 @@ def _run(job: Job, t0: float) -> JobResult:
             job, aug, state, res = other_variants(job, aug, state, res, extra)
         extra["variant"] = job.candidate.description  # type: ignore[union-attr]
         is_stuck = stuck(job, aug, state, res)
-    if is_stuck and applies(job.candidate) and not (job.modal or single(job.candidate)):
+    if is_stuck and applies(job.candidate) and not job.modal:
         extra["modal starts"] = MODAL_SKIPPED
     elif is_stuck and applies(job.candidate):
         assert job.candidate is not None
         job, aug, state, res, extra["modal starts"] = modal_step(
-            job, aug, state, res, others=job.modal and not single(job.candidate)
+            job, aug, state, res, others=not single(job.candidate)
         )
         extra["variant"] = job.candidate.description  # type: ignore[union-attr]
         is_stuck = stuck(job, aug, state, res)

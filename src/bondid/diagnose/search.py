@@ -214,7 +214,7 @@ def _step(
     placed = placed_picks(done, ctx.n_placed[later])
     chosen = refit_indices(select(done, ctx.n_refit[later], ctx.n_max[later]), picks, placed)
     step = Step(index, base, base_score, done, chosen, picks, placed)
-    modal_ok = modal_ranked(done, picks)
+    modal_ok = modal_ranked(done, picks) | set(placed)
     jobs = {i: _job(ctx, base, _refit_candidate(done[i], cands[i]),
                     done[i].refit_start(i in picks, i in placed), modal=i in modal_ok)
             for i in chosen}  # fmt: skip
