@@ -287,8 +287,8 @@ def modal_restarts(
             continue
         if best is None or c < best[1]:
             best = (s, c, r)
-        if not above_noise(refit, best[0]):
-            break
+            if not above_noise(refit, s):  # judged only when the best moved
+                break
     note = f"{tried} of {len(starts)} start(s) from the measured modes"
     if failed:
         note += f", {len(failed)} failed (first: {failed[0]})"
