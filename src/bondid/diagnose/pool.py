@@ -9,10 +9,12 @@ from typing import Any
 
 from ..blas import THREAD_VARS
 from ..interrupt import ignore_in_worker, kill_workers, spawn_context
+from ..threads import THREADS_VAR
 
 
 class WorkerPool:
-    """Worker processes (spawned with single-threaded BLAS) or in-process execution."""
+    """Worker processes (spawned with single-threaded BLAS and one bondid thread each: the
+    workers already share the cores) or in-process execution."""
 
     def __init__(self, workers: int):
         self.workers = workers
@@ -20,8 +22,9 @@ class WorkerPool:
         if workers > 1:
             from concurrent.futures import ProcessPoolExecutor
 
-            saved = {k: os.environ.get(k) for k in THREAD_VARS}
-            for k in THREAD_VARS:
+            single = (*THREAD_VARS, THREADS_VAR)
+            saved = {k: os.environ.get(k) for k in single}
+            for k in single:
                 os.environ[k] = "1"
             try:
                 self.ex = ProcessPoolExecutor(
