@@ -183,7 +183,7 @@ def test_a_pivot_off_the_bearing_centre_in_both_directions_is_found(doc):
     text = doc.to_string()
     job = Job(text, space, data, data, data, replace(c, variants=()), CostOptions(),
               alt_urdf=text, start_new=tuple(stiff * 1.3))  # fmt: skip
-    refined, _ = refine_job_pivot(job)
+    refined, _, _ = refine_job_pivot(job)
     assert refined.candidate is not None
     got = np.array(refined.candidate.spec["pivot"])
     assert np.all(np.abs(got - true_pivot) < PIVOT_TOL_M), (got - centre, true_pivot - centre)
@@ -195,6 +195,88 @@ def test_a_pivot_off_the_bearing_centre_in_both_directions_is_found(doc):
     c_exact, c_got, c_centre = refit(exact), refit(refined.candidate), refit(c)
     figures = (c_exact, c_got, c_centre)
     assert c_got < PIVOT_COST_FACTOR * c_exact and c_centre > CENTRE_COST_FACTOR * c_got, figures
+
+
+def test_the_warm_pivot_search_finds_a_pivot_far_off_the_centre(doc):
+    """Known answer: a roll DOF under the x stage whose pivot lies 40 mm and 30 mm off the
+    bearing centre; from a refit at the bearing centre (its spring at the mode), the warm
+    search (each pivot's spring scaled to keep its frequency, the new parameters solved
+    alone) ends near the true pivot, with the state it found there."""
+    from bondid.cost.problem import CostOptions
+    from bondid.diagnose.alternatives import refine_job_pivot
+    from bondid.diagnose.augmented import build, with_values
+    from bondid.diagnose.effects import get_effect
+    from bondid.diagnose.refit import nominal_space
+    from bondid.diagnose.runner import Job, direct
+
+    e = get_effect("joint_compliance")
+    c = replace(next(c for c in e.candidates(doc) if c.location == "base->x_stage:rx"),
+                variants=())  # fmt: skip
+    centre = np.array(c.spec["pivot"])
+    true_pivot = centre + np.array([0.0, 0.04, 0.03])
+    exact = e.at_pivot(doc, c, true_pivot)  # type: ignore[attr-defined]
+    stiff = np.array([p.initial * 1.5 ** (2 * p.scan) for p in exact.parameters])  # 450 Hz
+    data = _data(e.augment(doc, with_values(exact, stiff)))
+    space = nominal_space(doc, FEW, 4000.0)
+    text = doc.to_string()
+    aug = build(text, space, data, CostOptions(), (), c)
+    start = aug.refit.with_new(aug.refit.state0, stiff)
+    state = aug.refit.solve(start, direct(150, 30))[0]
+    job = Job(text, space, data, data, data, c, CostOptions(), alt_urdf=text)
+    refined, note, found = refine_job_pivot(job, (aug, state))
+    assert refined.candidate is not None and found is not None, note
+    got = np.array(refined.candidate.spec["pivot"])
+    assert np.all(np.abs(got - true_pivot) < 2 * PIVOT_TOL_M), (got - centre, note)
+    assert "warm figure" in note
+
+
+def test_a_candidate_about_another_pivot_keeps_its_start_frequency(doc):
+    """at_pivot rebuilds the start about the new pivot: the stiffness over the effective
+    inertia about that pivot still puts the spring-alone mode at the reference frequency,
+    and the damper keeps its ratio; with_pivot keeps the old numbers."""
+    from bondid.diagnose.effects import get_effect
+    from bondid.diagnose.effects.topology import effective_inertia
+    from bondid.diagnose.pivot import with_pivot
+
+    e = get_effect("joint_compliance")
+    c = next(c for c in e.candidates(doc) if c.location == "base->x_stage:rx")
+    pivot = np.array(c.spec["pivot"]) + np.array([0.0, 0.06, -0.03])
+    moved = e.at_pivot(doc, c, pivot)  # type: ignore[attr-defined]
+    assert np.allclose(moved.spec["pivot"], pivot) and moved.variants == ()
+    k, d = (p.initial for p in moved.parameters)
+    m = effective_inertia(e.augment(doc, moved), moved.spec["joint"])
+    assert np.sqrt(k / m) / (2 * np.pi) == pytest.approx(moved.ref_hz, rel=ROUNDING_REL * 1e3)
+    k0, d0 = (p.initial for p in c.parameters)
+    assert abs(k / k0 - 1) > 0.01  # the inertia about the new pivot differs
+    assert d / d0 == pytest.approx(k / k0)  # both follow the inertia: the same ratio
+    kept = with_pivot(c, pivot)
+    assert [p.initial for p in kept.parameters] == [k0, d0]
+
+
+def test_the_pivot_search_stays_inside_the_box():
+    """A cost whose minimum lies outside the box: the search ends on the box's edge."""
+    from bondid.diagnose.effects.base import Candidate
+    from bondid.diagnose.pivot import refine_pivot
+
+    spec = {"axis": [0.0, 1.0, 0.0], "pivot": [0.0, 0.0, 0.0], "kind": "revolute"}
+    c = Candidate("joint_compliance", "a->b:ry", (), spec, (), "a DOF pivot [0] mm")
+    target = np.array([0.5, 0.0, -0.2])
+    box = (np.array([-0.1, -0.1, -0.1]), np.array([0.1, 0.1, 0.1]))
+
+    seen = []
+
+    def cost(k):  # type: ignore[no-untyped-def]
+        p = np.array(k.spec["pivot"])
+        seen.append(p)
+        return float(np.sum((p - target) ** 2))
+
+    best, _, _ = refine_pivot(c, cost, np.array([0.2, 0.2, 0.2]), box=box)
+    inside = [bool(np.all(p >= box[0]) and np.all(p <= box[1])) for p in seen]
+    assert all(inside), seen
+    got = np.array(best.spec["pivot"])
+    assert got[0] == pytest.approx(0.1) and got[2] == pytest.approx(-0.1), got
+    best_free, _, _ = refine_pivot(c, cost, np.array([0.2, 0.2, 0.2]))
+    assert np.array(best_free.spec["pivot"])[0] > 0.1  # without the box it leaves it
 
 
 def test_a_refit_above_the_noise_tries_the_other_elastic_centres(doc):

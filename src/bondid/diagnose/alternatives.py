@@ -29,10 +29,10 @@ from ..exceptions import BondidError
 from .augmented import Augmented
 from .effects import Candidate
 from .keep import held_of, replaces
-from .pivot import child_extent, refine_pivot
+from .pivot import child_box, refine_pivot, with_pivot
 from .refit import State
 from .rescue import above_noise
-from .runner import Job, _alt_start, _fit, _setup
+from .runner import Job, _alt_start, _fit, _setup, direct
 
 #: the numerical failures of an alternative that skip it (anything else fails the job)
 _SKIPPED = (BondidError, np.linalg.LinAlgError, ValueError)
@@ -77,41 +77,98 @@ def stuck(job: Job, aug: Augmented, state: State, res: Any) -> bool:
     return above_heldout_level(heldout_rms(aug.refit, res.result, job.heldout, job.options), level)
 
 
-def refine_job_pivot(job: Job) -> tuple[Job, str]:
-    """The job with its rotational compliance's pivot refined (:func:`.pivot.refine_pivot`),
-    each pivot judged like a variant (:func:`.runner._screen_variants`: the second origin's start
-    from the screening's new parameters, else the candidate's initial ones)."""
+def refine_job_pivot(
+    job: Job, warm: tuple[Augmented, State] | None = None
+) -> tuple[Job, str, State | None]:
+    """The job with its rotational compliance's pivot refined (:func:`.pivot.refine_pivot`).
+    Without ``warm``, each pivot is judged like a variant (:func:`.runner._screen_variants`:
+    the second origin's start from the screening's new parameters). With ``warm`` (a refit
+    and its state), the candidate is rebuilt about each pivot (:meth:`~.effects.
+    joint_compliance.JointCompliance.at_pivot`) and judged by a solve of its new parameters
+    alone from that state, scaled to the pivot (:func:`pivot_ratio`): the nominal parameters
+    stay where the refit put them and the spring keeps its mode's frequency. Returns the job,
+    the note and, with ``warm``, the state at the best pivot."""
+    from ..model.document import UrdfDocument
+    from .effects import get_effect
+    from .effects.joint_compliance import JointCompliance
+
     cand = job.candidate
     assert cand is not None
     urdf = job.alt_urdf if job.alt_urdf is not None else job.urdf
-    found = [np.asarray(job.start_new, float)] if job.start_new else []
+    effect = get_effect(cand.effect)
+    assert isinstance(effect, JointCompliance)
+    doc = UrdfDocument.from_string(urdf)
     failed: list[str] = []
+    states: dict[tuple[float, ...], State] = {}
+
+    def move(c: Candidate, pivot: np.ndarray) -> Candidate:
+        # cold: the same parameters (the short start from the nominal model sees little of
+        # the pivot, and a rebuilt start only drifts it; measured on gantry/jcr, stop 27)
+        return effect.at_pivot(doc, c, pivot) if warm is not None else with_pivot(c, pivot)
 
     def cost(c: Candidate) -> float:
-        sub = replace(job, candidate=c)
+        sub = moved_job(job, c)
         try:
-            return _alt_start(sub, _setup(urdf, sub).refit, found, only=0)[1]
+            refit = _setup(urdf, sub).refit
+            if warm is None:
+                found = [np.asarray(sub.start_new, float)] if sub.start_new else []
+                return _alt_start(sub, refit, found, only=0)[1]
+            w_aug, w_state = warm
+            new = w_aug.refit.new_values(w_state) * pivot_ratio(c, cand)
+            s, value = refit.solve_new(refit.with_new(w_state, new), job.new_iter)
+            states[tuple(c.spec["pivot"])] = s
+            return value
         except _SKIPPED as err:
             failed.append(_failure(f"pivot {np.round(c.spec['pivot'], 4).tolist()}", err))
             return float("inf")
 
     child = str(cand.location).split("->", 1)[1].split(":", 1)[0]
-    best, c, n = refine_pivot(cand, cost, child_extent(urdf, child))
-    note = f"{n} pivots tried, start figure {c:.4g}"
+    box = child_box(urdf, child)
+    extent = None if box is None else box[1] - box[0]
+    best, c, n = refine_pivot(cand, cost, extent, move, box)
+    kind = "start" if warm is None else "warm"
+    note = f"{n} pivots tried, {kind} figure {c:.4g}"
     failures = _failures_note(failed, n, "pivots")
-    return replace(job, candidate=best), f"{note} ({failures})" if failures else note
+    note = f"{note} ({failures})" if failures else note
+    return moved_job(job, best), note, states.get(tuple(best.spec["pivot"]))
+
+
+def pivot_ratio(cand: Candidate, old: Candidate) -> np.ndarray:
+    """Per new parameter, ``cand``'s start over ``old``'s ``(n_new,)``: the same candidate
+    about another pivot (the effective inertia's ratio for a spring and its damper)."""
+    pairs = zip(cand.parameters, old.parameters, strict=True)
+    return np.array([p.initial / q.initial for p, q in pairs], float)
+
+
+def moved_job(job: Job, cand: Candidate) -> Job:
+    """``job`` with ``cand`` (its candidate about another pivot) and the start of its new
+    parameters scaled as the candidate's own start is (:func:`pivot_ratio`): the same
+    spring-alone frequency and damping ratio as the start at the job's pivot."""
+    old = job.candidate
+    assert old is not None
+    start = job.start_new
+    if start:
+        start = tuple(float(v) for v in np.asarray(start, float) * pivot_ratio(cand, old))
+    return replace(job, candidate=cand, start_new=start)
 
 
 def at_refined_pivot(
-    job: Job, aug: Augmented, state: State, res: Any
+    job: Job, aug: Augmented, state: State, res: Any, warm: bool = False
 ) -> tuple[Job, Augmented, State, Any, str]:
-    """A rotational compliance whose refit ended above the noise level: the pivot refined
-    (:func:`refine_job_pivot`) and both origins refitted there; the lower objective is kept."""
-    moved, note = refine_job_pivot(job)
+    """A rotational compliance whose refit is stuck (:func:`stuck`): the pivot refined
+    (:func:`refine_job_pivot`) and refitted there, kept by :func:`.keep.replaces`. Without
+    ``warm``, both origins are refitted at the new pivot (:func:`.runner._fit`); with it (a
+    refit whose spring already sits at a mode, e.g. after the modal step), the pivot is judged
+    and refitted from ``state`` (everything solved from the warm figure's state)."""
+    moved, note, s_w = refine_job_pivot(job, (aug, state) if warm else None)
     assert moved.candidate is not None and job.candidate is not None
     if moved.candidate.spec["pivot"] == job.candidate.spec["pivot"]:
         return job, aug, state, res, f"{note}; the pivot kept"
-    aug2, state2, res2 = _fit(moved)
+    if s_w is None:
+        aug2, state2, res2 = _fit(moved)
+    else:
+        aug2 = _setup(moved.alt_urdf if moved.alt_urdf is not None else moved.urdf, moved)
+        state2, _, res2 = aug2.refit.solve(s_w, direct(job.all_iter, job.presolve_iter))
     if _better(job, aug, state, res, aug2, state2, res2):
         return moved, aug2, state2, res2, f"{note}; refitted there, kept"
     return job, aug, state, res, f"{note}; refitted there, not kept"

@@ -7,10 +7,12 @@ refit cannot vary it as a parameter. The candidate's variants (:func:`.effects.j
 pivot lies anywhere across the axis, and 2 cm off changes the fit far more than the noise.
 When the refit at the kept pivot ends above the noise level
 (:func:`.alternatives.at_refined_pivot`), :func:`refine_pivot` moves that pivot by a compass
-(pattern) search in the plane across the axis: steps of a quarter of the child's hull extent
-(:data:`FIRST_STEP` when it has no hull), halved after a round without a better point, each
-point judged by the training cost of the second origin's short start
-(:func:`.runner._alt_start`, the screening's figure).
+(pattern) search in the plane across the axis, inside the child's hull's bounding box: steps
+of a quarter of the hull's extent (:data:`FIRST_STEP` when it has no hull), halved after a
+round without a better point, each point judged by the training cost of the second origin's
+short start (:func:`.runner._alt_start`, the screening's figure) or, once a refit's spring
+sits at a mode, by a solve of the new parameters from that refit
+(:func:`.alternatives.refine_job_pivot`).
 """
 
 from __future__ import annotations
@@ -48,13 +50,14 @@ def with_pivot(cand: Candidate, pivot: np.ndarray) -> Candidate:
     return replace(cand, spec=spec, variants=(), description=f"{head} pivot {where} mm")
 
 
-def child_extent(urdf: str, child: str) -> np.ndarray | None:
-    """Extent (m, per axis of the child frame) of ``child``'s collision hull, or None."""
+def child_box(urdf: str, child: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """Lower and upper corners (m, child frame) of ``child``'s collision hull's bounding box,
+    or None without a hull."""
     from ..consistency.hull import link_hull
     from ..model.document import UrdfDocument
 
     hull = link_hull(UrdfDocument.from_string(urdf).link(child))
-    return None if hull is None else np.ptp(hull.vertices, axis=0)
+    return None if hull is None else (hull.vertices.min(axis=0), hull.vertices.max(axis=0))
 
 
 def first_steps(extent: np.ndarray | None, across: np.ndarray) -> np.ndarray:
@@ -65,7 +68,11 @@ def first_steps(extent: np.ndarray | None, across: np.ndarray) -> np.ndarray:
 
 
 def refine_pivot(
-    cand: Candidate, cost: Callable[[Candidate], float], extent: np.ndarray | None = None
+    cand: Candidate,
+    cost: Callable[[Candidate], float],
+    extent: np.ndarray | None = None,
+    move: Callable[[Candidate, np.ndarray], Candidate] = with_pivot,
+    box: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[Candidate, float, int]:
     """The compass search of the module docstring from ``cand``'s pivot.
 
@@ -73,6 +80,11 @@ def refine_pivot(
         cand: a rotational joint-compliance candidate (``spec``: ``axis``, ``pivot``).
         cost: the figure of a candidate (lower is better; inf where the model fails).
         extent: the child's hull extent (m, child frame) or None.
+        move: ``cand`` about another pivot (default :func:`with_pivot`: the same parameters;
+            the diagnosis rebuilds them about the pivot, :meth:`.effects.joint_compliance.
+            JointCompliance.at_pivot`).
+        box: lower and upper corners (m, child frame) the pivot stays in (the child's hull's
+            bounding box, :func:`child_box`: a bearing pivots within its body), or None.
 
     Returns:
         The candidate at the best pivot found, its cost and the number of evaluations.
@@ -91,11 +103,13 @@ def refine_pivot(
                     break
                 p = best_p.copy()
                 p[d] += sign * steps[k]
-                c = cost(with_pivot(cand, p))
+                if box is not None and not box[0][d] <= p[d] <= box[1][d]:
+                    continue
+                c = cost(move(cand, p))
                 n += 1
                 if c < best:
                     best, best_p, moved = c, p, True
                     break
         if not moved:
             steps = steps / 2
-    return with_pivot(cand, best_p), best, n
+    return move(cand, best_p), best, n

@@ -350,6 +350,7 @@ MODAL_SKIPPED = "not run: the screening did not rank the candidate among the bes
 def _run(job: Job, t0: float) -> JobResult:
     from .alternatives import stuck
     from .modal_start import applies, modal_step, single
+    from .pivot import is_rotational_compliance
 
     extra: dict[str, Any] = {}
     if job.candidate is not None and job.candidate.variants:
@@ -361,7 +362,6 @@ def _run(job: Job, t0: float) -> JobResult:
     is_stuck = job.candidate is not None and stuck(job, aug, state, res)
     if is_stuck:
         from .alternatives import at_refined_pivot, other_variants
-        from .pivot import is_rotational_compliance
 
         assert job.candidate is not None
         if is_rotational_compliance(job.candidate):
@@ -379,6 +379,15 @@ def _run(job: Job, t0: float) -> JobResult:
         )
         extra["variant"] = job.candidate.description  # type: ignore[union-attr]
         is_stuck = stuck(job, aug, state, res)
+        if is_stuck and is_rotational_compliance(job.candidate):
+            # the spring now sits at a mode: the pivot judged from there (warm)
+            from .alternatives import at_refined_pivot
+
+            job, aug, state, res, extra["pivot after modal"] = at_refined_pivot(
+                job, aug, state, res, warm=True
+            )
+            extra["variant"] = job.candidate.description  # type: ignore[union-attr]
+            is_stuck = stuck(job, aug, state, res)
     from_nominal = False
     if job.wider and is_stuck:
         from .alternatives import wider_search

@@ -121,6 +121,18 @@ class JointCompliance(Effect):
             F_REF_HZ,
         )
 
+    def at_pivot(self, doc: UrdfDocument, cand: Candidate, pivot: np.ndarray) -> Candidate:
+        """``cand`` (a rotational candidate of ``doc``) rebuilt about ``pivot`` (child frame,
+        m), without variants: its start, bounds and reference follow the DOF's effective
+        inertia about the new pivot (a spring that puts the mode at 300 Hz about the bearing
+        centre puts it elsewhere 60 mm away: the inertia about the pivot changes)."""
+        pair, axis = str(cand.location).split(":")
+        parent, child = pair.split("->")
+        itf = next((i for i in interfaces(doc) if (i.parent, i.child) == (parent, child)), None)
+        if itf is None:
+            raise ValueError(f"{cand.label}: no interface {pair} in the model")
+        return self._candidate(doc, itf, axis, np.asarray(pivot, float))
+
     @staticmethod
     def _insert(doc: UrdfDocument, spec: dict, k: float, d: float) -> UrdfDocument:
         new = doc.copy()
