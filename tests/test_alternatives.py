@@ -37,7 +37,7 @@ def test_failed_pivots_are_said_in_the_pivot_note(doc, monkeypatch) -> None:
     text = doc.to_string()
     job = Job(text, None, [], [], [], replace(c, variants=()), CostOptions(), alt_urdf=text)  # type: ignore[arg-type]
     monkeypatch.setattr(alternatives, "_setup", _raise)
-    moved, note = alternatives.refine_job_pivot(job)
+    moved, note, _ = alternatives.refine_job_pivot(job)
     n = int(note.split(" pivots tried", 1)[0])
     assert f"{n} of {n} pivots failed" in note
     assert "ModelError: injected" in note
