@@ -28,11 +28,12 @@ import numpy as np
 from ..exceptions import BondidError
 from .augmented import Augmented
 from .effects import Candidate
+from .job import Job, direct
 from .keep import held_of, replaces
 from .pivot import child_box, refine_pivot, with_pivot
 from .refit import State
 from .rescue import above_noise
-from .runner import Job, _alt_start, _fit, _setup, direct
+from .runner import _alt_start, _fit, _setup
 
 #: the numerical failures of an alternative that skip it (anything else fails the job)
 _SKIPPED = (BondidError, np.linalg.LinAlgError, ValueError)

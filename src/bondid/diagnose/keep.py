@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from .augmented import Augmented
-    from .runner import Job
+    from .job import Job
 
 #: a held-out figure [dB], computed when asked
 Held = Callable[[], float]

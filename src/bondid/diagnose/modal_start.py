@@ -67,8 +67,8 @@ from .refit import Refit, State
 
 if TYPE_CHECKING:
     from ..data.measurement import FrfData
+    from .job import Job
     from .modal_id import IdentifiedMode
-    from .runner import Job
 
 #: points of the matching's coordinate search of each spring: log-spaced multipliers of its
 #: start value over the candidate's scan grid (a spring is not moved beyond the range its

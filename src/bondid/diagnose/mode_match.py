@@ -11,9 +11,9 @@ import numpy as np
 
 if TYPE_CHECKING:
     from ..data.measurement import FrfData
+    from .job import Job
     from .modal_id import IdentifiedMode
     from .refit import Refit, State
-    from .runner import Job
 
 #: relative frequency error that costs as much as a MAC of 0.75 in the matching cost
 SIGMA_F = 0.1

@@ -39,9 +39,10 @@ from ..frf.aligned import model_frf
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameter, select_parameters
 from .effects import Candidate, get_effects
+from .job import Job, JobResult
 from .pool import WorkerPool
 from .refit import Nominal, nominal_space_for
-from .runner import Job, JobResult, run_job
+from .runner import run_job
 from .scoring import NoiseReference, heldout_noise
 from .search import Context, Step, search
 from .split import decimate, holdout_split, limit_bands

@@ -85,10 +85,11 @@ import numpy as np
 from ..exceptions import BondidError
 from .augmented import build
 from .effects import Candidate
+from .job import Job
 from .joint_profile import damped_step, joint_profile
 from .modal_start import placed_alternation, single
 from .refit import Refit, State
-from .runner import Job, _alt_start
+from .runner import _alt_start
 from .scan_grid import scan_grid
 
 #: start points kept from the scan of a candidate (its variants: one each)

@@ -39,9 +39,10 @@ from ..data.measurement import FrfData
 from ..model.document import UrdfDocument
 from . import scoring
 from .effects import Candidate
+from .job import Job, JobResult
 from .refit import Nominal
 from .rescue import above_heldout_level
-from .runner import Job, JobResult, run_job
+from .runner import run_job
 from .screen import Screening, placed_picks, profile_picks, screen, select
 from .widen import second_round
 

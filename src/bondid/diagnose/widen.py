@@ -36,10 +36,11 @@ from ..exceptions import BondidError
 from . import scoring
 from .alternatives import _SKIPPED, NOMINAL_LABEL, kept_note, nominal_continuation
 from .augmented import Augmented
+from .job import Job, JobResult
 from .keep import held_of, known, replaces
 from .refit import State
 from .rescue import above_heldout_level, above_ratio, noise_ratio_at
-from .runner import Job, JobResult, _fit, finish
+from .runner import _fit, finish
 
 #: refits of a step (best held-out score first) that may get the wider search
 TOP_K = 2
