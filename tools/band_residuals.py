@@ -31,23 +31,19 @@ from benchmark.truth import signal_factor, truth_model  # noqa: E402
 
 
 def band_figures(sets: list, H: list[np.ndarray], channels: list[str], edges: np.ndarray) -> str:
-    """``band:dB`` of every band with points, per data set, ``" | "``-joined: the weighted
-    (data coherence = the diagnosis's weights) RMS complex-log error over ``channels``."""
-    from bondid.cost.residuals import DB
+    """``band:dB`` of every band with points, per data set, ``" | "``-joined: the gap report's
+    weighted db_rms (:func:`bondid.diagnose.gap.gap_report`, the data's coherence = the
+    diagnosis's weights) over ``channels``, band ``k`` = ``[edges[k], edges[k+1])``."""
+    from itertools import pairwise
 
+    from bondid.diagnose.gap import gap_report
+
+    bands = list(pairwise(float(e) for e in edges))
     out = []
     for d, Hm in zip(sets, H, strict=True):
-        e2 = (DB * np.abs(np.log(d.H / Hm))) ** 2
-        w = np.ones(e2.shape) if d.coherence is None else np.nan_to_num(d.coherence)
-        pairs = [(i, j) for i, o in enumerate(d.outputs) for j, u in enumerate(d.inputs)
-                 if f"{o}.{u}" in channels]  # fmt: skip
-        band = np.searchsorted(edges, d.freq_hz, side="right") - 1
-        cells = []
-        for b in np.unique(band):
-            m = band == b
-            num = sum(float(np.nansum(w[i, j, m] * e2[i, j, m])) for i, j in pairs)
-            den = sum(float(np.nansum(w[i, j, m])) for i, j in pairs)
-            cells.append(f"{b}:{np.sqrt(num / den):.2f}" if den > 0 else f"{b}:-")
+        rep = gap_report(d, Hm, bands, channels=channels, weighting="coherence")
+        cells = [f"{k}:{b['db_rms']:.2f}" if np.isfinite(b["db_rms"]) else f"{k}:-"
+                 for k, b in enumerate(rep.by_band) if b["n_points"] > 0]  # fmt: skip
         out.append(" ".join(cells))
     return " | ".join(out)
 
