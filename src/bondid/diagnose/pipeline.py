@@ -274,7 +274,7 @@ def diagnose(
             doc, p.names, p.train, p.held, p.full, p.options, p.candidates,
             missing_mode_hints(by_ds), s.refit_iter, s.n_starts, (s.n_refit, s.n_refit_later),
             s.max_effects, p.space, (s.n_refit_max, s.n_refit_max_later), p.noise,
-            measured=measured,
+            measured=measured, polish_iter=s.ipopt_iter,
         )  # fmt: skip
         steps = search(ctx, pool, baseline, say)
         nominal_H = [model_frf(doc, d) for d in p.full]

@@ -1,0 +1,137 @@
+"""Tests of bondid.diagnose.polish: the full solve of an accepted effect's capped refit."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bondid.data.noise import add_measurement_noise
+from bondid.model import UrdfDocument, get_parameter, set_parameter
+from bondid.simulate import log_grid, simulate
+
+MODEL = Path(__file__).resolve().parents[1] / "urdf" / "bonder.urdf"
+OPS = ({}, {"x": 0.05, "y": -0.03})
+FREE = ["x_stage.mass", "y_stage.mass", "z_stage.mass", "x_guide_ry.stiffness"]
+#: the withheld compliance: each parameter at its initial value times this to its ``scan``
+#: exponent (stiffness × 5, damping × √5)
+TRUE_SCALE = 5.0
+#: the polished refit's stiffness within this relative error of the truth, and its training
+#: objective at most this relative amount above the uncapped refit's
+STIFFNESS_TOL = 0.15
+OBJECTIVE_RTOL = 1e-3
+
+
+@pytest.fixture(scope="module")
+def case():  # type: ignore[no-untyped-def]
+    return _case()
+
+
+def _case():  # type: ignore[no-untyped-def]
+    """The job of the true candidate (from its initial values) on data of the bonder with a
+    withheld joint compliance, and the withheld stiffness [N/m]."""
+    from bondid.diagnose.effects import get_effect
+    from bondid.diagnose.job import Job
+    from bondid.diagnose.pipeline import Settings, prepare_data
+
+    doc = UrdfDocument.load(MODEL)
+    e = get_effect("joint_compliance")
+    cand = next(c for c in e.candidates(doc) if c.location == "y_stage->z_stage:tz")
+    truth = e.augment(doc, cand)
+    for p in cand.parameters:
+        for m, fac in p.members:
+            set_parameter(truth, m, fac * p.initial * TRUE_SCALE**p.scan)
+    k = next(i for i, p in enumerate(cand.parameters) if p.strength)
+    k_true = cand.parameters[k].initial * TRUE_SCALE ** cand.parameters[k].scan
+    f = log_grid(1.0, 4000.0, 150)
+    data = []
+    for k, op in enumerate(OPS):
+        d = simulate(truth, op, f)
+        d.H, d.coherence = add_measurement_noise(d.H, f, rel=0.005, floor_db=-70, rng=k,
+                                                 floor_ref="response")  # fmt: skip
+        data.append(d)
+    s = Settings(n_points=150, workers=1, effects=["joint_compliance"], free=FREE, modes=False)
+    prep = prepare_data(doc, data, s)
+    job = Job(doc.to_string(), prep.space, prep.train, prep.held, prep.full, cand, prep.options,
+              start_new=tuple(p.initial for p in cand.parameters), wider=False,
+              modal=False)  # fmt: skip
+    return job, k_true
+
+
+def test_polish_recovers_a_displaced_accepted_model(case):  # type: ignore[no-untyped-def]
+    """Known answer: the true candidate's refit, displaced (masses +20 %, its stiffness
+    halved) as a capped refit may leave it, polished: back at the known stiffness and at the
+    objective of the uncapped refit; label, effect and chain stay the accepted candidate's."""
+    from bondid.diagnose.augmented import with_values
+    from bondid.diagnose.polish import polish
+    from bondid.diagnose.runner import run_job
+
+    job, k_true = case
+    ref = run_job(replace(job, all_iter=200, new_iter=10))  # the uncapped refit
+    assert not ref.error, ref.error
+    (cand,) = ref.chain  # the refitted variant; its stiffness is values[at]
+    at = _strength_index(cand)
+    assert abs(ref.values[at] / k_true - 1.0) < STIFFNESS_TOL
+    doc = UrdfDocument.from_string(ref.urdf, source="refit")
+    for name in FREE[:3]:
+        set_parameter(doc, name, 1.2 * get_parameter(doc, name))
+    new = np.array([p.initial for p in cand.parameters])
+    new[len(new) + at] *= 0.5
+    winner = replace(ref, urdf=doc.to_string(), chain=(with_values(cand, new),),
+                     objective=np.inf, heldout_rms=np.inf)  # fmt: skip
+    out = polish(winner, job, max_iter=200)
+    assert (out.label, out.effect, out.location) == (ref.label, ref.effect, ref.location)
+    assert out.names == ref.names and len(out.chain) == 1
+    assert out.extra["polish"].endswith(", kept"), out.extra["polish"]
+    assert out.objective <= ref.objective * (1.0 + OBJECTIVE_RTOL), (out.objective, ref.objective)
+    k = float(out.values[at])
+    assert abs(k / k_true - 1.0) < STIFFNESS_TOL, (k, k_true)
+    # the chain carries the fitted stiffness
+    (par,) = [p for p in out.chain[0].parameters if p.strength]
+    assert par.initial == pytest.approx(k, rel=1e-9)
+
+
+def _strength_index(cand) -> int:  # type: ignore[no-untyped-def]
+    """Index (negative, from the end of a refit's values) of ``cand``'s strength parameter."""
+    (k,) = [i for i, p in enumerate(cand.parameters) if p.strength]
+    return k - len(cand.parameters)
+
+
+def _result(job, **kw):  # type: ignore[no-untyped-def]
+    from bondid.diagnose.job import JobResult
+
+    base = dict(
+        label="c", effect="joint_compliance", location="a->b:tz", names=["m", "k"],
+        values=np.array([1.0, 2.0]), std=np.array([0.1, 0.2]), n_new=1, train_rms=1.0,
+        heldout_rms=1.0, n_train=100, heldout_db_rms=1.0, db_rms=1.0, full_H=[], urdf="<robot/>",
+        wall_s=1.0, objective=1.0,
+    )  # fmt: skip
+    base.update(kw)
+    return JobResult(**base)
+
+
+def test_polished_keeps_the_better_refit_only(case):  # type: ignore[no-untyped-def]
+    """The rule of every choice between two refits: lower objective, held-out not worse (or
+    at the held-out noise level); a failed or differently parameterised polish is not kept."""
+    from bondid.diagnose.polish import polished
+
+    job, _k = case
+    job = replace(job, heldout_noise_db=0.1)
+    winner = _result(job)
+    better = _result(job, label="refit", effect=None, location=None, values=np.array([1.5, 3.0]),
+                     objective=0.5, heldout_rms=0.9, db_rms=0.8)  # fmt: skip
+    out = polished(winner, job, better)
+    assert out.label == "c" and out.effect == "joint_compliance"
+    assert out.db_rms == 0.8 and np.allclose(out.values, [1.5, 3.0])
+    assert out.extra["polish"].endswith("kept")
+    worse_held = replace(better, heldout_rms=2.0)  # above 1.22× the held-out level
+    out = polished(winner, job, worse_held)
+    assert out.db_rms == 1.0 and out.extra["polish"].endswith("not kept")
+    higher = replace(better, objective=1.5)
+    assert polished(winner, job, higher).db_rms == 1.0
+    failed = replace(better, error="SolverError: boom")
+    assert "boom" in polished(winner, job, failed).extra["polish"]
+    other = replace(better, names=["m", "k", "d"])
+    assert polished(winner, job, other).values.tolist() == [1.0, 2.0]
