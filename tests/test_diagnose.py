@@ -151,7 +151,10 @@ def test_diagnosis_json_has_the_spec_keys(compliance_case, tmp_path):
     assert {"effect", "location", "gap_closed"} <= set(d["verdict"])
     assert d["verdict"]["effect"] == "joint_compliance"
     g = d["verdict"]["gap_closed"]
-    assert g == pytest.approx(1 - d["candidates"][0]["db_rms_after"] / d["gap"]["db_rms"])
+    assert g == pytest.approx(1 - d["effects"][0]["db_rms_after"] / d["gap"]["db_rms"])
+    # the verdict reports the polished refit (.polish), the candidates table the one ranked
+    polish = d["verdict"]["polish"]
+    assert polish == d["effects"][0]["polish"] and polish.startswith("300 iterations")
     # the refits the data cannot tell from the verdict: the rule's figures, from the scores
     from bondid.diagnose import scoring
 

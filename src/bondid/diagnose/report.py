@@ -178,7 +178,7 @@ def effect_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
         vals, std = _new_params(w)
         out.append({
             "step": step.index + 1, "effect": w.effect, "location": w.location,
-            "detail": w.extra.get("variant"),
+            "detail": w.extra.get("variant"), "polish": w.extra.get("polish"),
             "parameters": {n: {"value": v, "std": std.get(n)} for n, v in vals.items()},
             "db_rms_after": w.db_rms, "heldout_db_rms_after": w.heldout_db_rms,
             "gap_closed": gap_closed(before, w.db_rms), "score": step.scores[0],
@@ -213,6 +213,7 @@ def _verdict(
             "effect": w.effect,
             "location": w.location,
             "detail": w.extra.get("variant"),
+            "polish": w.extra.get("polish"),
             "gap_closed": gap_closed(before, w.db_rms),
             "gap_closed_total": gap_closed(nominal, w.db_rms),
             "parameters": {n: {"value": v, "std": std.get(n)} for n, v in vals.items()},
