@@ -228,6 +228,11 @@ def test_final_model_at_the_noise_level() -> None:
     none = score(case, _diag([]), db_truth=3.8)  # no effect: the parameter refit's gap, 4.0
     assert none["final_db"] == 4.0 and none["at_noise"] is True
     assert score(case, _diag([]), db_truth=None)["at_noise"] is None
+    # the final fit on all data (stop 29) is counted apart; older outputs have none
+    assert r["final_fit_db"] is None and r["final_fit_at_noise"] is None
+    d = dict(_diag([sm]), final_fit={"db_rms": 2.1})
+    r = score(case, d, db_truth=2.0)
+    assert r["at_noise"] is False and r["final_fit_db"] == 2.1 and r["final_fit_at_noise"] is True
 
 
 def test_tables_keep_their_columns_with_failed_cases() -> None:

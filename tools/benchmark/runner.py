@@ -265,6 +265,9 @@ def score(case: Case, diag: dict[str, Any], db_truth: float | None) -> dict[str,
     stages = diag.get("stages") or {}
     final = final_db(diag, claimed)
     at_noise = None if final is None or db_truth is None else final <= AT_NOISE * db_truth
+    # the final model refitted on all data (stop 29; absent from older outputs)
+    ff = (diag.get("final_fit") or {}).get("db_rms")
+    ff_at = None if ff is None or db_truth is None else float(ff) <= AT_NOISE * db_truth
     return {
         "claimed": [list(g) for g in got], "verdict": v.get("effect"),
         "location": v.get("location"), "class_ok": class_ok, "location_ok": loc_ok,
@@ -272,5 +275,6 @@ def score(case: Case, diag: dict[str, Any], db_truth: float | None) -> dict[str,
         "gap_nominal": (stages.get("nominal") or {}).get("db_rms"), "gap_refit": before,
         "gap_closed": closed, "truth_gap_closed": truth_closed, "ratio": ratio,
         "screen_ok": screening(case, diag), "final_db": final, "at_noise": at_noise,
+        "final_fit_db": ff, "final_fit_at_noise": ff_at,
         "named_or_tied": named_or_tied(case, claimed),
     }  # fmt: skip

@@ -75,6 +75,7 @@ def _group(rows: list[dict[str, Any]]) -> dict[str, Any]:
     double = [r for r in ok if len(r["truth"]) > 1]
     screened = [r["screen_ok"] for r in ok if r["screen_ok"] is not None]
     noise = [r["at_noise"] for r in ok if r.get("at_noise") is not None]
+    final = [r["final_fit_at_noise"] for r in ok if r.get("final_fit_at_noise") is not None]
     tied = [r["named_or_tied"] for r in ok if r.get("named_or_tied") is not None]
     return {
         "n": len(rows), "failed": len(rows) - len(ok),
@@ -89,6 +90,7 @@ def _group(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "t_ratio": _f(_median(time_ratio(r) for r in ok), ".1f"),
         "recall": f"{sum(screened)}/{len(screened)}" if screened else "n/a",
         "at_noise": _pct(sum(noise), len(noise)),
+        "final_fit": _pct(sum(final), len(final)) if final else "–",
         "tied": _pct(sum(tied), len(tied)),
     }  # fmt: skip
 
@@ -98,8 +100,8 @@ def summary_table(rows: list[dict[str, Any]]) -> str:
     head = ("| design | regime | cases (failed) | class right | location right | claimed on"
             " none | two-effect both found | third claimed | median ratio | median diagnose s"
             " | median fit s | median diag/fit | screening recall"
-            " | final model at noise | named or tied |")  # fmt: skip
-    lines = [head, "|" + "---|" * 15]
+            " | final model at noise | final fit at noise | named or tied |")  # fmt: skip
+    lines = [head, "|" + "---|" * 16]
     designs = list(dict.fromkeys(r["design"] for r in rows))
     regimes = list(dict.fromkeys(r["regime"] for r in rows))
     groups = [((d, g), [r for r in rows if r["design"] == d and r["regime"] == g])
@@ -114,6 +116,7 @@ def summary_table(rows: list[dict[str, Any]]) -> str:
         lines.append(
             f"| {d} | {g} | {s['n']} ({s['failed']}) | {s['class']} | {s['loc']} | {s['none']} |"
             f" {s['both']} | {s['third']} | {s['ratio']} | {s['diag_s']} | {s['fit_s']} |"
-            f" {s['t_ratio']} | {s['recall']} | {s['at_noise']} | {s['tied']} |"
+            f" {s['t_ratio']} | {s['recall']} | {s['at_noise']} | {s['final_fit']} |"
+            f" {s['tied']} |"
         )
     return "\n".join(lines) + "\n\n" + GOALS

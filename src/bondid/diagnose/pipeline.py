@@ -20,6 +20,8 @@
    missing modes of step 3), the best few are refitted fully (:mod:`.runner`) in worker
    processes, scored on held-out data and ranked; the best is accepted by the rule of
    :mod:`.scoring`, and the search repeats from the model with it until nothing passes.
+5. The final model (the last accepted effect's refit, else the parameter refit) refitted on
+   all data (:mod:`.final_fit`): the model to take away; no verdict or figure of 4 changes.
 """
 
 from __future__ import annotations
@@ -39,12 +41,13 @@ from ..frf.aligned import model_frf
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameter, select_parameters
 from .effects import Candidate, get_effects
+from .final_fit import FinalFit, final_fit
 from .job import Job, JobResult
 from .pool import WorkerPool
 from .refit import Nominal, nominal_space_for
 from .runner import run_job
 from .scoring import NoiseReference, heldout_noise
-from .search import Context, Step, search
+from .search import Context, Step, accepted, search
 from .split import decimate, holdout_split, limit_bands
 
 #: default free parameters of the parameter refit (zero-valued springs/dampers are dropped)
@@ -106,6 +109,9 @@ class Diagnosis:
     weighting: dict[str, Any] = field(default_factory=dict)
     #: the search's steps (:mod:`.search`); ``results``/``scores``/``winner`` are the first's
     steps: list[Step] = field(default_factory=list)
+    #: the final model (last accepted effect's refit, else the parameter refit) refitted on
+    #: all data (:mod:`.final_fit`); None when not run
+    final: FinalFit | None = None
 
 
 def used_channels(datasets: Sequence[FrfData], requested: Sequence[str] | None) -> list[str]:
@@ -274,9 +280,13 @@ def diagnose(
             doc, p.names, p.train, p.held, p.full, p.options, p.candidates,
             missing_mode_hints(by_ds), s.refit_iter, s.n_starts, (s.n_refit, s.n_refit_later),
             s.max_effects, p.space, (s.n_refit_max, s.n_refit_max_later), p.noise,
-            measured=measured, polish_iter=s.ipopt_iter,
+            measured=measured,
         )  # fmt: skip
         steps = search(ctx, pool, baseline, say)
+        last = ([*accepted(steps)] or [baseline])[-1]
+        data = Job(last.urdf, p.space, p.train, p.held, p.full, None, p.options)
+        final = final_fit(last, data, s.ipopt_iter, pool)
+        say("final fit on all data")
         nominal_H = [model_frf(doc, d) for d in p.full]
     except BaseException:
         pool.kill()
@@ -290,7 +300,7 @@ def diagnose(
         winner=first.winner, nominal_H=nominal_H, bands=bands, modes=modes,
         modes_by_dataset=by_ds, antiresonances=anti, fit_info=fit_info,
         split_info=p.split_info, wall_s=time.perf_counter() - t0, weighting=p.weighting,
-        steps=steps,
+        steps=steps, final=final,
     )  # fmt: skip
 
 

@@ -178,7 +178,7 @@ def effect_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
         vals, std = _new_params(w)
         out.append({
             "step": step.index + 1, "effect": w.effect, "location": w.location,
-            "detail": w.extra.get("variant"), "polish": w.extra.get("polish"),
+            "detail": w.extra.get("variant"),
             "parameters": {n: {"value": v, "std": std.get(n)} for n, v in vals.items()},
             "db_rms_after": w.db_rms, "heldout_db_rms_after": w.heldout_db_rms,
             "gap_closed": gap_closed(before, w.db_rms), "score": step.scores[0],
@@ -213,7 +213,6 @@ def _verdict(
             "effect": w.effect,
             "location": w.location,
             "detail": w.extra.get("variant"),
-            "polish": w.extra.get("polish"),
             "gap_closed": gap_closed(before, w.db_rms),
             "gap_closed_total": gap_closed(nominal, w.db_rms),
             "parameters": {n: {"value": v, "std": std.get(n)} for n, v in vals.items()},
@@ -318,16 +317,33 @@ def to_json_dict(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, An
         "split": diag.split_info,
         "scoring": _scoring_section(diag),
         "weighting": diag.weighting,
+        "final_fit": _final_section(diag),
         "wall_s": diag.wall_s,
     }
     return _num(out)
+
+
+def _final_section(diag: Diagnosis) -> dict[str, Any] | None:
+    """``final_fit`` (spec extension): the final model refitted on all data
+    (:mod:`.final_fit`); its file is ``final.urdf``."""
+    f = diag.final
+    if f is None:
+        return None
+    m = f.model
+    return {
+        "effects": [{"effect": c.effect, "location": c.location} for c in f.source.chain],
+        "kept": f.kept, "note": f.note, "db_rms_before": f.source.db_rms, "db_rms": m.db_rms,
+        "db_rms_unweighted": m.db_rms_unweighted, "file": "final.urdf",
+        "parameters": [{"name": n, "value": float(v), "std": float(e)}
+                       for n, v, e in zip(m.names, m.values, m.std, strict=True)],
+    }  # fmt: skip
 
 
 def write_outputs(
     diag: Diagnosis, out_dir: Path, *, plots: bool = True, warnings: Sequence[str] = ()
 ) -> list[Path]:
     """Write diagnosis.json (with the input ``warnings``), refit.urdf, augmented.urdf (the
-    winner), residual map and Bode PNGs."""
+    winner), final.urdf (the final model refitted on all data), residual map and Bode PNGs."""
     out_dir.mkdir(parents=True, exist_ok=True)
     reports = gaps(diag)
     content = to_json_dict(diag, reports)
@@ -339,6 +355,8 @@ def write_outputs(
     chain = [s.winner for s in diag.steps if s.winner is not None]
     if len(chain) > 1 and chain[-1].urdf:  # every accepted effect built in
         written.append(write_text_atomic(out_dir / "augmented_all.urdf", chain[-1].urdf))
+    if diag.final is not None and diag.final.model.urdf:
+        written.append(write_text_atomic(out_dir / "final.urdf", diag.final.model.urdf))
     if plots:
         written += _plots(diag, reports, out_dir)
     return written

@@ -19,9 +19,7 @@ accepted so far — and
 3. scores them on held-out data (:mod:`.scoring`) and accepts the best whose effect
    strength the data determine (:func:`.scoring.determined`) only under the verdict rule of
    :func:`.scoring.accept` (the base above the held-out noise level, the improvement
-   significant given that noise; the same rule at every step);
-4. polishes the accepted refit (:mod:`.polish`: the full solve the capped refit did not
-   get); the polished model is the one reported and the next step's base.
+   significant given that noise; the same rule at every step).
 
 The search stops at the first step that accepts nothing, or after
 :attr:`Context.max_effects` accepted effects. The first accepted effect is the verdict; the
@@ -42,7 +40,6 @@ from ..model.document import UrdfDocument
 from . import scoring
 from .effects import Candidate
 from .job import Job, JobResult
-from .polish import polish
 from .refit import Nominal
 from .rescue import above_heldout_level
 from .runner import run_job
@@ -93,8 +90,6 @@ class Context:
     #: the modes identified in each full data set (:mod:`.modal_id`; empty: identified
     #: where a job needs them)
     measured: tuple = ()
-    #: IPOPT iterations of the polish of an accepted effect's refit (:mod:`.polish`)
-    polish_iter: int = 300
 
     def __post_init__(self) -> None:
         if self.space is None:
@@ -251,8 +246,7 @@ def _step(
         # effects accepted before, already in the base)
         step.test = scoring.tests(step.scores[0], base_score, best.n_own, ctx.noise)
         if step.test["accepted"]:
-            step.winner = polish(best, _job(ctx, base, None, alt=False), ctx.polish_iter, pool)
-            progress(f"step {index + 1} polished {best.label}")
+            step.winner = best
     step.test["strength_z"] = z
     return step
 
@@ -271,9 +265,7 @@ def search(
         steps.append(step)
         if step.winner is None or not _open(ctx, step.winner):
             break
-        # the polished winner's own score (its held-out figure may differ from the ranked one)
-        base = step.winner
-        base_score = scoring.score(base.heldout_rms, base.n_train, base.n_new)
+        base, base_score = step.winner, step.scores[0]
     return steps
 
 

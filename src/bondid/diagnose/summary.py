@@ -60,6 +60,9 @@ def summary(diag: Diagnosis, content: dict[str, Any]) -> str:
             lines.append("  the data do not tell it from: " + ", ".join(ties))
     if content.get("effects"):
         lines.append("effects: " + steps_line(g["db_rms"], content["effects"]))
+    ff = content.get("final_fit")
+    if ff:
+        lines.append(f"final model refitted on all data (final.urdf): {ff['note']}")
     lines.append(f"time {diag.wall_s:.1f} s")
     return "\n".join(lines)
 

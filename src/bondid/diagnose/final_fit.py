@@ -1,0 +1,91 @@
+"""The final fit (:func:`final_fit`): the diagnosis's final model refitted on all its data.
+
+The search decides on held-out data: every refit is fitted to the training points and
+scored on the others, and its verdict, scores and ``db_rms_after`` figures stay those. The
+model a user takes away is the final one — the parameter refit with every accepted effect,
+or the parameter refit alone when none is accepted — and it should rest on all the data.
+The final fit refits it on every point of every data set (training and held-out), the same
+problem otherwise (the nominal parameters and every accepted effect's parameters free, the
+same bounds and prior), ``Settings.ipopt_iter`` IPOPT iterations, then the rescue of every
+refit (:func:`.runner.finish`). It is kept when its weighted gap on all data (``db_rms``) is
+lower than the final model's. It changes no verdict and no figure of the search; its
+held-out figure is in-sample and is not reported.
+
+Why: a mode that the training bands do not pin may stay off the measured one. Measured on
+bonder_b/jct/nocoh of the blind benchmark (stop 29): the true candidate's refit ends at
+0.737 dB on all data with a mode at 374 Hz where the data have 321 Hz (its band is held out
+at one operating point, trained at the other, 1.40 dB there against the truth model's 0.18);
+300 more iterations on the training data leave its objective at 0.2514 (0.701 dB), a prior
+of width 0 gives 0.795 dB, and the same solve on all data reaches 0.436 dB, the truth
+model's own figure.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+from .job import Job, JobResult
+from .runner import run_job
+
+
+@dataclass
+class FinalFit:
+    """The final model refitted on all data.
+
+    Attributes:
+        source: the final model as the search left it (an accepted effect's refit, or the
+            parameter refit).
+        model: the final fit when kept (the source's label, effect and chain, refitted
+            values, model text and figures), else ``source``.
+        kept: whether the final fit lowered the weighted gap on all data.
+        note: what the fit did, one line (figures in dB).
+    """
+
+    source: JobResult
+    model: JobResult
+    kept: bool
+    note: str
+
+
+def final_job(source: JobResult, base: Job, max_iter: int) -> Job:
+    """The job refitting ``source`` (its model and accepted effects, no new candidate) on all
+    the data of ``base`` (its ``full`` data sets as training), with ``max_iter`` IPOPT
+    iterations of the direct solve."""
+    return replace(
+        base, urdf=source.urdf, train=list(base.full), candidate=None, accepted=source.chain,
+        all_iter=max_iter, alt_urdf=None, start_new=(), wider=False, modal=False,
+        profile_always=False, heldout_noise_db=math.nan,
+    )  # fmt: skip
+
+
+def judged(source: JobResult, job: Job, result: JobResult) -> FinalFit:
+    """The :class:`FinalFit` of ``source`` given the final job's ``result`` (module
+    docstring: kept when its weighted gap on all data is lower)."""
+    if result.error or list(result.names) != list(source.names):
+        why = result.error or "the final fit has other parameters"
+        return FinalFit(source, source, False, f"not kept: {why}")
+    keep = bool(math.isfinite(result.db_rms) and result.db_rms < source.db_rms)
+    note = (
+        f"all data, {job.all_iter} iterations: weighted gap {source.db_rms:.3f} -> "
+        f"{result.db_rms:.3f} dB, " + ("kept" if keep else "not kept")
+    )
+    if not keep:
+        return FinalFit(source, source, False, note)
+    model = replace(
+        result, label=source.label, effect=source.effect, location=source.location,
+        candidate=source.candidate, n_own=source.n_own,
+        extra={**source.extra, "final fit": note, **({"final fit rescue": result.extra["rescue"]}
+                                                     if "rescue" in result.extra else {})},
+    )  # fmt: skip
+    return FinalFit(source, model, True, note)
+
+
+def final_fit(source: JobResult, base: Job, max_iter: int, pool: object | None = None) -> FinalFit:
+    """Refit the final model ``source`` on all data (module docstring). ``base``: a job with
+    the diagnosis's data, space and options; ``pool``: a worker pool with ``submit`` (None:
+    run here)."""
+    job = final_job(source, base, max_iter)
+    if pool is None:
+        return judged(source, job, run_job(job))
+    return judged(source, job, pool.submit(run_job, job).result())  # type: ignore[attr-defined]
