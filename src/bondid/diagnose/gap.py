@@ -300,3 +300,21 @@ def _band_table(points: Sequence[_Points], bands: Sequence[Span]) -> list[dict[s
 
 
 __all__ = ["DB", "WEIGHTINGS", "GapReport", "band_mask", "gap_bands", "gap_report"]
+
+
+def missing_mode_hints(
+    by_dataset: list[list[dict[str, Any]]], tol: float = 0.02
+) -> tuple[float, ...]:
+    """Frequencies [Hz] of the measured modes the refitted model lacks (status ``missing``),
+    over all data sets, merged within a relative ``tol``, ascending."""
+    found = sorted(
+        float(r["f_measured_hz"])
+        for rows in by_dataset
+        for r in rows
+        if r.get("status") == "missing" and r.get("f_measured_hz")
+    )
+    out: list[float] = []
+    for f in found:
+        if not out or f > out[-1] * (1.0 + tol):
+            out.append(f)
+    return tuple(out)

@@ -42,6 +42,7 @@ from ..model.document import UrdfDocument
 from ..model.parameters import get_parameter, select_parameters
 from .effects import Candidate, get_effects
 from .final_fit import FinalFit, final_fit
+from .gap import missing_mode_hints
 from .job import Job, JobResult
 from .pool import WorkerPool
 from .refit import Nominal, nominal_space_for
@@ -335,24 +336,6 @@ def _refit_baseline(
 
         raise ComputationError(f"the parameter refit failed: {baseline.error}")
     return baseline, fit_info
-
-
-def missing_mode_hints(
-    by_dataset: list[list[dict[str, Any]]], tol: float = 0.02
-) -> tuple[float, ...]:
-    """Frequencies [Hz] of the measured modes the refitted model lacks (status ``missing``),
-    over all data sets, merged within a relative ``tol``, ascending."""
-    found = sorted(
-        float(r["f_measured_hz"])
-        for rows in by_dataset
-        for r in rows
-        if r.get("status") == "missing" and r.get("f_measured_hz")
-    )
-    out: list[float] = []
-    for f in found:
-        if not out or f > out[-1] * (1.0 + tol):
-            out.append(f)
-    return tuple(out)
 
 
 def _where(
