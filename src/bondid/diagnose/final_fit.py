@@ -72,11 +72,12 @@ def judged(source: JobResult, job: Job, result: JobResult) -> FinalFit:
     )
     if not keep:
         return FinalFit(source, source, False, note)
+    extra = {**source.extra, "final fit": note}
+    if "rescue" in result.extra:
+        extra["final fit rescue"] = result.extra["rescue"]
     model = replace(
         result, label=source.label, effect=source.effect, location=source.location,
-        candidate=source.candidate, n_own=source.n_own,
-        extra={**source.extra, "final fit": note, **({"final fit rescue": result.extra["rescue"]}
-                                                     if "rescue" in result.extra else {})},
+        candidate=source.candidate, n_own=source.n_own, extra=extra,
     )  # fmt: skip
     return FinalFit(source, model, True, note)
 

@@ -284,7 +284,7 @@ def diagnose(
             measured=measured,
         )  # fmt: skip
         steps = search(ctx, pool, baseline, say)
-        last = ([*accepted(steps)] or [baseline])[-1]
+        last = (accepted(steps) or [baseline])[-1]
         data = Job(last.urdf, p.space, p.train, p.held, p.full, None, p.options)
         final = final_fit(last, data, s.ipopt_iter, pool)
         say("final fit on all data")

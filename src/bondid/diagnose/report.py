@@ -38,6 +38,7 @@ from ..atomic import write_text_atomic
 from ..jsonsafe import json_safe as _num
 from . import scoring
 from .gap import GapReport, gap_report
+from .job import JobResult
 from .pipeline import Diagnosis
 from .scoring import ABS_MARGIN_DB, REL_MARGIN, gap_closed
 
@@ -271,10 +272,7 @@ def _refit_section(diag: Diagnosis) -> dict[str, Any]:
     """``refit``: the parameter refit's values and figures."""
     b = diag.baseline
     return {
-        "parameters": [
-            {"name": n, "value": float(v), "std": float(s)}
-            for n, v, s in zip(b.names, b.values, b.std, strict=True)
-        ],
+        "parameters": _parameter_rows(b),
         "free": diag.names,
         "ipopt_stage": diag.fit_info,
         "heldout_weighted_rms": b.heldout_rms,
@@ -334,9 +332,14 @@ def _final_section(diag: Diagnosis) -> dict[str, Any] | None:
         "effects": [{"effect": c.effect, "location": c.location} for c in f.source.chain],
         "kept": f.kept, "note": f.note, "db_rms_before": f.source.db_rms, "db_rms": m.db_rms,
         "db_rms_unweighted": m.db_rms_unweighted, "file": "final.urdf",
-        "parameters": [{"name": n, "value": float(v), "std": float(e)}
-                       for n, v, e in zip(m.names, m.values, m.std, strict=True)],
+        "parameters": _parameter_rows(m),
     }  # fmt: skip
+
+
+def _parameter_rows(r: JobResult) -> list[dict[str, Any]]:
+    """``[{name, value, std}]`` of a refit's variables (SI)."""
+    return [{"name": n, "value": float(v), "std": float(e)}
+            for n, v, e in zip(r.names, r.values, r.std, strict=True)]  # fmt: skip
 
 
 def write_outputs(
