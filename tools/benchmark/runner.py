@@ -230,6 +230,12 @@ def _gap_closed_final(diag: dict[str, Any], claimed: list[dict[str, Any]]) -> fl
 AT_NOISE = 1.10
 
 
+def _at_noise(db: float | None, db_truth: float | None) -> bool | None:
+    """Is a weighted gap [dB] within :data:`AT_NOISE` of the truth's (None if either is
+    missing)?"""
+    return None if db is None or db_truth is None else float(db) <= AT_NOISE * db_truth
+
+
 def final_db(diag: dict[str, Any], claimed: list[dict[str, Any]]) -> float | None:
     """The weighted gap of the diagnosis's final model: after its last accepted effect, else
     the parameter refit's."""
@@ -264,10 +270,10 @@ def score(case: Case, diag: dict[str, Any], db_truth: float | None) -> dict[str,
         ratio = closed / truth_closed
     stages = diag.get("stages") or {}
     final = final_db(diag, claimed)
-    at_noise = None if final is None or db_truth is None else final <= AT_NOISE * db_truth
+    at_noise = _at_noise(final, db_truth)
     # the final model refitted on all data (stop 29; absent from older outputs)
     ff = (diag.get("final_fit") or {}).get("db_rms")
-    ff_at = None if ff is None or db_truth is None else float(ff) <= AT_NOISE * db_truth
+    ff_at = _at_noise(ff, db_truth)
     return {
         "claimed": [list(g) for g in got], "verdict": v.get("effect"),
         "location": v.get("location"), "class_ok": class_ok, "location_ok": loc_ok,
