@@ -276,3 +276,16 @@ def test_extra_rows_join_the_objective_not_the_reported_cost(bonder: UrdfDocumen
     assert held.cost_initial == pytest.approx(free.cost_initial, rel=1e-12)  # data alone
     sub = problem.restrict(bands=[(10.0, 500.0)])
     assert sub.rows is not None and sub.rows.size == sub.size
+
+
+def test_a_solve_never_ends_above_a_feasible_iterate_it_passed(bonder: UrdfDocument) -> None:
+    """From the exact model (cost at rounding level), a barrier parameter far above the cost
+    pushes IPOPT's iterates uphill; the solve keeps the best feasible iterate instead."""
+    problem = FitProblem(bonder, synth(bonder, 40), NAMES)
+    start = problem.cost(problem.z0)
+    sol = solve(problem, max_iter=3, ipopt_options={"mu_init": 10.0})
+    assert sol.history[-1] > sol.history[0]  # the path did go uphill: the case is exercised
+    assert sol.kept == "best" and not sol.failed
+    assert sol.cost == pytest.approx(min(sol.history), rel=1e-12)
+    assert problem.cost(sol.z) == pytest.approx(sol.cost, rel=1e-9, abs=1e-12 * (1 + start))
+    assert sol.cost <= sol.history[0]

@@ -129,6 +129,7 @@ def build(
     options: object,
     accepted: Sequence[Candidate] = (),
     candidate: Candidate | None = None,
+    ipopt: dict | None = None,
 ) -> Augmented:
     """The augmented model (module docstring) with its refit on ``data``.
 
@@ -140,6 +141,7 @@ def build(
         options: :class:`bondid.cost.problem.CostOptions`.
         accepted: effects accepted before (parameters starting at their fitted values).
         candidate: the effect tried now, or None.
+        ipopt: IPOPT options of the refit's solves (:class:`~.refit.Refit`).
     """
     doc = UrdfDocument.from_string(urdf, source="refit model")
     chain = [*accepted, *([candidate] if candidate is not None else [])]
@@ -165,5 +167,5 @@ def build(
     n_acc = sum(len(c.parameters) for c in accepted)
     modifier = ComposedModifier(mods) if mods else None
     n_own = 0 if candidate is None else len(candidate.parameters)
-    refit = Refit(doc, data, nominal, new, modifier, options, n_own)  # type: ignore[arg-type]
+    refit = Refit(doc, data, nominal, new, modifier, options, n_own, ipopt)  # type: ignore[arg-type]
     return Augmented(doc, refit, modifier, len(nominal.names), n_acc)

@@ -6,7 +6,8 @@ model a user takes away is the final one — the parameter refit with every acce
 or the parameter refit alone when none is accepted — and it should rest on all the data.
 The final fit refits it on every point of every data set (training and held-out), the same
 problem otherwise (the nominal parameters and every accepted effect's parameters free, the
-same bounds and prior), ``Settings.ipopt_iter`` IPOPT iterations, then the rescue of every
+same bounds and prior), ``Settings.ipopt_iter`` IPOPT iterations started as a warm start
+(:data:`bondid.optim.ipopt.WARM_START`: a small initial barrier), then the rescue of every
 refit (:func:`.runner.finish`). It is kept when its weighted gap on all data (``db_rms``) is
 lower than the final model's. It changes no verdict and no figure of the search; its
 held-out figure is in-sample and is not reported.
@@ -25,6 +26,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
+from ..optim.ipopt import WARM_START
 from .job import Job, JobResult
 from .runner import run_job
 
@@ -55,7 +57,7 @@ def final_job(source: JobResult, base: Job, max_iter: int) -> Job:
     return replace(
         base, urdf=source.urdf, train=list(base.full), candidate=None, accepted=source.chain,
         all_iter=max_iter, alt_urdf=None, start_new=(), wider=False, modal=False,
-        profile_always=False, heldout_noise_db=math.nan,
+        profile_always=False, heldout_noise_db=math.nan, ipopt=tuple(WARM_START.items()),
     )  # fmt: skip
 
 

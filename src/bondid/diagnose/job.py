@@ -79,6 +79,8 @@ class Job:
     #: the modes identified in each of ``full`` (tuples of :class:`.modal_id.IdentifiedMode`),
     #: for the starts of :mod:`.modal_start`; empty: identified there when needed
     measured: tuple = ()
+    #: IPOPT options of the job's solves over the refit's own (``(name, value)`` pairs)
+    ipopt: tuple[tuple[str, float], ...] = ()
 
 
 @dataclass

@@ -157,13 +157,16 @@ class Refit:
         modifier: the composed FRF modifier function of the modifier parameters, or None.
         options: cost options.
         n_own: how many of ``new`` (the last ones) are the candidate's own.
+        ipopt: IPOPT options of every solve over those of ``bondid.fit`` (None: none).
     """
 
     def __init__(
         self, doc: UrdfDocument, data: Sequence[FrfData], nominal: Nominal,
         new: Sequence[NewVar], modifier: object | None, options: CostOptions, n_own: int,
+        ipopt: dict | None = None,
     ):  # fmt: skip
         self.nominal, self.new, self.n_own = nominal, list(new), n_own
+        self.ipopt = dict(ipopt or {})
         self.n_nominal = len(nominal.names)
         free = [v for v in self.new if v.leader is not None and not v.held]
         names = [*nominal.names, *(v.leader for v in free)]
@@ -338,10 +341,11 @@ class Refit:
         return out, self.cost(out)
 
     def _ipopt_options(self) -> dict | None:
-        """IPOPT's options of every solve (those ``bondid.fit`` uses with the prior)."""
+        """IPOPT's options of every solve (those ``bondid.fit`` uses with the prior, then
+        :attr:`ipopt`)."""
         from ..fit.prior import with_prior_ipopt
 
-        return with_prior_ipopt(self.nominal.prior_width, None)
+        return with_prior_ipopt(self.nominal.prior_width, self.ipopt or None)
 
     def result(self, res: SearchResult) -> tuple[FitResult, np.ndarray]:
         """The search's :class:`FitResult` and the std ``(n_θ,)`` of the modifier's θ.

@@ -91,7 +91,9 @@ def run_job(job: Job) -> JobResult:
 
 def _setup(urdf: str, job: Job) -> Augmented:
     """The (augmented) model of ``job`` on its training data (see :mod:`.augmented`)."""
-    return build(urdf, job.nominal, job.train, job.options, job.accepted, job.candidate)
+    return build(
+        urdf, job.nominal, job.train, job.options, job.accepted, job.candidate, dict(job.ipopt)
+    )
 
 
 def _exps(cand: Candidate) -> np.ndarray:
