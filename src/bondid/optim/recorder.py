@@ -3,9 +3,7 @@
 :func:`bondid.optim.ipopt.solve` hands IPOPT's per-iteration ``(f, z, g)`` to a
 :class:`Recorder`; a solve that failed keeps the recorded best point, and so does one whose
 final iterate costs more than a feasible iterate it passed through (an interior-point path can
-leave a good start uphill: with IPOPT's default barrier ``mu_init = 0.1`` against an objective
-of order 1, the all-data refit of a blind case went from cost 1.087 at its feasible start to
-1.365 after 300 iterations).
+leave a good start uphill: see :data:`bondid.optim.ipopt.WARM_START`).
 """
 
 from __future__ import annotations
