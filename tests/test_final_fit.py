@@ -134,3 +134,19 @@ def test_final_fit_kept_only_when_it_lowers_the_gap(case):  # type: ignore[no-un
     assert not failed.kept and "boom" in failed.note
     other = judged(source, job, replace(better, names=["m", "k", "d"]))
     assert not other.kept and other.model is source
+
+
+def test_the_final_fit_solves_as_a_warm_start(case):  # type: ignore[no-untyped-def]
+    """The final job's refit hands IPOPT the warm-start options over the prior's; a job of
+    the search keeps IPOPT's default barrier."""
+    from bondid.diagnose.final_fit import final_job
+    from bondid.diagnose.runner import _setup
+    from bondid.fit.prior import PRIOR_IPOPT
+    from bondid.optim.ipopt import WARM_START
+
+    job, _k = case
+    source = _result(job, urdf=job.urdf, chain=(job.candidate,))
+    warm = _setup(job.urdf, final_job(source, job, 300)).refit._ipopt_options() or {}
+    assert {**PRIOR_IPOPT, **WARM_START}.items() <= warm.items()
+    search = _setup(job.urdf, job).refit._ipopt_options() or {}
+    assert "mu_init" not in search
