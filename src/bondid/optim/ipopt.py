@@ -367,9 +367,10 @@ def solve(
         history=rec.history, g=_column(sol["g"]), lam_x=_column(sol["lam_x"]),
         lam_g=_column(sol["lam_g"]),
     )  # fmt: skip
-    if rec.beats(out.cost) and rec.best_z is not None and rec.best_g is not None:
+    best = rec.better_than(out.cost)
+    if best is not None:
         # the path went uphill from a feasible iterate: keep that one (multipliers: the last)
-        out.z, out.cost, out.g, out.kept = rec.best_z, rec.best_cost, rec.best_g, "best"
+        (out.z, out.cost, out.g), out.kept = best, "best"
     return out
 
 

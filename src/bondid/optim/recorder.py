@@ -48,6 +48,11 @@ class Recorder:
         if self.progress is not None:
             self.progress(len(self.history) - 1, cost)
 
-    def beats(self, cost: float) -> bool:
-        """A feasible iterate cost less than ``cost`` (by more than :data:`BETTER_BY`)."""
-        return self.best_z is not None and self.best_cost < cost * (1.0 - BETTER_BY)
+    def better_than(self, cost: float) -> tuple[np.ndarray, float, np.ndarray] | None:
+        """``(z, cost, g)`` of the best feasible iterate when it cost less than ``cost`` (by
+        more than :data:`BETTER_BY`), else None."""
+        if self.best_z is None or self.best_g is None:
+            return None
+        if not self.best_cost < cost * (1.0 - BETTER_BY):
+            return None
+        return self.best_z, self.best_cost, self.best_g
