@@ -135,6 +135,27 @@ def test_the_rescue_without_continuation_runs_only_the_staged_schedule(doc, comp
     assert without and "band continuation" not in without
 
 
+def test_the_rescue_told_to_run_always_runs_every_fallback_below_its_ratio(
+    doc, compliance, monkeypatch
+):  # type: ignore[no-untyped-def]
+    """With the rescue's ratios raised out of reach the refit counts as at the noise level
+    and the rescue does nothing; ``always=True`` (the final fit's) still runs the band
+    continuation and the staged schedule, and never returns a point of higher objective."""
+    from bondid.diagnose import rescue as rescue_module
+    from bondid.diagnose.runner import _fit
+
+    c, exact, data = compliance
+    job = replace(_job(doc, c, data, exact), alt_urdf=None)
+    aug, state, res = _fit(job)
+    monkeypatch.setattr(rescue_module, "RESCUE_RATIO", 1e9)
+    monkeypatch.setattr(rescue_module, "STAGED_RATIO", 1e9)
+    s1, _, quiet = rescue_module.rescue(aug.refit, state, res, 10, 20)
+    assert quiet == "" and s1 is state
+    s2, _, note = rescue_module.rescue(aug.refit, state, res, 10, 20, always=True)
+    assert "band continuation to" in note and "staged schedule to" in note, note
+    assert aug.refit.cost(s2) <= aug.refit.cost(state)
+
+
 def test_a_refit_that_misses_the_heldout_data_is_stuck(doc, compliance, monkeypatch):
     """Known answer for the held-out test of ``stuck`` (the training test is held False
     here): with the held-out noise level set to the refit's own held-out figure on data of

@@ -150,3 +150,21 @@ def test_the_final_fit_solves_as_a_warm_start(case):  # type: ignore[no-untyped-
     assert {**PRIOR_IPOPT, **WARM_START}.items() <= warm.items()
     search = _setup(job.urdf, job).refit._ipopt_options() or {}
     assert "mu_init" not in search
+
+
+def test_the_final_fit_runs_every_fallback_when_the_heldout_score_is_above_its_noise(case):  # type: ignore[no-untyped-def]
+    """The final job runs every fallback of the rescue when the source's held-out score is
+    above RESCUE_RATIO times the held-out noise level, not when it is below or without a
+    level."""
+    from bondid.diagnose.final_fit import final_job
+    from bondid.diagnose.rescue import RESCUE_RATIO
+
+    job, _k = case
+    source = _result(job, heldout_rms=1.0)
+    above = replace(source, heldout_rms=1.01 * RESCUE_RATIO)
+    below = replace(source, heldout_rms=0.99 * RESCUE_RATIO)
+    at_level = replace(job, heldout_noise_db=1.0)
+    assert final_job(above, at_level, 300).fallbacks_always
+    assert not final_job(below, at_level, 300).fallbacks_always
+    assert not final_job(above, replace(job, heldout_noise_db=float("nan")), 300).fallbacks_always
+    assert not job.fallbacks_always  # a search job: the rescue's own ratio test

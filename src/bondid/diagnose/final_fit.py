@@ -8,9 +8,13 @@ The final fit refits it on every point of every data set (training and held-out)
 problem otherwise (the nominal parameters and every accepted effect's parameters free, the
 same bounds and prior), ``Settings.ipopt_iter`` IPOPT iterations started as a warm start
 (:data:`bondid.optim.ipopt.WARM_START`: a small initial barrier), then the rescue of every
-refit (:func:`.runner.finish`). It is kept when its weighted gap on all data (``db_rms``) is
-lower than the final model's. It changes no verdict and no figure of the search; its
-held-out figure is in-sample and is not reported.
+refit (:func:`.runner.finish`). When the final model's held-out score is above the held-out
+noise level (:func:`.rescue.above_heldout_level`), the rescue runs all its fallbacks (band
+continuation, then staged schedule, each kept when its objective is lower) whatever the
+training figure says: a refit can sit at the training noise level the weights predict and
+still be well above the truth's own figure on all data. It is kept when its weighted gap on
+all data (``db_rms``) is lower than the final model's. It changes no verdict and no figure
+of the search; its held-out figure is in-sample and is not reported.
 
 Why: a mode that the training bands do not pin may stay off the measured one. Measured on
 bonder_b/jct/nocoh of the blind benchmark (stop 29): the true candidate's refit ends at
@@ -19,6 +23,14 @@ at one operating point, trained at the other, 1.40 dB there against the truth mo
 300 more iterations on the training data leave its objective at 0.2514 (0.701 dB), a prior
 of width 0 gives 0.795 dB, and the same solve on all data reaches 0.436 dB, the truth
 model's own figure.
+
+Measured on bonder_b/jct2/nocoh (stop 31): the true candidate's refit, rerun on the current code,
+ends at 1.389 dB on all data, training 1.01x the predicted noise level, held-out 1.63 dB
+against a held-out noise level of 0.95 dB. The final fit's direct solve reaches 1.250 dB
+and stops there (1.02x: no rescue); the band continuation from there ends at 1.40x (not
+kept), the staged schedule at 0.70x and 0.862 dB, the truth model's own figure. Run on
+every final fit, the fallbacks cost the bundled reference case (verdict none, at the
+held-out noise level) 35 s for no gain: hence the held-out test.
 """
 
 from __future__ import annotations
@@ -28,6 +40,7 @@ from dataclasses import dataclass, replace
 
 from ..optim.ipopt import WARM_START
 from .job import Job, JobResult
+from .rescue import above_heldout_level
 from .runner import run_job
 
 
@@ -53,11 +66,14 @@ class FinalFit:
 def final_job(source: JobResult, base: Job, max_iter: int) -> Job:
     """The job refitting ``source`` (its model and accepted effects, no new candidate) on all
     the data of ``base`` (its ``full`` data sets as training), with ``max_iter`` IPOPT
-    iterations of the direct solve."""
+    iterations of the direct solve; every fallback of the rescue runs when ``source``'s
+    held-out score is above the held-out noise level ``base.heldout_noise_db`` (module
+    docstring)."""
     return replace(
         base, urdf=source.urdf, train=list(base.full), candidate=None, accepted=source.chain,
         all_iter=max_iter, alt_urdf=None, start_new=(), wider=False, modal=False,
         profile_always=False, heldout_noise_db=math.nan, ipopt=tuple(WARM_START.items()),
+        fallbacks_always=above_heldout_level(source.heldout_rms, base.heldout_noise_db),
     )  # fmt: skip
 
 

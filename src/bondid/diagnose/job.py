@@ -81,6 +81,8 @@ class Job:
     measured: tuple = ()
     #: IPOPT options of the job's solves over the refit's own (``(name, value)`` pairs)
     ipopt: tuple[tuple[str, float], ...] = ()
+    #: the rescue runs every fallback whatever the noise ratio (:func:`.rescue.rescue`)
+    fallbacks_always: bool = False
 
 
 @dataclass

@@ -26,6 +26,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -285,7 +286,11 @@ def diagnose(
         )  # fmt: skip
         steps = search(ctx, pool, baseline, say)
         last = (accepted(steps) or [baseline])[-1]
-        data = Job(last.urdf, p.space, p.train, p.held, p.full, None, p.options)
+        level = p.noise.level_db if p.noise is not None else math.nan
+        data = Job(
+            last.urdf, p.space, p.train, p.held, p.full, None, p.options,
+            heldout_noise_db=level,
+        )  # fmt: skip
         final = final_fit(last, data, s.ipopt_iter, pool)
         say("final fit on all data")
         nominal_H = [model_frf(doc, d) for d in p.full]

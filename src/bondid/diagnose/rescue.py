@@ -88,12 +88,14 @@ def above_heldout_level(heldout_rms: float, level_db: float) -> bool:
 
 def rescue(
     refit: Refit, state: State, res: Any, presolve_iter: int, max_iter: int,
-    continuation: bool = True,
+    continuation: bool = True, always: bool = False,
 ) -> tuple[State, Any, str]:  # fmt: skip
     """The fallbacks (module docstring) from ``state`` while its training db_rms is above
     :data:`RESCUE_RATIO` (the staged schedule: :data:`STAGED_RATIO`) times the predicted
     noise level (the test of :mod:`bondid.optim.fallback`, which ``bondid.fit`` runs from its
     start); each fallback starts from the best point so far; the lowest objective is kept.
+    ``always``: every fallback runs whatever the noise ratio (the final fit,
+    :mod:`.final_fit`: the predicted level may be well above the truth's own figure).
 
     Args:
         refit, state, res: the refit, its best point and that point's search.
@@ -108,13 +110,13 @@ def rescue(
         The state, its search and a note ("" when the refit was at the noise level).
     """
     ratio = noise_ratio_at(refit, state)
-    if ratio is None or not ratio > RESCUE_RATIO:
+    if not always and (ratio is None or not ratio > RESCUE_RATIO):
         return state, res, ""
-    said = [f"training db_rms {ratio:.2f}x the predicted noise level"]
+    said = [f"training db_rms {ratio or math.nan:.2f}x the predicted noise level"]
     best = refit.cost(state)
     for label, above, build in _schedules(presolve_iter, max_iter, continuation):
         now = noise_ratio_at(refit, state)
-        if now is None or not now > above:
+        if not always and (now is None or not now > above):
             break
         s2, c2, res2 = refit.solve(state, build(refit.at(state)), max_iter=max_iter)
         kept = c2 < best

@@ -298,8 +298,9 @@ def finish(
     cand = job.candidate
     refit = aug.refit
     state, res, note = rescue(
-        refit, state, res, job.presolve_iter, job.alt_iter, continuation=continuation
-    )
+        refit, state, res, job.presolve_iter, job.alt_iter, continuation=continuation,
+        always=job.fallbacks_always,
+    )  # fmt: skip
     if note:
         extra["rescue"] = note
     fit, std_theta = refit.result(res)
