@@ -134,6 +134,13 @@ def test_final_fit_kept_only_when_it_lowers_the_gap(case):  # type: ignore[no-un
     assert not failed.kept and "boom" in failed.note
     other = judged(source, job, replace(better, names=["m", "k", "d"]))
     assert not other.kept and other.model is source
+    # the rescue's note is kept either way: in the model's notes only when the fit is kept
+    told = replace(better, extra={"rescue": "staged schedule to 0.70x, kept"})
+    assert judged(source, job, told).rescue == "staged schedule to 0.70x, kept"
+    assert judged(source, job, told).model.extra["final fit rescue"] == told.extra["rescue"]
+    refused = judged(source, job, replace(told, db_rms=1.2))
+    assert refused.rescue == told.extra["rescue"] and "final fit rescue" not in refused.model.extra
+    assert judged(source, job, better).rescue == ""
 
 
 def test_the_final_fit_solves_as_a_warm_start(case):  # type: ignore[no-untyped-def]

@@ -55,12 +55,15 @@ class FinalFit:
             values, model text and figures), else ``source``.
         kept: whether the final fit lowered the weighted gap on all data.
         note: what the fit did, one line (figures in dB).
+        rescue: what the rescue's fallbacks did (:func:`.rescue.rescue`'s note; "" when
+            none ran), kept or not.
     """
 
     source: JobResult
     model: JobResult
     kept: bool
     note: str
+    rescue: str = ""
 
 
 def final_job(source: JobResult, base: Job, max_iter: int) -> Job:
@@ -88,16 +91,17 @@ def judged(source: JobResult, job: Job, result: JobResult) -> FinalFit:
         f"all data, {job.all_iter} iterations: weighted gap {source.db_rms:.3f} -> "
         f"{result.db_rms:.3f} dB, " + ("kept" if keep else "not kept")
     )
+    rescue = str(result.extra.get("rescue", ""))
     if not keep:
-        return FinalFit(source, source, False, note)
+        return FinalFit(source, source, False, note, rescue)
     extra = {**source.extra, "final fit": note}
-    if "rescue" in result.extra:
-        extra["final fit rescue"] = result.extra["rescue"]
+    if rescue:
+        extra["final fit rescue"] = rescue
     model = replace(
         result, label=source.label, effect=source.effect, location=source.location,
         candidate=source.candidate, n_own=source.n_own, extra=extra,
     )  # fmt: skip
-    return FinalFit(source, model, True, note)
+    return FinalFit(source, model, True, note, rescue)
 
 
 def final_fit(source: JobResult, base: Job, max_iter: int, pool: object | None = None) -> FinalFit:
