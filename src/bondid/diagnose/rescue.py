@@ -86,6 +86,11 @@ def above_heldout_level(heldout_rms: float, level_db: float) -> bool:
     return math.isfinite(level_db) and level_db > 0 and heldout_rms > RESCUE_RATIO * level_db
 
 
+def _due(ratio: float | None, above: float, always: bool) -> bool:
+    """Does a fallback run at noise ratio ``ratio`` with threshold ``above``?"""
+    return always or (ratio is not None and ratio > above)
+
+
 def rescue(
     refit: Refit, state: State, res: Any, presolve_iter: int, max_iter: int,
     continuation: bool = True, always: bool = False,
@@ -110,13 +115,12 @@ def rescue(
         The state, its search and a note ("" when the refit was at the noise level).
     """
     ratio = noise_ratio_at(refit, state)
-    if not always and (ratio is None or not ratio > RESCUE_RATIO):
+    if not _due(ratio, RESCUE_RATIO, always):
         return state, res, ""
     said = [f"training db_rms {ratio or math.nan:.2f}x the predicted noise level"]
     best = refit.cost(state)
     for label, above, build in _schedules(presolve_iter, max_iter, continuation):
-        now = noise_ratio_at(refit, state)
-        if not always and (now is None or not now > above):
+        if not _due(noise_ratio_at(refit, state), above, always):
             break
         s2, c2, res2 = refit.solve(state, build(refit.at(state)), max_iter=max_iter)
         kept = c2 < best
