@@ -39,9 +39,9 @@ import math
 from dataclasses import dataclass, replace
 
 from ..optim.ipopt import WARM_START
+from .final_pivot import run_final
 from .job import Job, JobResult
 from .rescue import above_heldout_level
-from .runner import run_job
 
 
 @dataclass
@@ -57,6 +57,8 @@ class FinalFit:
         note: what the fit did, one line (figures in dB).
         rescue: what the rescue's fallbacks did (:func:`.rescue.rescue`'s note; "" when
             none ran), kept or not.
+        pivot: what the pivot search of :mod:`.final_pivot` did ("" when it did not run),
+            kept or not.
     """
 
     source: JobResult
@@ -64,6 +66,7 @@ class FinalFit:
     kept: bool
     note: str
     rescue: str = ""
+    pivot: str = ""
 
 
 def final_job(source: JobResult, base: Job, max_iter: int) -> Job:
@@ -92,16 +95,19 @@ def judged(source: JobResult, job: Job, result: JobResult) -> FinalFit:
         f"{result.db_rms:.3f} dB, " + ("kept" if keep else "not kept")
     )
     rescue = str(result.extra.get("rescue", ""))
+    pivot = str(result.extra.get("pivot search", ""))
     if not keep:
-        return FinalFit(source, source, False, note, rescue)
+        return FinalFit(source, source, False, note, rescue, pivot)
     extra = {**source.extra, "final fit": note}
     if rescue:
         extra["final fit rescue"] = rescue
+    if pivot:
+        extra["final fit pivot"] = pivot
     model = replace(
         result, label=source.label, effect=source.effect, location=source.location,
         candidate=source.candidate, n_own=source.n_own, extra=extra,
     )  # fmt: skip
-    return FinalFit(source, model, True, note, rescue)
+    return FinalFit(source, model, True, note, rescue, pivot)
 
 
 def final_fit(source: JobResult, base: Job, max_iter: int, pool: object | None = None) -> FinalFit:
@@ -110,5 +116,5 @@ def final_fit(source: JobResult, base: Job, max_iter: int, pool: object | None =
     run here)."""
     job = final_job(source, base, max_iter)
     if pool is None:
-        return judged(source, job, run_job(job))
-    return judged(source, job, pool.submit(run_job, job).result())  # type: ignore[attr-defined]
+        return judged(source, job, run_final(job))
+    return judged(source, job, pool.submit(run_final, job).result())  # type: ignore[attr-defined]

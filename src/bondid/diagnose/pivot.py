@@ -73,6 +73,7 @@ def refine_pivot(
     extent: np.ndarray | None = None,
     move: Callable[[Candidate, np.ndarray], Candidate] = with_pivot,
     box: tuple[np.ndarray, np.ndarray] | None = None,
+    max_evals: int = MAX_EVALS,
 ) -> tuple[Candidate, float, int]:
     """The compass search of the module docstring from ``cand``'s pivot.
 
@@ -85,6 +86,7 @@ def refine_pivot(
             JointCompliance.at_pivot`).
         box: lower and upper corners (m, child frame) the pivot stays in (the child's hull's
             bounding box, :func:`child_box`: a bearing pivots within its body), or None.
+        max_evals: cost evaluations at most, the start's included.
 
     Returns:
         The candidate at the best pivot found, its cost and the number of evaluations.
@@ -95,11 +97,11 @@ def refine_pivot(
     best = cost(cand)
     n = 1
     steps = first_steps(extent, across)
-    while n < MAX_EVALS and np.any(steps >= MIN_STEP):
+    while n < max_evals and np.any(steps >= MIN_STEP):
         moved = False
         for k, d in enumerate(across):
             for sign in (1.0, -1.0):
-                if n >= MAX_EVALS:
+                if n >= max_evals:
                     break
                 p = best_p.copy()
                 p[d] += sign * steps[k]

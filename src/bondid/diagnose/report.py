@@ -330,8 +330,9 @@ def _final_section(diag: Diagnosis) -> dict[str, Any] | None:
     m = f.model
     return {
         "effects": [{"effect": c.effect, "location": c.location} for c in f.source.chain],
-        "kept": f.kept, "note": f.note, "rescue": f.rescue, "db_rms_before": f.source.db_rms,
-        "db_rms": m.db_rms, "db_rms_unweighted": m.db_rms_unweighted, "file": "final.urdf",
+        "kept": f.kept, "note": f.note, "rescue": f.rescue, "pivot": f.pivot,
+        "db_rms_before": f.source.db_rms, "db_rms": m.db_rms,
+        "db_rms_unweighted": m.db_rms_unweighted, "file": "final.urdf",
         "parameters": _parameter_rows(m),
     }  # fmt: skip
 

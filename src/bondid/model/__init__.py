@@ -1,6 +1,6 @@
 """The model layer: a URDF document, its named parameters, and structural edits."""
 
-from .authoring import find_joint_between, insert_parasitic_joint
+from .authoring import find_joint_between, insert_parasitic_joint, move_pivot
 from .document import Spring, Transmission, UrdfDocument
 from .parameters import (
     GROUPS,
@@ -29,6 +29,7 @@ __all__ = [
     "group_members",
     "insert_parasitic_joint",
     "link_inertial",
+    "move_pivot",
     "parameter_infos",
     "parameter_names",
     "select_parameters",

@@ -93,6 +93,29 @@ def insert_parasitic_joint(
     return name
 
 
+def move_pivot(doc: UrdfDocument, name: str, pivot: Sequence[float] | np.ndarray) -> None:
+    """Move the pivot of the parasitic joint ``name`` (one :func:`insert_parasitic_joint`
+    made) to ``pivot`` (m, shape (3,), the frame the joint was inserted in); the child body
+    keeps its placement, the joint its axis, stiffness and damping. Edits ``doc`` in place."""
+    where = doc.source or "<URDF>"
+    if name not in doc.joint_names:
+        raise ModelError(f"{where}: no joint {name!r} to move the pivot of")
+    p = np.asarray(pivot, dtype=float)
+    if p.shape != (3,) or not np.all(np.isfinite(p)):
+        raise ModelError(f"{where}: parasitic joint {name!r}: pivot must be a finite 3-vector")
+    joint = doc.joint(name)
+    offset = f"{name}_offset"
+    if offset not in doc.joint_names:  # inserted at its frame's origin: no offset joint yet
+        if f"{name}_moving" in doc.link_names:
+            raise ModelError(f"{where}: cannot move {name!r}: link {name}_moving already used")
+        final_child = joint.child
+        joint.child = f"{name}_moving"
+        _offset_back(doc, name, joint.child, final_child, p)
+    else:
+        doc.joint(offset).origin = _translation(-p)
+    joint.origin = _translation(p)
+
+
 def _compliant_joint(
     name: str,
     kind: str,
