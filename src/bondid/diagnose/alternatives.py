@@ -30,7 +30,14 @@ from .augmented import Augmented
 from .effects import Candidate
 from .job import Job, direct
 from .keep import held_of, replaces
-from .pivot import child_box, refine_pivot, with_pivot
+from .pivot import (
+    FULL_EVAL_ITER,
+    FULL_MAX_EVALS,
+    MAX_EVALS,
+    child_box,
+    refine_pivot,
+    with_pivot,
+)
 from .refit import State
 from .rescue import above_noise
 from .runner import _alt_start, _fit, _setup
@@ -79,7 +86,7 @@ def stuck(job: Job, aug: Augmented, state: State, res: Any) -> bool:
 
 
 def refine_job_pivot(
-    job: Job, warm: tuple[Augmented, State] | None = None
+    job: Job, warm: tuple[Augmented, State] | None = None, full: bool = False
 ) -> tuple[Job, str, State | None]:
     """The job with its rotational compliance's pivot refined (:func:`.pivot.refine_pivot`).
     Without ``warm``, each pivot is judged like a variant (:func:`.runner._screen_variants`:
@@ -87,8 +94,11 @@ def refine_job_pivot(
     and its state), the candidate is rebuilt about each pivot (:meth:`~.effects.
     joint_compliance.JointCompliance.at_pivot`) and judged by a solve of its new parameters
     alone from that state, scaled to the pivot (:func:`pivot_ratio`): the nominal parameters
-    stay where the refit put them and the spring keeps its mode's frequency. Returns the job,
-    the note and, with ``warm``, the state at the best pivot."""
+    stay where the refit put them and the spring keeps its mode's frequency. With ``full``
+    too, by a short solve of every parameter from there (:data:`.pivot.FULL_EVAL_ITER`
+    iterations, at most :data:`.pivot.FULL_MAX_EVALS` pivots): the nominal parameters that
+    the first pivot bent move with the pivot. Returns the job, the note and, with ``warm``,
+    the state at the best pivot."""
     from ..model.document import UrdfDocument
     from .effects import get_effect
     from .effects.joint_compliance import JointCompliance
@@ -116,7 +126,10 @@ def refine_job_pivot(
                 return _alt_start(sub, refit, found, only=0)[1]
             w_aug, w_state = warm
             new = w_aug.refit.new_values(w_state) * pivot_ratio(c, cand)
-            s, value = refit.solve_new(refit.with_new(w_state, new), job.new_iter)
+            if full:
+                s, value, _ = refit.solve(refit.with_new(w_state, new), direct(FULL_EVAL_ITER))
+            else:
+                s, value = refit.solve_new(refit.with_new(w_state, new), job.new_iter)
             states[tuple(c.spec["pivot"])] = s
             return value
         except _SKIPPED as err:
@@ -126,8 +139,8 @@ def refine_job_pivot(
     child = str(cand.location).split("->", 1)[1].split(":", 1)[0]
     box = child_box(urdf, child)
     extent = None if box is None else box[1] - box[0]
-    best, c, n = refine_pivot(cand, cost, extent, move, box)
-    kind = "start" if warm is None else "warm"
+    best, c, n = refine_pivot(cand, cost, extent, move, box, FULL_MAX_EVALS if full else MAX_EVALS)
+    kind = "start" if warm is None else ("all parameters" if full else "warm")
     note = f"{n} pivots tried, {kind} figure {c:.4g}"
     failures = _failures_note(failed, n, "pivots")
     note = f"{note} ({failures})" if failures else note
@@ -154,14 +167,15 @@ def moved_job(job: Job, cand: Candidate) -> Job:
 
 
 def at_refined_pivot(
-    job: Job, aug: Augmented, state: State, res: Any, warm: bool = False
+    job: Job, aug: Augmented, state: State, res: Any, warm: bool = False, full: bool = False
 ) -> tuple[Job, Augmented, State, Any, str]:
     """A rotational compliance whose refit is stuck (:func:`stuck`): the pivot refined
     (:func:`refine_job_pivot`) and refitted there, kept by :func:`.keep.replaces`. Without
     ``warm``, both origins are refitted at the new pivot (:func:`.runner._fit`); with it (a
     refit whose spring already sits at a mode, e.g. after the modal step), the pivot is judged
-    and refitted from ``state`` (everything solved from the warm figure's state)."""
-    moved, note, s_w = refine_job_pivot(job, (aug, state) if warm else None)
+    and refitted from ``state`` (everything solved from the warm figure's state); ``full``:
+    each pivot judged by a short solve of every parameter (:func:`refine_job_pivot`)."""
+    moved, note, s_w = refine_job_pivot(job, (aug, state) if warm else None, full)
     assert moved.candidate is not None and job.candidate is not None
     if moved.candidate.spec["pivot"] == job.candidate.spec["pivot"]:
         return job, aug, state, res, f"{note}; the pivot kept"

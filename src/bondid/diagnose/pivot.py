@@ -32,6 +32,13 @@ MIN_STEP = 0.002
 STEP_SHARE = 0.25
 #: cost evaluations per refinement at most (the start's included)
 MAX_EVALS = 16
+#: IPOPT iterations of the solve of every parameter that judges one pivot, when a pivot is
+#: judged that way (:func:`.alternatives.refine_job_pivot` with ``full``, :mod:`.final_pivot`)
+FULL_EVAL_ITER = 40
+#: pivots judged that way per refinement at most (each solve far dearer than a solve of the
+#: new parameters alone; measured on bonder/jcr/acc, stop 32: 16 stopped 5 mm short of the
+#: truth's pivot)
+FULL_MAX_EVALS = 24
 
 
 def is_rotational_compliance(cand: Candidate | None) -> bool:
