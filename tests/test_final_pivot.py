@@ -55,13 +55,11 @@ def test_moving_the_pivot_of_an_unknown_joint_names_it():
 
 
 @pytest.fixture(scope="module")
-def case():  # type: ignore[no-untyped-def]
-    """A final job on data of the bonder with a rotational compliance about a pivot off the
-    candidate's bearing centre, its model holding the compliance at the centre; and the
-    withheld pivot."""
+def data():  # type: ignore[no-untyped-def]
+    """The diagnosis's data of the bonder with a rotational compliance about a pivot off the
+    candidate's bearing centre; the candidate (at the centre) and the withheld pivot."""
     from bondid.data.noise import add_measurement_noise
     from bondid.diagnose.effects import get_effect
-    from bondid.diagnose.job import Job
     from bondid.diagnose.pipeline import Settings, prepare_data
     from bondid.diagnose.pivot import with_pivot
 
@@ -71,20 +69,50 @@ def case():  # type: ignore[no-untyped-def]
     true_pivot = np.asarray(cand.spec["pivot"], float) + OFFSET
     truth = e.augment(doc, with_pivot(cand, true_pivot))
     f = log_grid(1.0, 4000.0, 150)
-    data = []
+    sets = []
     for k, op in enumerate(({}, {"x": 0.05, "y": -0.03})):
         d = simulate(truth, op, f)
         d.H, d.coherence = add_measurement_noise(d.H, f, rel=0.005, floor_db=-70, rng=k,
                                                  floor_ref="response")  # fmt: skip
-        data.append(d)
+        sets.append(d)
     s = Settings(n_points=150, workers=1, effects=["joint_compliance"], free=FREE, modes=False)
-    prep = prepare_data(doc, data, s)
-    # the final model: the compliance built in about the bearing centre (its start values)
-    model = e.augment(doc, cand).to_string()
+    return doc, prepare_data(doc, sets, s), cand, true_pivot
+
+
+@pytest.fixture(scope="module")
+def case(data):  # type: ignore[no-untyped-def]
+    """A final job on :func:`data`, its model holding the compliance at the bearing centre
+    (its start values); and the withheld pivot."""
+    from bondid.diagnose.effects import get_effect
+    from bondid.diagnose.job import Job
+
+    doc, prep, cand, true_pivot = data
+    model = get_effect(cand.effect).augment(doc, cand).to_string()
     job = Job(model, prep.space, list(prep.full), prep.held, prep.full, None, prep.options,
               accepted=(cand,), all_iter=100, wider=False, modal=False,
               fallbacks_always=True)  # fmt: skip
     return job, true_pivot
+
+
+def test_the_search_judges_pivots_with_every_parameter(data):  # type: ignore[no-untyped-def]
+    """Known answer: a candidate refitted at the bearing centre, its pivot refined warm with
+    every parameter free (``full``): within :data:`PIVOT_TOL` of the withheld pivot, at a
+    lower training objective; the note says how the pivots were judged."""
+    from bondid.diagnose.alternatives import at_refined_pivot
+    from bondid.diagnose.job import Job
+    from bondid.diagnose.runner import _fit
+
+    doc, prep, cand, true_pivot = data
+    job = Job(doc.to_string(), prep.space, prep.train, prep.held, prep.full, cand, prep.options,
+              start_new=tuple(p.initial for p in cand.parameters), all_iter=60, wider=False,
+              modal=False)  # fmt: skip
+    aug, state, res = _fit(job)
+    moved, aug2, state2, _, note = at_refined_pivot(job, aug, state, res, warm=True, full=True)
+    assert moved.candidate is not None
+    found = np.asarray(moved.candidate.spec["pivot"], float)
+    assert np.linalg.norm(found - true_pivot) < PIVOT_TOL, (found, true_pivot, note)
+    assert aug2.refit.cost(state2) < aug.refit.cost(state)
+    assert "all parameters figure" in note and "kept" in note
 
 
 def test_the_final_fit_finds_the_withheld_pivot(case):  # type: ignore[no-untyped-def]
