@@ -165,3 +165,20 @@ def test_without_a_rotational_compliance_the_search_does_nothing(case):  # type:
     result = run_job(replace(job, fallbacks_always=False))
     bare = replace(result, chain=())
     assert refined_pivots(job, bare) == (bare, "")
+
+
+def test_a_pivot_that_cannot_be_judged_is_skipped_and_said(case):  # type: ignore[no-untyped-def]
+    """A compliance whose joint is not in the model: every pivot fails to build, the result
+    stays the final fit's own, and the note names the failure."""
+    from bondid.diagnose.final_pivot import refined_pivots, rotational
+    from bondid.diagnose.runner import run_job
+
+    job, _ = case
+    result = run_job(replace(job, fallbacks_always=False))
+    (k,) = rotational(result.chain)
+    spec = {**result.chain[k].spec, "joint": "no_such_joint"}
+    broken = replace(result, chain=(replace(result.chain[k], spec=spec),))
+    out, note = refined_pivots(job, broken)
+    assert out is broken
+    assert "failed, first: ModelError" in note and "no_such_joint" in note
+    assert note.endswith("the pivots kept")

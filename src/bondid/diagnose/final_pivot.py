@@ -26,6 +26,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..exceptions import BondidError
 from ..model.authoring import move_pivot
 from ..model.document import UrdfDocument
 from .augmented import with_values
@@ -79,14 +80,15 @@ def refined_pivots(job: Job, result: JobResult) -> tuple[JobResult, str]:
     notes = []
     for k in picks:
         start = np.asarray(chain[k].spec["pivot"], float)
+        failed: list[str] = []
 
-        def cost(c: Candidate, k: int = k, urdf: str = urdf, chain=chain) -> float:
-            u, ch = moved(urdf, chain, k, np.asarray(c.spec["pivot"], float))
-            sub = replace(job, urdf=u, accepted=ch)
+        def cost(c: Candidate, k: int = k, urdf: str = urdf, chain=chain, failed=failed) -> float:
             try:
-                refit = _setup(u, sub).refit
+                u, ch = moved(urdf, chain, k, np.asarray(c.spec["pivot"], float))
+                refit = _setup(u, replace(job, urdf=u, accepted=ch)).refit
                 return float(refit.solve(refit.state0, direct(FULL_EVAL_ITER))[1])
-            except (ArithmeticError, ValueError, np.linalg.LinAlgError):
+            except (BondidError, np.linalg.LinAlgError, ValueError) as err:  # skipped, and said
+                failed.append(f"{type(err).__name__}: {err}")
                 return float("inf")
 
         child = str(chain[k].location).split("->", 1)[1].split(":", 1)[0]
@@ -96,7 +98,9 @@ def refined_pivots(job: Job, result: JobResult) -> tuple[JobResult, str]:
         pivot = np.asarray(best.spec["pivot"], float)
         notes.append(
             f"{chain[k].label}: {n} pivots tried, {np.round(start * 1e3, 1).tolist()} -> "
-            f"{np.round(pivot * 1e3, 1).tolist()} mm (figure {figure:.4g})"
+            f"{np.round(pivot * 1e3, 1).tolist()} mm (figure {figure:.4g}"
+            + (f"; {len(failed)} failed, first: {failed[0]}" if failed else "")
+            + ")"
         )
         if not np.allclose(pivot, start):
             urdf, chain = moved(urdf, chain, k, pivot)

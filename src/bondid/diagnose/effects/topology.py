@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...exceptions import ModelError
 from ...model.document import MOVABLE_TYPES, UrdfDocument, rotation_and_translation
 
 AXES: tuple[str, ...] = ("tx", "ty", "tz", "rx", "ry", "rz")
@@ -130,6 +131,10 @@ def effective_inertia(doc: UrdfDocument, joint: str) -> float:
     from ...linear.affine import build_affine_model
 
     am = build_affine_model(doc)
+    if joint not in am.dofs:
+        raise ModelError(
+            f"{doc.source or '<URDF>'}: no DOF {joint!r} to weigh; valid: {', '.join(am.dofs)}"
+        )
     M = am.mass_matrix()
     j = am.dofs.index(joint)
     return float(1.0 / np.linalg.inv(M)[j, j])
