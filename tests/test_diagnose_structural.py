@@ -32,6 +32,9 @@ REFIT_COST_TOL = 0.05
 REL_STIFF = 0.08
 #: the chassis' top mass and stiffnesses recovered within this (relative; same noise)
 REL_CHASSIS = 0.03
+#: the chassis's node masses within this (the bottom node, farthest from the stages, is the
+#: least determined: 3.4 % off where every stiffness is within 1.7 %)
+REL_CHASSIS_MASS = 0.05
 #: the refined pivot within this of the true pivot in each direction [m]
 PIVOT_TOL_M = 0.006
 #: the refit at the refined pivot within this factor of the exact pivot's cost; the bearing
@@ -123,10 +126,11 @@ def test_unequal_mounts_below_the_com_are_refitted_to_the_truth(doc):
 
 
 def test_a_chassis_heavier_at_the_bottom_is_refitted_to_the_truth(doc):
-    """Known answer: data from the nominal model on a flexible base whose top node carries
-    half the uniform rod's share (the rest of the mass lower down, as under a heavy bed
-    plate), modes near 500 Hz; the refit started from the uniform rod, stiffnesses 30 % off,
-    recovers the top node's mass and every stiffness."""
+    """Known answer: data from the nominal model on a flexible base heavier at the bottom
+    and 12 % heavier in all than the root body's mass (node masses 1.6, 1.3, 1.0 and 0.5
+    times the uniform rod's shares, bottom to top, as under a heavy bed plate), modes near
+    500 Hz; the refit started from the uniform rod of the root's mass, stiffnesses 30 % off,
+    recovers every node's mass and every stiffness."""
     from bondid.cost.problem import CostOptions
     from bondid.diagnose.augmented import build, with_values
     from bondid.diagnose.effects import get_effect
@@ -137,12 +141,13 @@ def test_a_chassis_heavier_at_the_bottom_is_refitted_to_the_truth(doc):
     (c,) = fb.candidates(doc)
     names = [p.name for p in c.parameters]
     uniform = np.array([p.initial * 0.5**p.scan for p in c.parameters])
-    truth = uniform * np.where(np.array(names) == "top_mass", 0.5, 1.0)
+    heavier = {"node0_mass": 1.6, "node1_mass": 1.3, "node2_mass": 1.0, "top_mass": 0.5}
+    truth = uniform * np.array([heavier.get(n, 1.0) for n in names])
     data = _data(fb.augment(doc, with_values(c, truth)))
     start = uniform * np.where(np.char.endswith(names, "stiffness"), 1.3, 1.0)
     r = build(doc.to_string(), nominal_space(doc, FEW, 4000.0), data, CostOptions(), (),
               with_values(c, start)).refit  # fmt: skip
-    assert [v.name for v in r.new if v.held] == ["mass"]
+    assert not any(v.held for v in r.new)
     # the scans' one-problem costs agree with each state's own, also for a state that moves
     # the top mass (a link mass, not a joint entry of the problem)
     exps = np.array([p.scan for p in c.parameters])
@@ -155,8 +160,9 @@ def test_a_chassis_heavier_at_the_bottom_is_refitted_to_the_truth(doc):
     state, _, _ = r.solve(r.state0, direct(150, 30))
     got = dict(zip(names, r.new_values(state), strict=True))
     for name, want in zip(names, truth, strict=True):
-        if name == "top_mass" or name.endswith("stiffness"):
-            assert got[name] == pytest.approx(want, rel=REL_CHASSIS), (name, got[name], want)
+        if name.endswith(("mass", "stiffness")):
+            tol = REL_CHASSIS_MASS if name.endswith("mass") else REL_CHASSIS
+            assert got[name] == pytest.approx(want, rel=tol), (name, got[name], want)
 
 
 def test_a_pivot_off_the_bearing_centre_in_both_directions_is_found(doc):

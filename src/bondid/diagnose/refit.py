@@ -9,8 +9,8 @@ A refit is a :class:`~bondid.optim.FitProblem` over the (augmented) model:
   members tied to it with the ratios of their factors (:mod:`bondid.optim.tied`); a modifier
   one (delay, lag) is a parameter of the problem's FRF modifier (one modifier per problem,
   composed of every modifier effect, :class:`bondid.diagnose.augmented.ComposedModifier`).
-  A new parameter whose members the core cannot tie (link masses: the flexible base's total
-  mass) is held at its start;
+  A new parameter whose members the core cannot tie (several link masses: the core ties
+  joint springs and dampers only) is held at its start;
 * the noise-scaled prior of ``bondid.fit`` toward the nominal model's values
   (:mod:`bondid.fit.prior`, width :data:`bondid.fit.defaults.DEFAULT_WIDTH`) on the nominal
   parameters only: a new parameter has no model value to be pulled toward.

@@ -16,15 +16,22 @@ square, so the two shear directions have their own stiffness.
 
 Joints: ``flexible_base_{level}_{tx,ty,tz}``, level 0 the free bottom, 1 … N−1 the elastic
 segments; links ``flexible_base_0`` (bottom) … ``flexible_base_{N−2}``. One candidate, located
-at the root body. New parameters: the mass M of the lower nodes (the root body's mass at the
-start, shared as above; held in the refit: the core cannot tie link masses), the top node's
-mass (the root link's, ``M/6`` at the start, refitted: a real chassis is seldom a uniform
-rod — a heavy bed plate puts its mass low, a top plate high — and the share of the mass that
-rides with the stages sets how strongly the chain's modes show in the drives' FRFs), shear
-stiffness in x and in y, one shear damper (every segment, both directions), compression
-stiffness and damper. Start: first shear modes at 1 kHz (compression 3.5× stiffer, as for
-ν ≈ 0.3), 2 % damping; the scan moves all stiffnesses together from 100 Hz to 12 kHz, then
-each stiffness alone (:mod:`..runner`).
+at the root body. New parameters: the mass of every node, each on its own
+(``node{i}_mass``, bottom first, then ``top_mass``, the root link's; ``M·(1/6, 1/3, 1/3, 1/6)``
+at the start, M the root body's mass in the model), shear stiffness in x and in y, one shear
+damper (every segment, both directions), compression stiffness and damper. The masses are
+free because the model's value says little about them: a grounded root's inertia has no
+effect on the nominal model's FRF, so no fit of it ever tested that mass (it is often a
+placeholder, and it is as uncertain as any other mass), and a real chassis is seldom a
+uniform rod (a heavy bed plate puts its mass low, a top plate high; the share that rides with
+the stages sets how strongly the chain's modes show in the drives' FRFs, the distribution the
+ratios of the modes). Measured on the blind benchmark's withheld 5-lump bases, heavier at the
+bottom, whose total mass carries the benchmark's 10–30 % error: the true candidate's refit
+ended at 1.46×, 1.34× and 1.14× the truth model's training figure with the lower nodes held
+at ``M`` (its share split as above), at 1.09×, 1.16× and 1.03× with every node free
+(bonder_b/fb/nocoh, bonder_b/fb/acc, bonder/fb/coh; ``tools/truth_refit.py``). Start: first
+shear modes at 1 kHz (compression 3.5× stiffer, as for ν ≈ 0.3), 2 % damping; the scan moves
+all stiffnesses together from 100 Hz to 12 kHz, then each stiffness alone (:mod:`..runner`).
 """
 
 from __future__ import annotations
@@ -48,6 +55,8 @@ GROUND = "ground"
 #: first elastic mode of the free-free chain: ω₁² = FIRST_MODE_FACTOR · k / (M/6)
 FIRST_MODE_FACTOR = 0.5
 SPLIT = (1 / 6, 1 / 3, 1 / 3, 1 / 6)  # bottom … top
+#: every node mass may move by this factor either way from its start
+MASS_SPAN = 5.0
 
 
 @register
@@ -74,11 +83,15 @@ class FlexibleBase(Effect):
         comp_k = tuple((f"{s}_tz.stiffness", 1.0) for s in seg)
         comp_d = tuple((f"{s}_tz.damping", 1.0) for s in seg)
         nodes = [f"{PREFIX}_{i}" for i in range(N_NODES - 1)] + [root]
-        mass = tuple((f"{n}.mass", share) for n, share in zip(nodes[:-1], SPLIT, strict=False))
-        top = M * SPLIT[-1]
+        masses = tuple(
+            NewParameter(
+                "top_mass" if n == root else f"node{i}_mass", M * share, M * share / MASS_SPAN,
+                M * share * MASS_SPAN, "kg", ((f"{n}.mass", 1.0),),
+            )
+            for i, (n, share) in enumerate(zip(nodes, SPLIT, strict=True))
+        )  # fmt: skip
         params = (
-            NewParameter("mass", M, M / 3, M * 3, "kg", mass),
-            NewParameter("top_mass", top, top / 5, top * 5, "kg", ((f"{root}.mass", 1.0),)),
+            *masses,
             NewParameter("shear_x_stiffness", ks, ks * lo, ks * hi, "N/m", shear_kx, scan=1.0,
                          strength=True),
             NewParameter("shear_y_stiffness", ks, ks * lo, ks * hi, "N/m", shear_ky, scan=1.0,
@@ -106,15 +119,14 @@ class FlexibleBase(Effect):
         new = doc.copy()
         root = candidate.spec["root"]
         p = {q.name: q.initial for q in candidate.parameters}
-        M = p["mass"]
         _, com, I_c = link_inertial(new, root)
         from ...model.parameters import set_link_inertial
 
         set_link_inertial(new, root, p["top_mass"], com, I_c)
         add_link(new, GROUND)
         nodes = [f"{PREFIX}_{i}" for i in range(N_NODES - 1)]
-        for node, share in zip(nodes, SPLIT, strict=False):
-            add_link(new, node, M * share)
+        for i, node in enumerate(nodes):
+            add_link(new, node, p[f"node{i}_mass"])
         nodes.append(root)
         dz = HEIGHT / (N_NODES - 1)
         dof_chain(new, f"{PREFIX}_0", GROUND, nodes[0], TRANSLATIONS, xyz=(0, 0, -HEIGHT),
