@@ -133,13 +133,17 @@ class Effect:
 
 
 def per_joint_candidates(
-    effect: Effect, doc: UrdfDocument, parameter: NewParameter, grid: tuple[float, ...], what: str
+    effect: Effect,
+    doc: UrdfDocument,
+    parameters: NewParameter | tuple[NewParameter, ...],
+    grid: tuple[float, ...],
+    what: str,
 ) -> list[Candidate]:
     """One candidate per driven joint (location = the joint) and one for all of them together
-    (location ``"all"``), each with the single new ``parameter`` and the scan ``grid``; ``what``
-    completes the description (``"delay on output(s)"``)."""
+    (location ``"all"``), each with the new ``parameters`` (one or a tuple) and the scan
+    ``grid``; ``what`` completes the description (``"delay on output(s)"``)."""
+    params = parameters if isinstance(parameters, tuple) else (parameters,)
     joints = [t.joint for t in doc.transmissions]
     return [
-        Candidate(effect.name, loc, (parameter,), {}, grid, f"{what} {loc}")
-        for loc in [*joints, "all"]
+        Candidate(effect.name, loc, params, {}, grid, f"{what} {loc}") for loc in [*joints, "all"]
     ]
