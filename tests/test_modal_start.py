@@ -285,8 +285,7 @@ def test_the_alternation_from_a_placed_start_finds_a_single_spring(jc_case):
 def test_the_screenings_placed_alternation_finds_a_single_spring(jc_case):
     """The screening's figure (one round from the first placed start): below the objective
     at the candidate's start, at new values whose stiffness is within SPRING_FACTOR of the
-    truth's; the job's own identified modes are used when it carries them; none for a
-    candidate with several springs."""
+    truth's; the job's own identified modes are used when it carries them."""
     from types import SimpleNamespace
 
     doc, c, data, new = jc_case
@@ -298,8 +297,31 @@ def test_the_screenings_placed_alternation_finds_a_single_spring(jc_case):
     cost, values = got
     assert cost < refit.cost(refit.state0)
     assert 1 / SPRING_FACTOR < values[0] / new[0] < SPRING_FACTOR, values
-    # a candidate with several springs has no placed start, so no figure
-    assert ms.placed_alternation(job, refit, _mounts(doc)) is None  # type: ignore[arg-type]
+
+
+def test_the_screenings_alternation_of_several_springs_starts_at_the_measured_modes(case):
+    """A candidate with several springs (soft mounts) gets the screening's figure too: one
+    round of the alternation from its first start matched to the measured modes, below the
+    objective at the candidate's own start; without an identified mode, none."""
+    from types import SimpleNamespace
+
+    doc, c, data, new, _ = case
+    refit = _refit(doc, c, data).refit
+    measured = tuple(tuple(m) for m in ms.measured_modes(data))
+    job = SimpleNamespace(full=data, hints_hz=(9.0, 16.0), measured=measured)
+    got = ms.placed_alternation(job, refit, c)  # type: ignore[arg-type]
+    assert got is not None
+    cost, values = got
+    assert cost < refit.cost(refit.state0)
+    assert len(values) == len(new)
+    # its springs sit nearer the measured modes than the candidate's start put them
+    at = refit.with_new(refit.state0, np.array(values))
+    modes = [list(m) for m in measured]
+    assert ms.matching_cost(refit, at, modes, data) < ms.matching_cost(
+        refit, refit.state0, modes, data
+    )
+    bare = SimpleNamespace(full=data, hints_hz=(), measured=tuple(() for _ in data))
+    assert ms.placed_alternation(bare, refit, c) is None  # type: ignore[arg-type]
 
 
 def test_placed_starts_fall_back_on_the_models_modes(jc_case):

@@ -157,11 +157,12 @@ def placed_starts(
 
 
 def placed_alternation(job: Job, refit: Refit, cand: Candidate) -> tuple[float, tuple] | None:
-    """The screening's figure of a single-spring candidate (:mod:`.screen`): one round of the
-    restart alternation on ``refit`` from its first :func:`placed_starts` (``job``'s missing
-    modes and measured modes); (training objective, new parameters (SI) there), or None when
-    there is no start."""
-    starts = placed_starts(refit, cand, job.full, job.hints_hz, job_modes(job))
+    """The screening's figure of a candidate with springs (:mod:`.screen`): one round of the
+    restart alternation on ``refit`` from its first :func:`modal_starts` (``job``'s missing
+    modes and measured modes: a single spring's :func:`placed_starts`, several springs
+    matched to the measured modes); (training objective, new parameters (SI) there), or None
+    when there is no start."""
+    starts = modal_starts(refit, cand, job.full, job.hints_hz, job_modes(job))
     if not starts:
         return None
     state, cost, _ = alternation(refit, starts[0], rounds=1)
