@@ -9,8 +9,8 @@ accepted so far — and
    when the best figure leaves the step well above the noise level and others tie with the
    last kept: :func:`.screen.select`), and the best :attr:`Context.n_profile` by the joint
    profile (:mod:`.joint_profile`, from its start: :func:`.screen.profile_picks`) and the
-   best :attr:`Context.n_placed` by the placed alternation of a joint compliance (from its
-   end: :func:`.screen.placed_picks`)
+   best :attr:`Context.n_placed` by the placed alternation of a candidate with springs
+   (from its end: :func:`.screen.placed_picks`)
    (:func:`.runner.run_job`: every nominal, accepted and new parameter together, from the
    base and from the nominal model), then gives the best of them that ended above the noise
    level the wider search in a second round (:func:`.widen.second_round`); the modal step of
