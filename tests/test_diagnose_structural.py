@@ -30,7 +30,7 @@ REFIT_COST_TOL = 0.05
 #: on 2 x 120 frequencies, with the stage masses refitted too (the yaw and lateral mounts
 #: trade off with them)
 REL_STIFF = 0.08
-#: the chassis' top mass and stiffnesses recovered within this (relative; same noise)
+#: the chassis' stiffnesses recovered within this (relative; same noise)
 REL_CHASSIS = 0.03
 #: the chassis's node masses within this (the bottom node, farthest from the stages, is the
 #: least determined: 3.4 % off where every stiffness is within 1.7 %)
