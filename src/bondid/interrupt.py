@@ -92,6 +92,23 @@ def ignore_in_worker(*_: Any) -> None:
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
+@contextlib.contextmanager
+def sigint_deferred() -> Iterator[None]:
+    """Context: SIGINT blocked in this thread (the main one; elsewhere nothing happens), so
+    a Ctrl-C that arrives inside is held pending and delivered, to the handler then in place,
+    when the block ends: never lost, never raised in the middle. Threads started inside
+    inherit the block for good, which is harmless: Python runs signal handlers in the main
+    thread only (and a Ctrl-C is then not taken by a thread that would find it ignored)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
 class _QuietStartProcess(SpawnProcess):
     """A spawned process started while the parent ignores SIGINT (see :func:`spawn_context`)."""
 
@@ -99,11 +116,16 @@ class _QuietStartProcess(SpawnProcess):
         if threading.current_thread() is not threading.main_thread():
             super().start()
             return
-        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-        try:
-            super().start()
-        finally:
-            signal.signal(signal.SIGINT, previous)
+        with sigint_deferred():
+            # ignoring a signal discards it when pending: one already held is sent again
+            held = signal.SIGINT in signal.sigpending()
+            previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+            try:
+                super().start()
+            finally:
+                signal.signal(signal.SIGINT, previous)
+                if held:
+                    signal.raise_signal(signal.SIGINT)
 
 
 class _QuietStartContext(SpawnContext):
@@ -118,7 +140,15 @@ def spawn_context() -> SpawnContext:
     raise ``KeyboardInterrupt`` in its bootstrap and print a traceback (seen under load). An
     ignored signal stays ignored across ``exec`` and Python then installs no handler of its
     own, so the parent ignores SIGINT for the moment it starts a process (main thread only;
-    its own handler is put back at once).
+    its own handler is put back at once). For that moment SIGINT is also blocked
+    (:func:`sigint_deferred`): Linux keeps a blocked signal pending even while it is
+    ignored, so a Ctrl-C that arrives then reaches the parent's handler once the process has
+    started (before, it was dropped and the run went on: seen once in CI, a SIGINT sent as the
+    first diagnosis worker came up). A signal blocked in the main thread may still be taken by
+    another thread that does not block it, so the pool starts its workers inside
+    :func:`sigint_deferred` (:class:`bondid.diagnose.pool.WorkerPool`): the executor's own
+    thread then blocks SIGINT too. (Blocking alone does not protect the child: a spawned
+    process starts with an empty signal mask, measured.)
     """
     return _QuietStartContext()
 

@@ -8,7 +8,7 @@ from collections.abc import Callable
 from typing import Any
 
 from ..blas import THREAD_VARS
-from ..interrupt import ignore_in_worker, kill_workers, spawn_context
+from ..interrupt import ignore_in_worker, kill_workers, sigint_deferred, spawn_context
 from ..threads import THREADS_VAR
 
 
@@ -27,12 +27,15 @@ class WorkerPool:
             for k in single:
                 os.environ[k] = "1"
             try:
-                self.ex = ProcessPoolExecutor(
-                    workers, mp_context=spawn_context(), initializer=ignore_in_worker
-                )
-                self.ex.submit(int, 0).result()  # start the workers with this environment
-                for _ in range(workers - 1):
-                    self.ex.submit(time.sleep, 0.0)
+                # a Ctrl-C while the workers start is delivered when they are up (and then
+                # stops them here); the executor's thread, started inside, blocks SIGINT
+                with sigint_deferred():
+                    self.ex = ProcessPoolExecutor(
+                        workers, mp_context=spawn_context(), initializer=ignore_in_worker
+                    )
+                    self.ex.submit(int, 0).result()  # start the workers with this environment
+                    for _ in range(workers - 1):
+                        self.ex.submit(time.sleep, 0.0)
             except BaseException:  # Ctrl-C while the workers start: stop them now
                 kill_workers(self.ex)
                 raise
