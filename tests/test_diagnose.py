@@ -350,6 +350,8 @@ def test_two_withheld_effects_are_found_in_order(doc, tmp_path):
     content = to_json_dict(diag, gaps(diag))
     got = [(x["effect"], x["location"]) for x in content["effects"]]
     assert sorted(got) == sorted([(c.effect, c.location), (al.effect, al.location)]), got
+    assert content["dropped"] == []  # both true: the backward elimination keeps them
+    assert diag.pruning is not None and diag.pruning.n_refits == 1  # the model without the first
     assert content["verdict"]["effect"] == content["effects"][0]["effect"]
     after = [x["db_rms_after"] for x in content["effects"]]
     assert after[1] < after[0] < content["gap"]["db_rms"]

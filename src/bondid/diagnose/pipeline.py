@@ -19,8 +19,10 @@
    (:mod:`.effects`) is screened cheaply (:mod:`.screen`, seeded with the frequencies of the
    missing modes of step 3), the best few are refitted fully (:mod:`.runner`) in worker
    processes, scored on held-out data and ranked; the best is accepted by the rule of
-   :mod:`.scoring`, and the search repeats from the model with it until nothing passes.
-5. The final model (the last accepted effect's refit, else the parameter refit) refitted on
+   :mod:`.scoring`, and the search repeats from the model with it until nothing passes;
+   with two or more accepted, each is tested again against the model with all the others
+   and dropped when redundant (:mod:`.prune`); the first effect kept is the verdict.
+5. The final model (the refit with every kept effect, else the parameter refit) refitted on
    all data (:mod:`.final_fit`): the model to take away; no verdict or figure of 4 changes.
 """
 
@@ -46,11 +48,13 @@ from .final_fit import FinalFit, final_fit
 from .gap import missing_mode_hints
 from .job import Job, JobResult
 from .pool import WorkerPool
+from .prune import Pruning, prune
 from .refit import Nominal, nominal_space_for
 from .runner import run_job
 from .scoring import NoiseReference, heldout_noise
-from .search import Context, Step, accepted, search
+from .search import Context, Step, search
 from .split import decimate, holdout_split, limit_bands
+from .where import where
 
 #: default free parameters of the parameter refit (zero-valued springs/dampers are dropped)
 DEFAULT_FREE = ("all",)
@@ -109,11 +113,14 @@ class Diagnosis:
     wall_s: float
     notes: list[str] = field(default_factory=list)
     weighting: dict[str, Any] = field(default_factory=dict)
-    #: the search's steps (:mod:`.search`); ``results``/``scores``/``winner`` are the first's
+    #: the search's steps (:mod:`.search`); ``results``/``scores`` are the first's
     steps: list[Step] = field(default_factory=list)
-    #: the final model (last accepted effect's refit, else the parameter refit) refitted on
-    #: all data (:mod:`.final_fit`); None when not run
+    #: the final model (the refit with every kept effect, else the parameter refit) refitted
+    #: on all data (:mod:`.final_fit`); None when not run
     final: FinalFit | None = None
+    #: the backward elimination of the accepted effects (:mod:`.prune`); ``winner`` is its
+    #: first kept effect's model. None: not run (every accepted effect kept)
+    pruning: Pruning | None = None
 
 
 def used_channels(datasets: Sequence[FrfData], requested: Sequence[str] | None) -> list[str]:
@@ -277,7 +284,7 @@ def diagnose(
     try:
         baseline, fit_info = _refit_baseline(pool, doc, p, s)
         say("parameter refit")
-        modes, by_ds, anti, bands, measured = _where(doc, p.full, baseline, p.channels, s.modes)
+        modes, by_ds, anti, bands, measured = where(doc, p.full, baseline, p.channels, s.modes)
         ctx = Context(
             doc, p.names, p.train, p.held, p.full, p.options, p.candidates,
             missing_mode_hints(by_ds), s.refit_iter, s.n_starts, (s.n_refit, s.n_refit_later),
@@ -285,7 +292,8 @@ def diagnose(
             measured=measured,
         )  # fmt: skip
         steps = search(ctx, pool, baseline, say)
-        last = (accepted(steps) or [baseline])[-1]
+        pruning = prune(ctx, pool, steps, baseline, say)
+        last = pruning.final or baseline
         level = p.noise.level_db if p.noise is not None else math.nan
         data = Job(
             last.urdf, p.space, p.train, p.held, p.full, None, p.options,
@@ -303,10 +311,11 @@ def diagnose(
     return Diagnosis(
         nominal=doc, datasets=p.full, channels=p.channels, names=p.names, baseline=baseline,
         results=first.results, scores=first.scores, baseline_score=first.base_score,
-        winner=first.winner, nominal_H=nominal_H, bands=bands, modes=modes,
+        winner=pruning.kept[0].model if pruning.kept else None, nominal_H=nominal_H,
+        bands=bands, modes=modes,
         modes_by_dataset=by_ds, antiresonances=anti, fit_info=fit_info,
         split_info=p.split_info, wall_s=time.perf_counter() - t0, weighting=p.weighting,
-        steps=steps, final=final,
+        steps=steps, final=final, pruning=pruning,
     )  # fmt: skip
 
 
@@ -341,60 +350,3 @@ def _refit_baseline(
 
         raise ComputationError(f"the parameter refit failed: {baseline.error}")
     return baseline, fit_info
-
-
-def _where(
-    doc: UrdfDocument,
-    full: list[FrfData],
-    baseline: JobResult,
-    channels: list[str],
-    do_modes: bool,
-) -> tuple[list[dict[str, Any]], list[list[dict[str, Any]]], list[dict[str, Any]], list, tuple]:
-    """Modes (measured vs refitted model), anti-resonance shifts, automatic bands and the modes
-    identified in each data set (a tuple of tuples of :class:`.modal_id.IdentifiedMode`;
-    empty without ``do_modes``)."""
-    from ..linear.affine import build_affine_model
-    from ..modes.bands import Feature
-    from .antiresonance import antiresonance_shifts
-    from .gap import gap_bands
-
-    refit_doc = UrdfDocument.from_string(baseline.urdf, source="refit model")
-    by_ds: list[list[dict[str, Any]]] = []
-    anti: list[dict[str, Any]] = []
-    feats: list[Feature] = []
-    measured: list[tuple] = []
-    for k, (d, H) in enumerate(zip(full, baseline.full_H, strict=True)):
-        rows: list[dict[str, Any]] = []
-        error: dict[str, Any] | None = None
-        if do_modes:
-            from .modal_id import identify_modes, model_modes
-            from .pairing import pair_modes
-
-            try:
-                meas = identify_modes(d)
-            except Exception as exc:
-                meas = []
-                error = {"error": f"modal identification failed: {exc}"}
-            measured.append(tuple(meas))
-            lm = build_affine_model(refit_doc, d.operating_point, outputs=d.outputs)
-            mask = np.array([[f"{o}.{i}" in channels for i in lm.inputs] for o in lm.outputs])
-            mod = model_modes(lm.linear_model(), freq_hz=d.freq_hz, channel_mask=mask)
-            cols = [lm.inputs.index(i) for i in d.inputs]
-            for m in mod:
-                m.residues = m.residues[:, cols]
-            rows = pair_modes(meas, mod, f_band=(float(d.freq_hz[0]), float(d.freq_hz[-1])))
-            if error is not None:  # kept: the pairing must not hide why no mode was measured
-                rows.insert(0, error)
-            if k == 0:
-                feats = [Feature(float(m.f_hz), float(m.zeta), "resonance") for m in meas]
-        by_ds.append(rows)
-        for row in antiresonance_shifts(d, H, channels=channels):
-            anti.append({"dataset": k, **row})
-    feats += [
-        Feature(float(r["f_measured_hz"]), 0.0, "anti-resonance", r.get("channel"))
-        for r in anti
-        if r["dataset"] == 0 and r["f_measured_hz"]
-    ]
-    bands = gap_bands(full[0].freq_hz, feats)
-    modes = by_ds[0] if by_ds else []
-    return modes, by_ds, anti, bands, tuple(measured)

@@ -16,8 +16,11 @@
   ``error``;
 * ``verdict`` — ``effect`` (or ``"none"``), ``location``, ``gap_closed``, plus
   ``reason``, ``detail``, ``parameters`` with ``std``, ``where`` (gap by channel and band after it),
-  ``indistinguishable_from`` (the refits the data cannot tell from it, :func:`tied`; each
-  entry of ``effects`` has the same list for its step);
+  ``indistinguishable_from`` (the refits the data cannot tell from it, :func:`.verdict.tied`;
+  each entry of ``effects`` has the same list for its step); the first effect the backward
+  elimination keeps (:mod:`.prune`, :mod:`.verdict`);
+* ``effects`` — the kept effects in the order accepted, with the gap after each; ``dropped``
+  — the accepted effects the elimination dropped, with the figures that dropped them;
 * ``stages`` — the gap (total, per channel, per band) of the nominal model, after the
   parameter refit and after the winning effect; ``gap_closed_total`` (vs the nominal gap);
 * ``refit`` (the parameter refit: names, values, std, IPOPT stage), ``split``, ``settings``;
@@ -41,7 +44,15 @@ from .gap import GapReport, gap_report
 from .job import JobResult
 from .pipeline import Diagnosis
 from .scoring import ABS_MARGIN_DB, REL_MARGIN, gap_closed
+from .verdict import dropped_entries, effect_entries, kept_effects, verdict_entry
 
+#: the backward elimination as ``diagnosis.json`` states it (``scoring.elimination``)
+ELIMINATION = (
+    "with two or more accepted effects, each is tested again against the refit of the model "
+    "with all the others by the same rule; of those that fail, the one whose removal leaves "
+    "the best held-out score is dropped (listed in 'dropped'), and the test repeats until "
+    "each passes or one is left"
+)
 #: how the gap figures are defined (written into diagnosis.json)
 DB_RMS_DEFINITION = (
     "db_rms = sqrt(sum(w * e^2) / sum(w)) over the used channels and all their frequencies, "
@@ -168,76 +179,6 @@ def candidate_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
     return out
 
 
-def effect_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
-    """``effects`` of diagnosis.json (spec extension): the accepted effects in the order
-    added, each with its parameters and the gap after it (all effects up to it in the model)."""
-    out = []
-    for step in diag.steps:
-        w = step.winner
-        if w is None:
-            continue
-        vals, std = _new_params(w)
-        out.append({
-            "step": step.index + 1, "effect": w.effect, "location": w.location,
-            "detail": w.extra.get("variant"),
-            "parameters": {n: {"value": v, "std": std.get(n)} for n, v in vals.items()},
-            "db_rms_after": w.db_rms, "heldout_db_rms_after": w.heldout_db_rms,
-            "gap_closed": gap_closed(before, w.db_rms), "score": step.scores[0],
-            "score_before": step.base_score, "test": step.test,
-            "indistinguishable_from": tied(step),
-        })  # fmt: skip
-    return out
-
-
-def tied(step: Any) -> list[dict[str, Any]]:
-    """The step's refits the data cannot tell from its best (:func:`.scoring.
-    indistinguishable`) and whose effect strength they determine: effect, location, held-out
-    score [dB] and ``lr`` (Λ, null without a noise reference), best score first."""
-    out = []
-    for j, lr in scoring.indistinguishable(step.scores, step.test):
-        r = step.results[j]
-        if not scoring.determined(r):
-            continue
-        out.append({"effect": r.effect, "location": r.location, "score": step.scores[j],
-                    "lr": lr if math.isfinite(lr) else None})  # fmt: skip
-    return out
-
-
-def _verdict(
-    diag: Diagnosis, reports: dict[str, GapReport], before: float, nominal: float
-) -> dict[str, Any]:
-    """``verdict`` of diagnosis.json: the first accepted effect, or ``none`` and why."""
-    w = diag.winner
-    if w is not None:
-        vals, std = _new_params(w)
-        verdict = {
-            "effect": w.effect,
-            "location": w.location,
-            "detail": w.extra.get("variant"),
-            "gap_closed": gap_closed(before, w.db_rms),
-            "gap_closed_total": gap_closed(nominal, w.db_rms),
-            "parameters": {n: {"value": v, "std": std.get(n)} for n, v in vals.items()},
-            "reason": scoring.reason(diag.steps[0].test, diag.scores[0], diag.baseline_score)
-            + " (against the parameter refit)",
-            "where": _gap_dict(reports["effect"], reports.get("effect_unweighted")),
-            "indistinguishable_from": tied(diag.steps[0]),
-        }
-    else:
-        best = diag.scores[0] if diag.scores else math.nan
-        verdict = {
-            "effect": "none",
-            "location": None,
-            "gap_closed": 0.0,
-            "reason": "no candidate passes the verdict rule against the parameter refit: "
-            + (
-                scoring.reason(diag.steps[0].test, best, diag.baseline_score)
-                if diag.steps and diag.steps[0].test
-                else f"best {best:.3f} dB"
-            ),
-        }
-    return verdict
-
-
 def _gap_section(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, Any]:
     """``gap``: the gap after the parameter refit, its weighting, paired modes and
     anti-resonances."""
@@ -292,6 +233,7 @@ def _scoring_section(diag: Diagnosis) -> dict[str, Any]:
         "rel_margin": REL_MARGIN,
         "abs_margin_db": ABS_MARGIN_DB,
         "steps": [{"step": st.index + 1, **st.test} for st in diag.steps],
+        "elimination": ELIMINATION,
         "gap_closed": "1 - db_rms_after / gap.db_rms (gap after the parameter refit; "
         "both weighted)",
         "db_rms": DB_RMS_DEFINITION,
@@ -305,8 +247,16 @@ def to_json_dict(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, An
     out = {
         "gap": _gap_section(diag, reports),
         "candidates": candidate_entries(diag, before),
-        "verdict": _verdict(diag, reports, before, reports["nominal"].db_rms),
+        "verdict": verdict_entry(
+            diag,
+            before,
+            reports["nominal"].db_rms,
+            _gap_dict(reports["effect"], reports.get("effect_unweighted"))
+            if "effect" in reports
+            else None,
+        ),
         "effects": effect_entries(diag, before),
+        "dropped": dropped_entries(diag),
         "stages": _stages_section(diag, reports),
         "refit": _refit_section(diag),
         "channels": diag.channels,
@@ -356,9 +306,9 @@ def write_outputs(
     written.append(write_text_atomic(out_dir / "refit.urdf", diag.baseline.urdf))
     if diag.winner is not None and diag.winner.urdf:
         written.append(write_text_atomic(out_dir / "augmented.urdf", diag.winner.urdf))
-    chain = [s.winner for s in diag.steps if s.winner is not None]
-    if len(chain) > 1 and chain[-1].urdf:  # every accepted effect built in
-        written.append(write_text_atomic(out_dir / "augmented_all.urdf", chain[-1].urdf))
+    kept = kept_effects(diag)
+    if len(kept) > 1 and kept[-1].model.urdf:  # every kept effect built in
+        written.append(write_text_atomic(out_dir / "augmented_all.urdf", kept[-1].model.urdf))
     if diag.final is not None and diag.final.model.urdf:
         written.append(write_text_atomic(out_dir / "final.urdf", diag.final.model.urdf))
     if plots:

@@ -1,0 +1,68 @@
+"""Where the gap lies in the measured data (step 3 of :mod:`.pipeline`): :func:`where`."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..data.measurement import FrfData
+from ..model.document import UrdfDocument
+from .job import JobResult
+
+
+def where(
+    doc: UrdfDocument,
+    full: list[FrfData],
+    baseline: JobResult,
+    channels: list[str],
+    do_modes: bool,
+) -> tuple[list[dict[str, Any]], list[list[dict[str, Any]]], list[dict[str, Any]], list, tuple]:
+    """Modes (measured vs refitted model), anti-resonance shifts, automatic bands and the modes
+    identified in each data set (a tuple of tuples of :class:`.modal_id.IdentifiedMode`;
+    empty without ``do_modes``)."""
+    from ..linear.affine import build_affine_model
+    from ..modes.bands import Feature
+    from .antiresonance import antiresonance_shifts
+    from .gap import gap_bands
+
+    refit_doc = UrdfDocument.from_string(baseline.urdf, source="refit model")
+    by_ds: list[list[dict[str, Any]]] = []
+    anti: list[dict[str, Any]] = []
+    feats: list[Feature] = []
+    measured: list[tuple] = []
+    for k, (d, H) in enumerate(zip(full, baseline.full_H, strict=True)):
+        rows: list[dict[str, Any]] = []
+        error: dict[str, Any] | None = None
+        if do_modes:
+            from .modal_id import identify_modes, model_modes
+            from .pairing import pair_modes
+
+            try:
+                meas = identify_modes(d)
+            except Exception as exc:
+                meas = []
+                error = {"error": f"modal identification failed: {exc}"}
+            measured.append(tuple(meas))
+            lm = build_affine_model(refit_doc, d.operating_point, outputs=d.outputs)
+            mask = np.array([[f"{o}.{i}" in channels for i in lm.inputs] for o in lm.outputs])
+            mod = model_modes(lm.linear_model(), freq_hz=d.freq_hz, channel_mask=mask)
+            cols = [lm.inputs.index(i) for i in d.inputs]
+            for m in mod:
+                m.residues = m.residues[:, cols]
+            rows = pair_modes(meas, mod, f_band=(float(d.freq_hz[0]), float(d.freq_hz[-1])))
+            if error is not None:  # kept: the pairing must not hide why no mode was measured
+                rows.insert(0, error)
+            if k == 0:
+                feats = [Feature(float(m.f_hz), float(m.zeta), "resonance") for m in meas]
+        by_ds.append(rows)
+        for row in antiresonance_shifts(d, H, channels=channels):
+            anti.append({"dataset": k, **row})
+    feats += [
+        Feature(float(r["f_measured_hz"]), 0.0, "anti-resonance", r.get("channel"))
+        for r in anti
+        if r["dataset"] == 0 and r["f_measured_hz"]
+    ]
+    bands = gap_bands(full[0].freq_hz, feats)
+    modes = by_ds[0] if by_ds else []
+    return modes, by_ds, anti, bands, tuple(measured)
