@@ -148,6 +148,7 @@ def test_diagnosis_json_has_the_spec_keys(compliance_case, tmp_path):
     assert [(e["effect"], e["location"]) for e in d["effects"]] == [
         ("joint_compliance", "y_stage->z_stage:tz")
     ]
+    assert d["dropped"] == [] and "elimination" in d["scoring"]  # one effect: nothing to drop
     assert {"effect", "location", "gap_closed"} <= set(d["verdict"])
     assert d["verdict"]["effect"] == "joint_compliance"
     g = d["verdict"]["gap_closed"]

@@ -105,6 +105,10 @@ def test_the_report_lists_the_dropped_effect_apart(wrong_then_true):  # type: ig
     dropped = dropped_entries(diag)  # type: ignore[arg-type]
     assert [(x["location"], x["round"]) for x in dropped] == [(WRONG_AT, 1)]
     assert "refit without it" in dropped[0]["reason"]
+    from bondid.diagnose.summary import dropped_lines
+
+    (line,) = dropped_lines(dropped)
+    assert f"joint_compliance@{WRONG_AT}" in line and "step 1" in line
     v = verdict_entry(diag, 1.0, 2.0, None)  # type: ignore[arg-type]
     assert (v["effect"], v["location"]) == ("joint_compliance", TRUE_AT)
     assert "backward elimination" in v["reason"]

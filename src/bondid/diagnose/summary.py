@@ -60,6 +60,7 @@ def summary(diag: Diagnosis, content: dict[str, Any]) -> str:
             lines.append("  the data do not tell it from: " + ", ".join(ties))
     if content.get("effects"):
         lines.append("effects: " + steps_line(g["db_rms"], content["effects"]))
+    lines += dropped_lines(content.get("dropped") or [])
     ff = content.get("final_fit")
     if ff:
         lines.append(f"final model refitted on all data (final.urdf): {ff['note']}")
@@ -72,6 +73,15 @@ def summary(diag: Diagnosis, content: dict[str, Any]) -> str:
 def _label(c: dict[str, Any]) -> str:
     """``effect@location`` (``effect`` alone without a location)."""
     return f"{c['effect']}@{c['location']}" if c.get("location") else str(c["effect"])
+
+
+def dropped_lines(dropped: Sequence[dict[str, Any]]) -> list[str]:
+    """One line per effect the backward elimination dropped (``dropped`` of diagnosis.json)."""
+    return [
+        f"  dropped: {_label(x)} (accepted at step {x['step']}; redundant once the others are"
+        f" in: held-out {x['score_without']:.3f} dB without it, {x['score_with']:.3f} with it)"
+        for x in dropped
+    ]
 
 
 def steps_line(refit_db: float, effects: Sequence[dict[str, Any]]) -> str:
