@@ -112,13 +112,13 @@ def run(
     from bondid.diagnose.pipeline import (
         Settings,
         _baseline_task,
-        _where,
         missing_mode_hints,
         prepare_data,
     )
     from bondid.diagnose.runner import run_job
     from bondid.diagnose.screen import screen
     from bondid.diagnose.search import Context, _job, _refit_candidate
+    from bondid.diagnose.where import where
     from bondid.model import UrdfDocument
 
     (truth,) = case.effects
@@ -131,7 +131,7 @@ def run(
                              True, s.ipopt_iter, s.refit_iter)  # fmt: skip
     t_base = time.perf_counter() - t0
     base_train = seen.get("train", float("nan"))
-    _, by_ds, _, _, measured = _where(doc, p.full, base, p.channels, s.modes)
+    _, by_ds, _, _, measured = where(doc, p.full, base, p.channels, s.modes)
     ctx = Context(doc, p.names, p.train, p.held, p.full, p.options, p.candidates,
                   missing_mode_hints(by_ds), s.refit_iter, s.n_starts, space=p.space,
                   noise=p.noise, measured=measured)  # fmt: skip
