@@ -128,6 +128,31 @@ def test_report_has_tables_images_and_no_network(results: Path, tmp_path: Path):
     assert "Verdict: <b>soft_mounts</b> at <b>base</b>" in page and "78.6 %" in page
     assert '<td class="l">y.y</td><td>5</td>' in page
     assert "6.6" in page and "missing" in page and "sensor_delay" in page
+    # one effect and nothing dropped: no effect tables (the verdict says it)
+    assert "in the order added" not in page and "dropped as redundant" not in page
+
+
+def test_report_lists_the_effects_and_the_dropped_one(results: Path, tmp_path: Path):
+    """Two effects kept and one dropped by the backward elimination: both tables, in order."""
+    diag = dict(DIAGNOSIS)
+    diag["effects"] = [
+        {"step": 2, "effect": "joint_compliance", "location": "a->b:tz", "db_rms_after": 1.39,
+         "gap_closed": 0.54},
+        {"step": 3, "effect": "flexible_base", "location": "bed", "db_rms_after": 0.935,
+         "gap_closed": 0.69},
+    ]  # fmt: skip
+    diag["dropped"] = [{"step": 1, "effect": "joint_compliance", "location": "a->b:rz",
+                        "score_with": 0.815, "score_without": 0.831}]  # fmt: skip
+    (results / "diagnosis.json").write_text(json.dumps(diag))
+    out = tmp_path / "out"
+    assert _run([results, "--out", out, "--quiet"]) == 0
+    page = (out / "report.html").read_text(encoding="utf-8")
+    kept = page.index("in the order added")
+    first, second = page.index("a-&gt;b:tz", kept), page.index("flexible_base", kept)
+    assert kept < first < second and "69.0 %" in page
+    gone = page.index("dropped as redundant")
+    assert gone > second and page.index("a-&gt;b:rz", gone) > gone
+    assert "0.831" in page[gone:] and "0.815" in page[gone:]
     # sensitivity rendered generically
     assert "identifiable" in page
     # modes: the frequency of the one-mass model and relative links to the animations

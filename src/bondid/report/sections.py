@@ -99,6 +99,11 @@ def diagnosis_section(diag: Any) -> str:
         out = [_verdict_html(verdict)]
     else:
         out = [note("no verdict in diagnosis.json")]
+    effects, dropped = _records(diag.get("effects")), _records(diag.get("dropped"))
+    if len(effects) > 1 or dropped:
+        out.append("<h3>Effects found, in the order added</h3>" + _effect_table(effects))
+    if dropped:
+        out.append("<h3>Accepted, then dropped as redundant</h3>" + _dropped_table(dropped))
     if isinstance(gap, Mapping):
         out.append(_gap_html(gap))
     cands = _records(diag.get("candidates"))
@@ -117,6 +122,29 @@ def _verdict_html(verdict: Mapping[str, Any]) -> str:
     if closed is not None:
         text += f" — closes {100 * closed:.1f} % of the gap"
     return f'<p class="verdict">{text}</p>'
+
+
+def _effect_table(effects: list[Mapping[str, Any]]) -> str:
+    """``effects`` of diagnosis.json: each with the gap once it and those before are in."""
+    rows = [
+        [esc(e.get("effect", "?")), fmt(e.get("location")), fmt(e.get("step")),
+         fmt(e.get("db_rms_after")), _percent(_value(e, "gap_closed"), ".1f")]
+        for e in effects
+    ]  # fmt: skip
+    return table(["effect", "location", "search step", "dB rms after", "gap closed"], rows,
+                 left=(0, 1))  # fmt: skip
+
+
+def _dropped_table(dropped: list[Mapping[str, Any]]) -> str:
+    """``dropped`` of diagnosis.json: the held-out scores with and without each."""
+    rows = [
+        [esc(d.get("effect", "?")), fmt(d.get("location")), fmt(d.get("step")),
+         fmt(d.get("score_with")), fmt(d.get("score_without"))]
+        for d in dropped
+    ]  # fmt: skip
+    header = ["effect", "location", "accepted at step", "held-out score with it [dB]",
+              "without it [dB]"]  # fmt: skip
+    return table(header, rows, left=(0, 1))
 
 
 def _gap_html(gap: Mapping[str, Any]) -> str:
