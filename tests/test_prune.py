@@ -114,6 +114,35 @@ def test_the_report_lists_the_dropped_effect_apart(wrong_then_true):  # type: ig
     assert "backward elimination" in v["reason"]
 
 
+class FailingPool(SyncPool):
+    """Every refit fails as a worker's numerical failure does (``error`` set)."""
+
+    def submit(self, fn, *args):  # type: ignore[no-untyped-def]
+        from dataclasses import replace
+
+        fut = super().submit(fn, *args)
+        return _done(replace(fut.result(), error="ComputationError: injected", heldout_rms=1e9))
+
+
+def _done(value):  # type: ignore[no-untyped-def]
+    fut: Future = Future()
+    fut.set_result(value)
+    return fut
+
+
+def test_a_failed_refit_without_an_effect_drops_nothing(wrong_then_true):  # type: ignore[no-untyped-def]
+    """The refit without the wrong effect fails: no score, so no evidence against it; the
+    search's accepted effects stand, in its order, with its own figures."""
+    from bondid.diagnose.prune import prune
+
+    ctx, base, steps = wrong_then_true
+    pool = FailingPool()
+    out = prune(ctx, pool, steps, base)
+    assert pool.calls == 1 and out.dropped == []
+    assert [k.model for k in out.kept] == [steps[0].winner, steps[1].winner]
+    assert all(k.forward for k in out.kept) and out.note == ""
+
+
 def test_a_single_effect_is_kept_without_a_refit(wrong_then_true):  # type: ignore[no-untyped-def]
     from bondid.diagnose.prune import prune
 

@@ -14,8 +14,10 @@ rescue) and the verdict rule of :func:`.scoring.tests` — the same rule at ever
 whether the effect still earns its parameters on held-out data. Of the effects that fail it,
 the one whose removal leaves the best held-out score is dropped, and the test repeats on the
 effects left (every one of them, the last included) until each passes or one is left. A
-refit without an effect that ends stuck above the full model keeps the effect: the
-elimination only ever drops what the data show to be redundant.
+refit without an effect that ends stuck above the full model keeps the effect, and so does
+one that fails: the elimination only ever drops what the data show to be redundant. When a
+model of the kept effects cannot be refitted at the end, the drops are not applied (the
+search's accepted effects stand, ``Pruning.note`` says why).
 
 The models of the kept effects in order (the first alone, the first two, ...) give the
 figures of ``effects`` in ``diagnosis.json``; those the search or the elimination did not
@@ -97,6 +99,8 @@ class Pruning:
     dropped: list[Dropped] = field(default_factory=list)
     n_refits: int = 0
     wall_s: float = 0.0
+    #: why the elimination's drops were not applied ("" when they were, or none were found)
+    note: str = ""
 
     @property
     def final(self) -> JobResult | None:
@@ -193,7 +197,8 @@ def prune(
         for i, c in enumerate(chain):
             s_without = models[_without(chain, i)][1]
             test = scoring.tests(s_full, s_without, len(c.parameters), ctx.noise)
-            if not test["accepted"]:
+            # a failed refit without it (no finite score) shows nothing: the effect stays
+            if math.isfinite(s_without) and not test["accepted"]:
                 redundant.append((s_without, i, test))
         say(f"elimination round {rnd}: {len(redundant)} of {len(chain)} effects redundant")
         if not redundant:
@@ -205,6 +210,13 @@ def prune(
     full = models[chain][0]
     chain = list(full.chain)
     models.ensure(full, [chain[: j + 1] for j in range(len(chain))])
+    failed = [models[chain[: j + 1]][0].error for j in range(len(chain))]
+    if out.dropped and any(failed):
+        # a model of the kept effects that could not be refitted: no figures to report for
+        # it, so the search's own result stands (every accepted effect kept)
+        why = next(e for e in failed if e)
+        out = Pruning(note=f"not applied: a refit of the kept effects failed ({why})")
+        chain = list(winners[-1].chain)
     forward = True
     for j, c in enumerate(chain):
         step = _step_of(steps, c.label)

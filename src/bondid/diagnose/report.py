@@ -234,6 +234,7 @@ def _scoring_section(diag: Diagnosis) -> dict[str, Any]:
         "abs_margin_db": ABS_MARGIN_DB,
         "steps": [{"step": st.index + 1, **st.test} for st in diag.steps],
         "elimination": ELIMINATION,
+        "elimination_note": diag.pruning.note if diag.pruning is not None else "",
         "gap_closed": "1 - db_rms_after / gap.db_rms (gap after the parameter refit; "
         "both weighted)",
         "db_rms": DB_RMS_DEFINITION,
@@ -338,7 +339,9 @@ def _plots(diag: Diagnosis, reports: dict[str, GapReport], out_dir: Path) -> lis
         ]
         if best is not None:
             tag = "with effect" if best is diag.winner else "best candidate (not retained)"
-            curves.append(Curve(f"{tag}: {best.label}", best.full_H[k]))
+            # a refit without a dropped effect carries no candidate label: its first effect's
+            label = best.chain[0].label if best is diag.winner and best.chain else best.label
+            curves.append(Curve(f"{tag}: {label}", best.full_H[k]))
         curves.append(noise_curve(noise_estimate(d).sigma))
         out.append(
             plot_bode(
