@@ -153,3 +153,59 @@ def test_a_single_effect_is_kept_without_a_refit(wrong_then_true):  # type: igno
     assert len(out.kept) == 1 and out.kept[0].forward and out.kept[0].model is steps[0].winner
     assert out.kept[0].test == steps[0].test
     assert prune(ctx, pool, [], base).kept == [] and pool.calls == 0
+
+
+def test_a_diagnosis_with_a_dropped_effect_writes_the_kept_one(doc, tmp_path, monkeypatch):  # type: ignore[no-untyped-def]  # noqa: F811
+    """End to end through :func:`bondid.diagnose.diagnose` and its outputs, with the search
+    replaced by one that accepts the wrong compliance first and the true one second (as the
+    fixture's steps): the verdict, ``effects``, ``dropped``, the summary, ``augmented.urdf``
+    (the true effect alone) and the final fit all follow the elimination."""
+    from bondid.diagnose import diagnose, pipeline, write_outputs
+    from bondid.diagnose.effects import get_effect
+    from bondid.diagnose.report import gaps, to_json_dict
+    from bondid.diagnose.runner import Job, run_job
+    from bondid.diagnose.scoring import score, tests
+    from bondid.diagnose.search import Step
+    from bondid.diagnose.summary import summary
+    from bondid.model import UrdfDocument
+
+    e = get_effect("joint_compliance")
+    cands = {c.location: c for c in e.candidates(doc)}
+    data = _data(_with_values(e, doc, cands[TRUE_AT], scale=3.0))
+
+    def two_steps(ctx, pool, baseline, say):  # type: ignore[no-untyped-def]
+        def job(urdf, cand, chain=()):  # type: ignore[no-untyped-def]
+            return Job(urdf, ctx.space, ctx.train, ctx.heldout, ctx.full, cand, ctx.options,
+                       accepted=chain, alt_urdf=doc.to_string(), wider=False)  # fmt: skip
+
+        s0 = score(baseline.heldout_rms, baseline.n_train, 0)
+        wrong = run_job(job(baseline.urdf, cands[WRONG_AT]))
+        both = run_job(job(wrong.urdf, cands[TRUE_AT], wrong.chain))
+        sw = score(wrong.heldout_rms, wrong.n_train, wrong.n_new)
+        sb = score(both.heldout_rms, both.n_train, both.n_new)
+        return [
+            Step(0, baseline, s0, [], [], results=[wrong], scores=[sw], winner=wrong,
+                 test=tests(sw, s0, 2, ctx.noise)),
+            Step(1, wrong, sw, [], [], results=[both], scores=[sb], winner=both,
+                 test=tests(sb, sw, 2, ctx.noise)),
+        ]  # fmt: skip
+
+    monkeypatch.setattr(pipeline, "search", two_steps)
+    s = _settings(effects=["joint_compliance"], free=FEW, use_ipopt=True)
+    diag = diagnose(doc, data, s)
+    content = to_json_dict(diag, gaps(diag))
+    assert (content["verdict"]["effect"], content["verdict"]["location"]) == (
+        "joint_compliance", TRUE_AT)  # fmt: skip
+    assert [x["location"] for x in content["effects"]] == [TRUE_AT]
+    assert [x["location"] for x in content["dropped"]] == [WRONG_AT]
+    assert content["final_fit"]["effects"] == [{"effect": "joint_compliance", "location": TRUE_AT}]
+    assert content["scoring"]["elimination_note"] == ""
+    assert f"dropped: joint_compliance@{WRONG_AT}" in summary(diag, content)
+    written = write_outputs(diag, tmp_path, plots=True)
+    aug = UrdfDocument.load(tmp_path / "augmented.urdf")
+    aug.build_pinocchio_model()
+    joints = {j.name for j in aug.robot.joints}
+    assert (tmp_path / "augmented_all.urdf") not in written  # one effect kept
+    assert (tmp_path / "final.urdf") in written and (tmp_path / "bode_1.png") in written
+    # the kept model has the true DOF only: one joint more than the nominal model
+    assert len(joints) == len({j.name for j in doc.robot.joints}) + 1
