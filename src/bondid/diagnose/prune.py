@@ -32,7 +32,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..model.parameters import set_parameter
+from ..model.parameters import set_parameters
 from . import scoring
 from .effects import Candidate
 from .job import Job, JobResult
@@ -119,8 +119,7 @@ def reduced_job(ctx: Context, source: JobResult, chain: Sequence[Candidate]) -> 
     assert ctx.space is not None
     doc = ctx.nominal.copy()
     n = len(ctx.space.names)
-    for name, value in zip(source.names[:n], source.values[:n], strict=True):
-        set_parameter(doc, name, float(value))
+    set_parameters(doc, dict(zip(source.names[:n], map(float, source.values[:n]), strict=True)))
     level = ctx.noise.level_db if ctx.noise is not None else math.nan
     return Job(
         doc.to_string(), ctx.space, ctx.train, ctx.heldout, ctx.full, None, ctx.options,

@@ -44,7 +44,13 @@ from .gap import GapReport, gap_report
 from .job import JobResult
 from .pipeline import Diagnosis
 from .scoring import ABS_MARGIN_DB, REL_MARGIN, gap_closed
-from .verdict import dropped_entries, effect_entries, kept_effects, verdict_entry
+from .verdict import (
+    dropped_entries,
+    effect_entries,
+    effect_params,
+    kept_effects,
+    verdict_entry,
+)
 
 #: the backward elimination as ``diagnosis.json`` states it (``scoring.elimination``)
 ELIMINATION = (
@@ -93,17 +99,9 @@ def _gap_dict(g: GapReport, plain: GapReport | None = None) -> dict[str, Any]:
     }
 
 
-def _new_params(r: Any) -> tuple[dict[str, float], dict[str, float]]:
-    """The candidate's own parameters (the last ``n_own``) and their std."""
-    k = len(r.names) - r.n_own
-    vals = {n: float(v) for n, v in zip(r.names[k:], r.values[k:], strict=True)}
-    std = {n: float(v) for n, v in zip(r.names[k:], r.std[k:], strict=True)} if len(r.std) else {}
-    return vals, std
-
-
 def _refit_entry(r: Any, sc: float, before: float) -> dict[str, Any]:
     """The figures of one fully refitted candidate."""
-    vals, std = _new_params(r) if not r.error else ({}, {})
+    vals, std = effect_params(r, len(r.chain) - 1) if not r.error and r.chain else ({}, {})
     return {
         "parameters": vals,
         "db_rms_after": r.db_rms,

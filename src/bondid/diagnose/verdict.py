@@ -57,6 +57,12 @@ def tied(step: Any) -> list[dict[str, Any]]:
     return out
 
 
+def _detail(k: Kept, j: int) -> Any:
+    """The variant of the ``j``-th effect of a kept model (e.g. a pivot): the search step's
+    note for its own winner, else the effect's description as refitted."""
+    return k.model.extra.get("variant") if k.forward else k.model.chain[j].description
+
+
 def _params(k: Kept, j: int) -> dict[str, Any]:
     vals, std = effect_params(k.model, j)
     return {n: {"value": v, "std": std.get(n)} for n, v in vals.items()}
@@ -73,7 +79,7 @@ def effect_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
         step = diag.steps[k.step]
         out.append({
             "step": k.step + 1, "effect": c.effect, "location": c.location,
-            "detail": c.description if not k.forward else k.model.extra.get("variant"),
+            "detail": _detail(k, j),
             "parameters": _params(k, j),
             "db_rms_after": k.model.db_rms, "heldout_db_rms_after": k.model.heldout_db_rms,
             "gap_closed": gap_closed(before, k.model.db_rms), "score": k.score,
@@ -113,7 +119,7 @@ def verdict_entry(
         verdict: dict[str, Any] = {
             "effect": c.effect,
             "location": c.location,
-            "detail": c.description if not k.forward else k.model.extra.get("variant"),
+            "detail": _detail(k, 0),
             "gap_closed": gap_closed(before, k.model.db_rms),
             "gap_closed_total": gap_closed(nominal, k.model.db_rms),
             "parameters": _params(k, 0),
