@@ -235,6 +235,27 @@ def test_final_model_at_the_noise_level() -> None:
     assert r["at_noise"] is False and r["final_fit_db"] == 2.1 and r["final_fit_at_noise"] is True
 
 
+def test_an_effect_shows_only_where_the_parameter_refit_is_above_the_truths_level() -> None:
+    from benchmark.runner import shows
+    from benchmark.tables import summary_table
+
+    assert shows(2.3, 2.0, 1) is True  # 2.3 > 1.1 * 2.0
+    assert shows(2.1, 2.0, 1) is False
+    assert shows(2.3, 2.0, 0) is None and shows(None, 2.0, 1) is None
+    case = next(c for c in all_cases() if c.name == "gantry/sd/harsh")
+    hidden = dict(score(case, _diag([]), db_truth=3.9), case=case.name, design="gantry",
+                  regime="harsh", truth=[["sensor_delay", "gx"]])  # fmt: skip
+    assert hidden["shows"] is False and not hidden["class_ok"]
+    sd = {"effect": "sensor_delay", "location": "gx", "gap_closed": 0.5}
+    seen = dict(score(case, _diag([sd]), db_truth=2.0), case=case.name, design="gantry",
+                regime="harsh", truth=[["sensor_delay", "gx"]])  # fmt: skip
+    assert seen["shows"] is True and seen["location_ok"]
+    old = {k: v for k, v in hidden.items() if k != "shows"}  # a row that predates the field
+    line = summary_table([hidden, seen]).splitlines()[2]
+    assert line.endswith("| 100% (1/1) | 100% (1/1) |") and "| 50% (1/2) | 50% (1/2) |" in line
+    assert summary_table([old, seen]).splitlines()[2] == line
+
+
 def test_tables_keep_their_columns_with_failed_cases() -> None:
     from benchmark.tables import case_table, summary_table
 

@@ -236,6 +236,15 @@ def _at_noise(db: float | None, db_truth: float | None) -> bool | None:
     return None if db is None or db_truth is None else float(db) <= AT_NOISE * db_truth
 
 
+def shows(gap_refit: float | None, db_truth: float | None, n_truth: int) -> bool | None:
+    """Does the case's withheld effect show above the noise: is the parameter refit's weighted
+    gap [dB] above :data:`AT_NOISE` × the truth model's? (None for "none" cases or a missing
+    figure.) Where it does not, the verdict rule's first condition (the base above the noise
+    level) refuses every candidate, the true one included: no diagnosis can name it."""
+    at = _at_noise(gap_refit, db_truth)
+    return None if not n_truth or at is None else not at
+
+
 def final_db(diag: dict[str, Any], claimed: list[dict[str, Any]]) -> float | None:
     """The weighted gap of the diagnosis's final model: after its last accepted effect, else
     the parameter refit's."""
@@ -283,4 +292,5 @@ def score(case: Case, diag: dict[str, Any], db_truth: float | None) -> dict[str,
         "screen_ok": screening(case, diag), "final_db": final, "at_noise": at_noise,
         "final_fit_db": ff, "final_fit_at_noise": ff_at,
         "named_or_tied": named_or_tied(case, claimed),
+        "shows": shows(before, db_truth, len(truth)),
     }  # fmt: skip

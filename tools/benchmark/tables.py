@@ -7,10 +7,19 @@ from typing import Any
 
 import numpy as np
 
+from .runner import shows
+
 GOALS = ("goals: class ≥ 90 %, location ≥ 80 %, 0 effects claimed on 'none' cases, median"
          " gap_closed / truth's ≥ 0.8; two-effect: both found ≥ 70 %, no third; diagnosis ≤ 4×"
          " the fit; screening recall: every case; final model at the noise level (weighted"
          " gap ≤ 1.1 × the truth's) ≥ 95 %")  # fmt: skip
+
+#: what the last two columns of the summary count
+SHOWS = (
+    "where it shows: the single-effect cases whose parameter refit is above 1.1 × the"
+    " truth model's weighted gap (the effect shows above the noise; elsewhere no candidate"
+    " can pass the verdict rule's first condition, the base above the noise level)"
+)
 
 
 def _f(v: Any, fmt: str = ".2f") -> str:
@@ -67,6 +76,13 @@ def _median(xs: Iterable[float | None]) -> float | None:
     return float(np.median(v)) if v else None
 
 
+def _shows(r: dict[str, Any]) -> bool:
+    """The row's ``shows`` (:func:`.runner.shows`), from its gaps when the row predates it."""
+    if "shows" in r:
+        return bool(r["shows"])
+    return bool(shows(r.get("gap_refit"), r.get("db_truth"), len(r["truth"])))
+
+
 def _group(rows: list[dict[str, Any]]) -> dict[str, Any]:
     ok = [r for r in rows if "error" not in r]
     single = [r for r in ok if len(r["truth"]) <= 1]
@@ -77,10 +93,13 @@ def _group(rows: list[dict[str, Any]]) -> dict[str, Any]:
     noise = [r["at_noise"] for r in ok if r.get("at_noise") is not None]
     final = [r["final_fit_at_noise"] for r in ok if r.get("final_fit_at_noise") is not None]
     tied = [r["named_or_tied"] for r in ok if r.get("named_or_tied") is not None]
+    visible = [r for r in eff if _shows(r)]
     return {
         "n": len(rows), "failed": len(rows) - len(ok),
         "class": _pct(sum(r["class_ok"] for r in single), len(single)),
         "loc": _pct(sum(bool(r["location_ok"]) for r in eff), len(eff)),
+        "class_vis": _pct(sum(r["class_ok"] for r in visible), len(visible)),
+        "loc_vis": _pct(sum(bool(r["location_ok"]) for r in visible), len(visible)),
         "none": f"{sum(bool(r['claimed']) for r in none)}/{len(none)}",
         "both": _pct(sum(bool(r["location_ok"]) for r in double), len(double)),
         "third": f"{sum(r['extra_claims'] > 0 for r in double)}/{len(double)}",
@@ -100,8 +119,9 @@ def summary_table(rows: list[dict[str, Any]]) -> str:
     head = ("| design | regime | cases (failed) | class right | location right | claimed on"
             " none | two-effect both found | third claimed | median ratio | median diagnose s"
             " | median fit s | median diag/fit | screening recall"
-            " | final model at noise | final fit at noise | named or tied |")  # fmt: skip
-    lines = [head, "|" + "---|" * 16]
+            " | final model at noise | final fit at noise | named or tied"
+            " | class right where it shows | location right where it shows |")  # fmt: skip
+    lines = [head, "|" + "---|" * 18]
     designs = list(dict.fromkeys(r["design"] for r in rows))
     regimes = list(dict.fromkeys(r["regime"] for r in rows))
     groups = [((d, g), [r for r in rows if r["design"] == d and r["regime"] == g])
@@ -117,6 +137,6 @@ def summary_table(rows: list[dict[str, Any]]) -> str:
             f"| {d} | {g} | {s['n']} ({s['failed']}) | {s['class']} | {s['loc']} | {s['none']} |"
             f" {s['both']} | {s['third']} | {s['ratio']} | {s['diag_s']} | {s['fit_s']} |"
             f" {s['t_ratio']} | {s['recall']} | {s['at_noise']} | {s['final_fit']} |"
-            f" {s['tied']} |"
+            f" {s['tied']} | {s['class_vis']} | {s['loc_vis']} |"
         )
-    return "\n".join(lines) + "\n\n" + GOALS
+    return "\n".join(lines) + "\n\n" + GOALS + "\n\n" + SHOWS
