@@ -252,7 +252,9 @@ def test_an_effect_shows_only_where_the_parameter_refit_is_above_the_truths_leve
     assert seen["shows"] is True and seen["location_ok"]
     old = {k: v for k, v in hidden.items() if k != "shows"}  # a row that predates the field
     line = summary_table([hidden, seen]).splitlines()[2]
-    assert line.endswith("| 100% (1/1) | 100% (1/1) |") and "| 50% (1/2) | 50% (1/2) |" in line
+    assert (
+        line.endswith("| 100% (1/1) | 100% (1/1) | 0/2 |") and "| 50% (1/2) | 50% (1/2) |" in line
+    )
     assert summary_table([old, seen]).splitlines()[2] == line
 
 

@@ -100,6 +100,7 @@ def _group(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "loc": _pct(sum(bool(r["location_ok"]) for r in eff), len(eff)),
         "class_vis": _pct(sum(r["class_ok"] for r in visible), len(visible)),
         "loc_vis": _pct(sum(bool(r["location_ok"]) for r in visible), len(visible)),
+        "extra1": f"{sum(r['extra_claims'] > 0 for r in eff)}/{len(eff)}",
         "none": f"{sum(bool(r['claimed']) for r in none)}/{len(none)}",
         "both": _pct(sum(bool(r["location_ok"]) for r in double), len(double)),
         "third": f"{sum(r['extra_claims'] > 0 for r in double)}/{len(double)}",
@@ -120,8 +121,9 @@ def summary_table(rows: list[dict[str, Any]]) -> str:
             " none | two-effect both found | third claimed | median ratio | median diagnose s"
             " | median fit s | median diag/fit | screening recall"
             " | final model at noise | final fit at noise | named or tied"
-            " | class right where it shows | location right where it shows |")  # fmt: skip
-    lines = [head, "|" + "---|" * 18]
+            " | class right where it shows | location right where it shows"
+            " | single-effect, second claimed |")  # fmt: skip
+    lines = [head, "|" + "---|" * 19]
     designs = list(dict.fromkeys(r["design"] for r in rows))
     regimes = list(dict.fromkeys(r["regime"] for r in rows))
     groups = [((d, g), [r for r in rows if r["design"] == d and r["regime"] == g])
@@ -137,6 +139,6 @@ def summary_table(rows: list[dict[str, Any]]) -> str:
             f"| {d} | {g} | {s['n']} ({s['failed']}) | {s['class']} | {s['loc']} | {s['none']} |"
             f" {s['both']} | {s['third']} | {s['ratio']} | {s['diag_s']} | {s['fit_s']} |"
             f" {s['t_ratio']} | {s['recall']} | {s['at_noise']} | {s['final_fit']} |"
-            f" {s['tied']} | {s['class_vis']} | {s['loc_vis']} |"
+            f" {s['tied']} | {s['class_vis']} | {s['loc_vis']} | {s['extra1']} |"
         )
     return "\n".join(lines) + "\n\n" + GOALS + "\n\n" + SHOWS
