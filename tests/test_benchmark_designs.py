@@ -172,7 +172,7 @@ def test_case_list_covers_designs_regimes_and_effects() -> None:
     for regime in REGIMES:
         assert {c.effects[0].effect for c in single if c.regime == regime} == set(EFFECTS)
     double = [c for c in cases if len(c.effects) == 2]
-    assert len(double) >= 8 == sum(len(v) for v in DOUBLE.values())
+    assert len(double) == sum(len(v) for v in DOUBLE.values()) >= 8
     for c in double:
         a, b = c.effects
         assert a.location != b.location

@@ -66,6 +66,16 @@ SINGLE: dict[str, dict[str, E]] = {
         "al": E("actuator_lag", "all", {"T": 50e-6}),
         "jct2": _jc("carriage->rotary_head:tx", 1400.0),
     },
+    # stop 35: a fourth machine type, measured first in its own regime (mob: velocity)
+    "polar": {
+        "jct": _jc("pedestal->turntable:tz", 1100.0),
+        "jcr": _jc("turntable->arm:rx", 420.0, (0.03, 0.015)),
+        "fb": E("flexible_base", "pedestal", {"f": 900.0}),
+        "sm": E("soft_mounts", "pedestal", {"f": 16.0}),
+        "sd": E("sensor_delay", "ext", {"tau": 45e-6}),
+        "al": E("actuator_lag", "lift", {"T": 90e-6}),
+        "jct2": _jc("arm->fork:ty", 1300.0),
+    },
 }
 
 DOUBLE: dict[str, dict[str, tuple[E, E]]] = {
@@ -87,9 +97,19 @@ DOUBLE: dict[str, dict[str, tuple[E, E]]] = {
                    E("sensor_delay", "all", {"tau": 30e-6})),
         "sm+al": (E("soft_mounts", "frame", {"f": 18.0}), E("actuator_lag", "gy", {"T": 100e-6})),
     },
+    "polar": {
+        "jcr+sd": (_jc("arm->fork:ry", 650.0, (0.02, -0.01)),
+                   E("sensor_delay", "all", {"tau": 35e-6})),
+        "jct+al": (_jc("arm->fork:ty", 1300.0), E("actuator_lag", "rot", {"T": 70e-6})),
+    },
 }  # fmt: skip
 
 NONE_TAGS = ("none_a", "none_b")
+#: designs measured in a regime of their own as well: the first regime of every single
+#: effect, the first "none" case and the two-effect cases (the others rotate as for the rest)
+OWN_REGIME = {"polar": "mob"}
+#: the regimes the designs rotate through
+ROTATION = REGIMES[:4]
 
 
 def all_cases() -> list[Case]:
@@ -97,19 +117,24 @@ def all_cases() -> list[Case]:
     out: list[Case] = []
     seed = 0
     for d, (design, singles) in enumerate(SINGLE.items()):
+        own = OWN_REGIME.get(design)
+
+        def regime(k: int, first: bool, own: str | None = own) -> str:
+            return own if own and first else ROTATION[k % len(ROTATION)]
+
         for i, (tag, eff) in enumerate(singles.items()):
             for shift in (0, 2):
-                regime = REGIMES[(i + d + shift) % 4]
                 seed += 1
-                out.append(Case(f"{design}/{tag}/{regime}", design, regime, (eff,), seed))
+                r = regime(i + d + shift, shift == 0)
+                out.append(Case(f"{design}/{tag}/{r}", design, r, (eff,), seed))
         for i, tag in enumerate(NONE_TAGS):
-            regime = REGIMES[(d + i) % 4]
             seed += 1
-            out.append(Case(f"{design}/{tag}/{regime}", design, regime, (), seed))
+            r = regime(d + i, i == 0)
+            out.append(Case(f"{design}/{tag}/{r}", design, r, (), seed))
         for i, (tag, pair) in enumerate(DOUBLE[design].items()):
-            regime = REGIMES[(d + i) % 4]
             seed += 1
-            out.append(Case(f"{design}/{tag}/{regime}", design, regime, pair, seed))
+            r = regime(d + i, True)
+            out.append(Case(f"{design}/{tag}/{r}", design, r, pair, seed))
     return out
 
 

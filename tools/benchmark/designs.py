@@ -41,6 +41,12 @@ DESIGNS: dict[str, Design] = {
             ({}, {"gy": 0.15, "gx": -0.2, "theta": 0.8}),
             "2-axis gantry (racking bridge) with a rotary head (10 DOF)",
         ),
+        Design(
+            "polar",
+            HERE / "polar_handler.urdf",
+            ({}, {"ext": 0.12, "lift": -0.03, "rot": 0.5}),
+            "R-theta wafer handler: turntable, radial arm, lift at its tip (10 DOF)",
+        ),
     )
 }
 

@@ -10,6 +10,9 @@
   coherence; quantity ``accelerance``. (A floor per sensor, 50 dB below its strongest
   channel, was tried: weak cross-terms were then pure noise and even the truth model's gap
   was 109 dB, so no score could be read from it.)
+- ``mob`` (stop 35, with the fourth design): a laser vibrometer's velocity, quantity
+  ``mobility``: 2 % relative + a flat velocity floor 40 dB below each channel's median
+  mobility (in receptance: a floor ∝ 1/ω); no coherence.
 
 The harsh and accelerance generators are written here (not in ``bondid.data.noise``): the
 benchmark's noise must not move when the package's noise options change.
@@ -27,11 +30,14 @@ from bondid.data.io import write_frf
 from bondid.data.measurement import FrfData
 from bondid.model import UrdfDocument
 
-REGIMES = ("coh", "nocoh", "harsh", "acc")
+REGIMES = ("coh", "nocoh", "harsh", "acc", "mob")
 REL = 0.02
 COH_FLOOR_DB = -70.0
 HARSH_FLOOR_DB = -40.0
 ACC_FLOOR_DB = -40.0
+MOB_FLOOR_DB = -40.0
+#: the quantity of each regime's files (receptance unless named)
+QUANTITY = {"acc": "accelerance", "mob": "mobility"}
 
 
 def _cn(rng: np.random.Generator, shape: tuple[int, ...]) -> np.ndarray:
@@ -53,7 +59,7 @@ def channel_median_sigma(H: np.ndarray, floor_db: float) -> np.ndarray:
 
 
 def quantity_of(regime: str) -> str:
-    return "accelerance" if regime == "acc" else "receptance"
+    return QUANTITY.get(regime, "receptance")
 
 
 def noisy(
@@ -72,8 +78,9 @@ def noisy(
         return flat_floor_noise(
             H, rng, rel=REL, sigma=channel_median_sigma(H, HARSH_FLOOR_DB)
         ), None
-    if regime == "acc":
-        return flat_floor_noise(H, rng, rel=REL, sigma=channel_median_sigma(H, ACC_FLOOR_DB)), None
+    if regime in ("acc", "mob"):
+        floor = ACC_FLOOR_DB if regime == "acc" else MOB_FLOOR_DB
+        return flat_floor_noise(H, rng, rel=REL, sigma=channel_median_sigma(H, floor)), None
     raise ValueError(f"unknown regime {regime!r}; valid: {', '.join(REGIMES)}")
 
 
