@@ -40,6 +40,7 @@ from ..model.document import UrdfDocument
 from . import scoring
 from .effects import Candidate
 from .job import Job, JobResult
+from .parsimony import prefer_simpler
 from .refit import Nominal
 from .rescue import above_heldout_level
 from .runner import run_job
@@ -231,7 +232,14 @@ def _step(
     results = second_round(pool, used, results,
                            lambda label: progress(f"step {index + 1} widened {label}"))  # fmt: skip
     scores = [scoring.score(r.heldout_rms, r.n_train, r.n_new) for r in results]
-    order = verdict_order(results, scores)
+    order, displaced = prefer_simpler(
+        results,
+        scores,
+        verdict_order(results, scores),
+        ctx.noise,
+        ctx.train[0].outputs,
+        ctx.train[0].inputs,
+    )
     step.results = [results[i] for i in order]
     step.scores = [scores[i] for i in order]
     if not step.results:
@@ -245,6 +253,14 @@ def _step(
         # p of the test: this step's own candidate parameters (best.n_new also counts the
         # effects accepted before, already in the base)
         step.test = scoring.tests(step.scores[0], base_score, best.n_own, ctx.noise)
+        if displaced is not None:  # the simpler equivalent modifier (parsimony.py)
+            d = results[displaced]
+            step.test["preferred_over"] = {
+                "effect": d.effect,
+                "location": d.location,
+                "score": scores[displaced],
+                "n_parameters": d.n_own,
+            }
         if step.test["accepted"]:
             step.winner = best
     step.test["strength_z"] = z

@@ -1,0 +1,82 @@
+"""The simpler of two FRF modifiers the data cannot tell apart (:func:`prefer_simpler`).
+
+A step tests its best-scoring refit. When another refit scores within the noise of it
+(:func:`.scoring.indistinguishable`: the best one does not beat it by the significance part of
+the verdict rule taken with one parameter) and is an FRF modifier that changes **the same
+entries** of the FRF with **fewer parameters**, the data support both equally and the simpler
+explains as much: that one is tested and named, the other listed as indistinguishable from it.
+
+The case it is for: a pure delay on every output and a second-order lag on every input are
+both one common factor on the whole FRF matrix. Below its corner a well-damped second-order
+lag (ζ ≈ 0.6–0.9, a Bessel-like loop) has a nearly flat magnitude and a nearly linear phase,
+i.e. it is a delay to within the noise (measured, blind benchmark, withheld delay of 35 µs on
+every output, mobility data: the delay's refit τ = 34.3 µs at 0.867 dB held-out, the lag's
+T = 30.7 µs, T₂ = 25.8 µs at 0.865 dB, Λ = 0.83 against a held-out noise level of 0.881 dB).
+A lag the data do tell from a delay (a magnitude roll-off in band) is not affected: its
+score then beats the delay's by more than the noise.
+
+Structural candidates are never swapped this way: a flexible base and soft mounts (9 and 8
+parameters) are different physical hypotheses, and which one the data favour is the
+evidence the diagnosis reports, even when it is weak.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from . import scoring
+from .effects import available
+from .effects.base import Candidate
+
+#: the frequency [Hz] at which a modifier's entries are read (any in-band value: a modifier
+#: at its start values differs from 1 wherever it acts)
+PROBE_HZ = 1000.0
+
+
+def entries(cand: Candidate | None, outputs: Sequence[str], inputs: Sequence[str]):
+    """``(n_out, n_in)`` bool: the FRF entries an FRF-modifier candidate changes (at its start
+    values); None for a structural candidate or an unknown effect."""
+    cls = available().get(cand.effect) if cand is not None else None
+    if cand is None or cls is None or not cls.is_modifier:
+        return None
+    values = np.array([p.initial for p in cand.parameters], float)
+    G, _ = cls().modifier(cand, values, np.array([PROBE_HZ]), tuple(outputs), tuple(inputs))
+    return np.abs(G[..., 0] - 1.0) > 1e-12
+
+
+def prefer_simpler(
+    results: Sequence[Any],
+    scores: Sequence[float],
+    order: list[int],
+    noise: scoring.NoiseReference | None,
+    outputs: Sequence[str],
+    inputs: Sequence[str],
+) -> tuple[list[int], int | None]:
+    """``order`` (indices of ``results``, the one tested first) with the simpler equivalent
+    modifier of the module docstring moved to the front, and the index it displaced (None
+    when nothing moved). ``scores``: held-out scores [dB] in the order of ``results``."""
+    if len(order) < 2 or not scoring.determined(results[order[0]]):
+        return order, None
+    best = results[order[0]]
+    mask = entries(best.candidate, outputs, inputs)
+    if mask is None:
+        return order, None
+    test: dict[str, Any] = {"rule": "margin"}
+    if noise is not None and noise.level_db > 0 and noise.n_eff > 0:
+        test = {"rule": "noise", **noise.as_dict()}
+    tied = {order[j] for j, _ in scoring.indistinguishable([scores[i] for i in order], test)}
+    simpler = []
+    for i in order[1:]:
+        r = results[i]
+        if i not in tied or r.n_own >= best.n_own or not scoring.determined(r):
+            continue
+        other = entries(r.candidate, outputs, inputs)
+        if other is not None and other.shape == mask.shape and np.array_equal(other, mask):
+            simpler.append(i)
+    if not simpler:
+        return order, None
+    pick = min(simpler, key=lambda i: (results[i].n_own, scores[i]))
+    return [pick] + [i for i in order if i != pick], order[0]
