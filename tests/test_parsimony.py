@@ -84,3 +84,17 @@ def test_an_undetermined_simpler_refit_is_not_preferred() -> None:
     lag, delay = _result("actuator_lag", "all"), _result("sensor_delay", "all")
     delay.std[-1] = delay.values[-1]  # value/std 1 < Z
     assert _pick([lag, delay], [0.865, 0.867]) == ([0, 1], None)
+
+
+def test_the_summary_says_which_modifier_a_simpler_one_was_named_for() -> None:
+    from bondid.diagnose.summary import preferred_lines
+
+    pref = {"effect": "actuator_lag", "location": "all", "score": 0.865, "n_parameters": 2}
+    effects = [
+        {"step": 1, "effect": "joint_compliance", "location": "arm->fork:ry", "test": {}},
+        {"step": 2, "effect": "sensor_delay", "location": "all",
+         "test": {"preferred_over": pref}},
+    ]  # fmt: skip
+    (line,) = preferred_lines(effects)
+    assert "step 2: sensor_delay@all named for actuator_lag@all (0.865 dB)" in line
+    assert preferred_lines(effects[:1]) == []

@@ -60,6 +60,7 @@ def summary(diag: Diagnosis, content: dict[str, Any]) -> str:
             lines.append("  the data do not tell it from: " + ", ".join(ties))
     if content.get("effects"):
         lines.append("effects: " + steps_line(g["db_rms"], content["effects"]))
+    lines += preferred_lines(content.get("effects") or [])
     lines += dropped_lines(content.get("dropped") or [])
     ff = content.get("final_fit")
     if ff:
@@ -73,6 +74,20 @@ def summary(diag: Diagnosis, content: dict[str, Any]) -> str:
 def _label(c: dict[str, Any]) -> str:
     """``effect@location`` (``effect`` alone without a location)."""
     return f"{c['effect']}@{c['location']}" if c.get("location") else str(c["effect"])
+
+
+def preferred_lines(effects: Sequence[dict[str, Any]]) -> list[str]:
+    """One line per effect named for a better-scoring equivalent FRF modifier with more
+    parameters (``test.preferred_over``, :mod:`.parsimony`)."""
+    out = []
+    for e in effects:
+        p = (e.get("test") or {}).get("preferred_over")
+        if p:
+            out.append(
+                f"  step {e['step']}: {_label(e)} named for {_label(p)} ({p['score']:.3f} dB):"
+                f" the data do not tell them apart and it has fewer parameters"
+            )
+    return out
 
 
 def dropped_lines(dropped: Sequence[dict[str, Any]]) -> list[str]:
