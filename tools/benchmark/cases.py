@@ -112,28 +112,30 @@ OWN_REGIME = {"polar": "mob"}
 ROTATION = REGIMES[:4]
 
 
+def _regime(design: str, k: int, first: bool) -> str:
+    """The regime of a case: the design's own for its first ones (:data:`OWN_REGIME`), else
+    the ``k``-th of the rotation."""
+    own = OWN_REGIME.get(design)
+    return own if own and first else ROTATION[k % len(ROTATION)]
+
+
 def all_cases() -> list[Case]:
     """Every case, in a fixed order (designs, then single, none and two-effect cases)."""
     out: list[Case] = []
     seed = 0
     for d, (design, singles) in enumerate(SINGLE.items()):
-        own = OWN_REGIME.get(design)
-
-        def regime(k: int, first: bool, own: str | None = own) -> str:
-            return own if own and first else ROTATION[k % len(ROTATION)]
-
         for i, (tag, eff) in enumerate(singles.items()):
             for shift in (0, 2):
                 seed += 1
-                r = regime(i + d + shift, shift == 0)
+                r = _regime(design, i + d + shift, shift == 0)
                 out.append(Case(f"{design}/{tag}/{r}", design, r, (eff,), seed))
         for i, tag in enumerate(NONE_TAGS):
             seed += 1
-            r = regime(d + i, i == 0)
+            r = _regime(design, d + i, i == 0)
             out.append(Case(f"{design}/{tag}/{r}", design, r, (), seed))
         for i, (tag, pair) in enumerate(DOUBLE[design].items()):
             seed += 1
-            r = regime(d + i, True)
+            r = _regime(design, d + i, True)
             out.append(Case(f"{design}/{tag}/{r}", design, r, pair, seed))
     return out
 

@@ -36,6 +36,8 @@ COH_FLOOR_DB = -70.0
 HARSH_FLOOR_DB = -40.0
 ACC_FLOOR_DB = -40.0
 MOB_FLOOR_DB = -40.0
+#: the regimes with a flat floor below each channel's median (in the files' quantity) [dB]
+FLAT_FLOOR_DB = {"harsh": HARSH_FLOOR_DB, "acc": ACC_FLOOR_DB, "mob": MOB_FLOOR_DB}
 #: the quantity of each regime's files (receptance unless named)
 QUANTITY = {"acc": "accelerance", "mob": "mobility"}
 
@@ -74,13 +76,9 @@ def noisy(
             H, f, rel=REL, floor_db=COH_FLOOR_DB, rng=rng, floor_ref="response"
         )
         return Hn, (coh if regime == "coh" else None)
-    if regime == "harsh":
-        return flat_floor_noise(
-            H, rng, rel=REL, sigma=channel_median_sigma(H, HARSH_FLOOR_DB)
-        ), None
-    if regime in ("acc", "mob"):
-        floor = ACC_FLOOR_DB if regime == "acc" else MOB_FLOOR_DB
-        return flat_floor_noise(H, rng, rel=REL, sigma=channel_median_sigma(H, floor)), None
+    if regime in FLAT_FLOOR_DB:
+        sigma = channel_median_sigma(H, FLAT_FLOOR_DB[regime])
+        return flat_floor_noise(H, rng, rel=REL, sigma=sigma), None
     raise ValueError(f"unknown regime {regime!r}; valid: {', '.join(REGIMES)}")
 
 

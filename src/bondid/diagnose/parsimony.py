@@ -39,8 +39,10 @@ PROBE_HZ = 1000.0
 def entries(cand: Candidate | None, outputs: Sequence[str], inputs: Sequence[str]):
     """``(n_out, n_in)`` bool: the FRF entries an FRF-modifier candidate changes (at its start
     values); None for a structural candidate or an unknown effect."""
-    cls = available().get(cand.effect) if cand is not None else None
-    if cand is None or cls is None or not cls.is_modifier:
+    if cand is None:
+        return None
+    cls = available().get(cand.effect)
+    if cls is None or not cls.is_modifier:
         return None
     values = np.array([p.initial for p in cand.parameters], float)
     G, _ = cls().modifier(cand, values, np.array([PROBE_HZ]), tuple(outputs), tuple(inputs))
@@ -64,9 +66,7 @@ def prefer_simpler(
     mask = entries(best.candidate, outputs, inputs)
     if mask is None:
         return order, None
-    test: dict[str, Any] = {"rule": "margin"}
-    if noise is not None and noise.level_db > 0 and noise.n_eff > 0:
-        test = {"rule": "noise", **noise.as_dict()}
+    test = {"rule": "noise", **noise.as_dict()} if scoring.usable(noise) else {"rule": "margin"}
     tied = {order[j] for j, _ in scoring.indistinguishable([scores[i] for i in order], test)}
     simpler = []
     for i in order[1:]:

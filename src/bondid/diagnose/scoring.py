@@ -64,7 +64,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeGuard
 
 import numpy as np
 
@@ -200,6 +200,12 @@ def heldout_noise(
     return NoiseReference(float(DB * math.sqrt(level2)), n_eff)
 
 
+def usable(noise: NoiseReference | None) -> TypeGuard[NoiseReference]:
+    """Does the verdict rule run on ``noise`` (a positive level and point count), rather than
+    on the fallback margins?"""
+    return noise is not None and noise.level_db > 0 and noise.n_eff > 0
+
+
 def tests(
     candidate_score: float, baseline_score: float, n_new: int, noise: NoiseReference | None
 ) -> dict[str, Any]:
@@ -210,7 +216,7 @@ def tests(
     if not (math.isfinite(candidate_score) and math.isfinite(baseline_score)):
         return {"accepted": False, "rule": "none", "why": "a score is not finite"}
     gain = baseline_score - candidate_score
-    if noise is None or not noise.level_db > 0 or not noise.n_eff > 0:
+    if not usable(noise):
         ok = gain >= REL_MARGIN * baseline_score and gain >= ABS_MARGIN_DB
         return {"accepted": bool(ok), "rule": "margin"}
     s0, s1, L2, n = baseline_score**2, candidate_score**2, noise.level_db**2, noise.n_eff
