@@ -27,7 +27,9 @@ def mac_matrix(a: Sequence[IdentifiedMode], b: Sequence[IdentifiedMode]) -> np.n
 
     Each output row and input column of every residue matrix is divided by one common scale
     (from all modes of both lists, so m/N and rad/(N·m) channels weigh alike);
-    MAC = |aᴴb|² / (|a|²|b|²). Non-finite entries count as 0.
+    MAC = |aᴴb|² / (|a|²|b|²) over the entries both modes determine (``determined``, None =
+    all: a measured mode's residue in a channel whose data are noise at its frequency is
+    noise, and would lower the MAC of a right pair). Non-finite entries count as 0.
     """
     allR = [np.nan_to_num(m.residues) for m in [*a, *b]]
     if not allR:
@@ -36,12 +38,22 @@ def mac_matrix(a: Sequence[IdentifiedMode], b: Sequence[IdentifiedMode]) -> np.n
     r, t = _lscf.balance(c)
     va = [(r[:, None] * np.nan_to_num(m.residues) * t[None, :]).ravel() for m in a]
     vb = [(r[:, None] * np.nan_to_num(m.residues) * t[None, :]).ravel() for m in b]
+    ma = [_mask(m, allR[0].size) for m in a]
+    mb = [_mask(m, allR[0].size) for m in b]
     out = np.zeros((len(a), len(b)))
-    for i, x in enumerate(va):
-        for j, y in enumerate(vb):
+    for i, x0 in enumerate(va):
+        for j, y0 in enumerate(vb):
+            both = ma[i] & mb[j]
+            x, y = x0 * both, y0 * both
             den = np.vdot(x, x).real * np.vdot(y, y).real
             out[i, j] = abs(np.vdot(x, y)) ** 2 / den if den > 0 else 0.0
     return out
+
+
+def _mask(m: IdentifiedMode, n: int) -> np.ndarray:
+    """The entries (raveled, ``(n,)``) of ``m``'s residues the data determine."""
+    d = getattr(m, "determined", None)
+    return np.ones(n, bool) if d is None else np.asarray(d, bool).ravel()
 
 
 def pair_modes(
