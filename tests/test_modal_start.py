@@ -20,12 +20,16 @@ FEW = ["x_stage.mass", "y_stage.mass", "z_stage.mass", "x_guide_ry.stiffness"]
 ERRORS = (1.2, 0.85, 1.15, 0.8)
 #: the truth's mount modes [Hz] per spring (tx, ty, tz, rx, ry, rz): unequal, as real mounts
 MOUNT_HZ = (9.0, 11.0, 16.0, 21.0, 25.0, 13.0)
-ZETA = (0.02, 0.03)
+ZETA = (0.02, 0.03)  # translations, rotations
 #: the alternation's start: the truth's springs times this (inside the basin the module
 #: docstring measured: within ~40 %)
 START_OFF = 1.3
-#: the alternation's end: springs within this factor of the truth's
+#: the alternation's end: springs within this factor of the truth's ...
 SPRING_FACTOR = 1.1
+#: ... but for this many: the y mount (11 Hz, beside the 12.5 Hz arm mode) with its own
+#: damping ratio is not determined by these data (measured: y 17-75x stiffer and overdamped
+#: scores the truth model's data cost, 6.995-7.001 against 6.996)
+UNDETERMINED = 1
 #: ... and its data cost within this multiple of the truth model's own
 COST_FACTOR = 1.5
 
@@ -62,7 +66,7 @@ def case():
     new = np.array([q.initial for q in c.parameters])
     for i, f in zip(ms.springs(c), MOUNT_HZ, strict=True):
         new[i] *= (f / c.ref_hz) ** 2
-    new[-2:] = ZETA
+    new[6:9], new[9:12] = ZETA  # one damping ratio per mount DOF
     data = noisy_bonder_data(get_effect("soft_mounts").augment(truth, with_values(c, new)))
     return doc, c, data, new, truth
 
@@ -78,8 +82,8 @@ def _refit(doc, c, data):
 def test_the_alternation_reaches_the_truth_from_springs_near_it(case):
     """Known answer: from the nominal model (its errors not refitted), the springs 30 % off
     and the damping ratios at their start values, the restart alternation ends with every
-    spring within SPRING_FACTOR of the truth's and the data cost within COST_FACTOR of the
-    truth model's own."""
+    spring but UNDETERMINED within SPRING_FACTOR of the truth's and the data cost within
+    COST_FACTOR of the truth model's own."""
     doc, c, data, new, truth = case
     refit = _refit(doc, c, data).refit
     start = np.array([q.initial for q in c.parameters])
@@ -89,7 +93,8 @@ def test_the_alternation_reaches_the_truth_from_springs_near_it(case):
     assert np.isfinite(cost)
     got = refit.new_values(state)
     ratio = got[idx] / new[idx]
-    assert np.all((ratio > 1 / SPRING_FACTOR) & (ratio < SPRING_FACTOR)), ratio
+    near = (ratio > 1 / SPRING_FACTOR) & (ratio < SPRING_FACTOR)
+    assert np.count_nonzero(near) >= ratio.size - UNDETERMINED, ratio
     at_truth = refit.with_new(refit.state0, new)
     from bondid.model.parameters import get_parameters
 
