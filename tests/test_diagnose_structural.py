@@ -16,7 +16,7 @@ ROOT = Path(__file__).resolve().parents[1]
 MODEL = ROOT / "urdf" / "bonder.urdf"
 FEW = ["x_stage.mass", "y_stage.mass", "z_stage.mass", "x_guide_ry.stiffness"]
 #: unequal mount stiffnesses (factors on the start's, per x y z rx ry rz) and damping ratios
-MOUNTS = (0.5, 0.8, 1.4, 2.0, 0.7, 1.2, 0.6, 1.5)
+MOUNTS = (0.5, 0.8, 1.4, 2.0, 0.7, 1.2, *(0.6,) * 3, *(1.5,) * 3)  # 6 springs, 6 damping ratios
 #: geometry computed two ways (the variants' centres on the hull face, the same start
 #: stiffness): equal up to rounding [m] / relative
 ROUNDING_ABS_M = 1e-12
