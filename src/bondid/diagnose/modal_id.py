@@ -251,11 +251,13 @@ def _with_new(
     """``base`` and the poles of ``more`` farther than ``2·tol_f`` (relative) from every pole
     of ``base``, by frequency (a pole of ``base`` is never replaced)."""
 
-    def far(c: tuple[complex, int]) -> bool:
-        return all(abs(abs(c[0]) - abs(b[0])) >= 2 * tol_f * abs(c[0]) for b in base)
-
-    new = [c for c in more if far(c)]
+    new = [c for c in more if not any(_close(c[0], b[0], tol_f) for b in base)]
     return sorted(base + new, key=lambda c: abs(c[0]))
+
+
+def _close(pole: complex, other: complex, tol_f: float) -> bool:
+    """Are the two poles' frequencies within ``2·tol_f`` of ``pole``'s (relative)?"""
+    return abs(abs(pole) - abs(other)) < 2 * tol_f * abs(pole)
 
 
 def _merge_close(cands: list[tuple[complex, int]], tol_f: float) -> list[tuple[complex, int]]:
@@ -263,7 +265,7 @@ def _merge_close(cands: list[tuple[complex, int]], tol_f: float) -> list[tuple[c
     merged into it (the one stable over more orders wins)."""
     merged: list[tuple[complex, int]] = []
     for pole, cnt in sorted(cands, key=lambda c: abs(c[0])):
-        if merged and abs(abs(pole) - abs(merged[-1][0])) < 2 * tol_f * abs(pole):
+        if merged and _close(pole, merged[-1][0], tol_f):
             if cnt > merged[-1][1]:
                 merged[-1] = (pole, cnt)
             continue
@@ -320,7 +322,7 @@ def _prominent(
         lr = complex(lr)
         prom = _prominence(f, H, lr, R[k], coh)
         if prom >= min_prominence:
-            at = int(np.argmin(np.abs(f - lr.imag / (2 * np.pi))))
+            at = _nearest(f, lr)
             modes.append(
                 IdentifiedMode(
                     f_hz=abs(lr) / (2 * np.pi), zeta=-lr.real / abs(lr), residues=R[k],
@@ -331,6 +333,11 @@ def _prominent(
     return modes
 
 
+def _nearest(f: np.ndarray, lam: complex) -> int:
+    """Index of the frequency of ``f`` [Hz] nearest the damped frequency ``Im λ / 2π``."""
+    return int(np.argmin(np.abs(f - lam.imag / (2 * np.pi))))
+
+
 def _prominence(
     f: np.ndarray, H: np.ndarray, lam: complex, R: np.ndarray, coh: np.ndarray | None = None
 ) -> float:
@@ -338,7 +345,7 @@ def _prominence(
     fd = lam.imag / (2 * np.pi)
     if not f[0] <= fd <= f[-1]:
         return 0.0
-    k = int(np.argmin(np.abs(f - fd)))
+    k = _nearest(f, lam)
     terms = np.abs(_lscf.mode_terms(np.array([fd]), lam, R)[..., 0])
     ratio = terms / np.abs(H[:, :, k])
     if coh is not None:

@@ -52,8 +52,7 @@ def mac_matrix(a: Sequence[IdentifiedMode], b: Sequence[IdentifiedMode]) -> np.n
 
 def _mask(m: IdentifiedMode, n: int) -> np.ndarray:
     """The entries (raveled, ``(n,)``) of ``m``'s residues the data determine."""
-    d = getattr(m, "determined", None)
-    return np.ones(n, bool) if d is None else np.asarray(d, bool).ravel()
+    return np.ones(n, bool) if m.determined is None else np.asarray(m.determined, bool).ravel()
 
 
 def pair_modes(
