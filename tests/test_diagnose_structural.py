@@ -285,6 +285,56 @@ def test_the_pivot_search_stays_inside_the_box():
     assert np.array(best_free.spec["pivot"])[0] > 0.1  # without the box it leaves it
 
 
+def test_the_grid_finds_a_narrow_basin_the_compass_search_misses():
+    """Known answer: a cost with a broad local minimum at the start and a narrow, deeper
+    basin across the box (the final fit's landscape on bonder/jcr+al/coh). The compass
+    search alone stays in the first; started from the grid's best point it reaches the
+    second within 5 mm."""
+    from bondid.diagnose.effects.base import Candidate
+    from bondid.diagnose.pivot import refine_pivot
+
+    spec = {"axis": [0.0, 1.0, 0.0], "pivot": [0.0, 0.0, 0.03], "kind": "revolute"}
+    c = Candidate("joint_compliance", "a->b:ry", (), spec, (), "a DOF pivot [0] mm")
+    deep = np.array([0.02, 0.0, -0.015])
+    box = (np.array([-0.08, -0.1, -0.025]), np.array([0.08, 0.1, 0.05]))
+
+    def cost(k):  # type: ignore[no-untyped-def]
+        p = np.array(k.spec["pivot"])
+        local = 10.0 - 3.0 * np.exp(-np.sum((p - [0.0, 0.0, 0.03]) ** 2) / 0.02**2)
+        basin = 9.7 * np.exp(-np.sum((p - deep) ** 2) / 0.025**2)
+        return float(local - basin)
+
+    extent = box[1] - box[0]
+    alone, _, _ = refine_pivot(c, cost, extent, box=box, max_evals=24)
+    assert np.linalg.norm(np.array(alone.spec["pivot"]) - deep) > 0.02
+    best, _, n = refine_pivot(c, cost, extent, box=box, max_evals=24, grid=5)
+    assert np.linalg.norm(np.array(best.spec["pivot"]) - deep) < 0.005
+    assert n <= 1 + 25 + 23  # the start, the grid, then the compass search's budget
+
+
+def test_the_pivot_box_takes_in_the_bearing_centre(doc):
+    """The reference bonder's x_stage->y_stage:ry: the bearing centre lies below the y
+    stage's hull; the box the pivot is searched in is the hull's box grown to take it in,
+    for the candidate and for each of its variants."""
+    from bondid.diagnose.effects import get_effect
+    from bondid.diagnose.pivot import child_box, pivot_box
+
+    cands = get_effect("joint_compliance").candidates(doc)
+    c = next(k for k in cands if k.location == "x_stage->y_stage:ry")
+    urdf = doc.to_string()
+    hull = child_box(urdf, "y_stage")
+    assert hull is not None
+    bearing = np.array(c.spec["bearing"])
+    assert np.allclose(bearing, c.spec["pivot"])
+    assert not np.all((hull[0] <= bearing) & (bearing <= hull[1]))  # the case it is for
+    for k in (c, *c.variants):
+        box = pivot_box(urdf, k)
+        assert box is not None
+        assert np.all(box[0] <= bearing) and np.all(bearing <= box[1])
+        assert np.all(box[0] <= hull[0]) and np.all(box[1] >= hull[1])
+        assert np.allclose(k.spec["bearing"], bearing)
+
+
 def test_a_refit_above_the_noise_tries_the_other_elastic_centres(doc):
     """Known answer: unequal mounts about the bottom face's centre; a refit of the CoM
     variant (as if the screening had kept it) ends above the noise level, and the other

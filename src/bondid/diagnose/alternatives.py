@@ -34,7 +34,7 @@ from .pivot import (
     FULL_EVAL_ITER,
     FULL_MAX_EVALS,
     MAX_EVALS,
-    child_box,
+    pivot_box,
     refine_pivot,
     with_pivot,
 )
@@ -136,8 +136,7 @@ def refine_job_pivot(
             failed.append(_failure(f"pivot {np.round(c.spec['pivot'], 4).tolist()}", err))
             return float("inf")
 
-    child = str(cand.location).split("->", 1)[1].split(":", 1)[0]
-    box = child_box(urdf, child)
+    box = pivot_box(urdf, cand)
     extent = None if box is None else box[1] - box[0]
     best, c, n = refine_pivot(cand, cost, extent, move, box, FULL_MAX_EVALS if full else MAX_EVALS)
     kind = "start" if warm is None else ("all parameters" if full else "warm")

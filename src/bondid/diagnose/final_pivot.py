@@ -5,7 +5,10 @@ The search places a rotational compliance's pivot on its training data
 (:func:`.alternatives.refine_job_pivot`); no later refit can move it (the pivot enters the
 kinematics, not the parameters). When the final model's held-out score is above the held-out
 noise level (the final fit's own trigger, :attr:`.job.Job.fallbacks_always`), this runs the
-compass search of :func:`.pivot.refine_pivot` again from the final fit, each pivot judged by
+search of :func:`.pivot.refine_pivot` again from the final fit, inside :func:`.pivot.pivot_box`
+and started at the best point of a :data:`.pivot.FINAL_GRID`-level grid over it (a second
+effect accepted after the pivot was placed can leave it in another basin: bonder/jcr+al/coh,
+:mod:`.pivot`'s docstring), each pivot judged by
 a solve of every parameter (:data:`.pivot.FULL_EVAL_ITER` IPOPT iterations, on all data)
 from the final fit's values with the pivot moved (:func:`bondid.model.move_pivot`) and the
 spring and damper scaled so that the DOF keeps its frequency and damping ratio
@@ -33,10 +36,11 @@ from .augmented import with_values
 from .effects import Candidate
 from .job import Job, JobResult, direct
 from .pivot import (
+    FINAL_GRID,
     FULL_EVAL_ITER,
     FULL_MAX_EVALS,
-    child_box,
     is_rotational_compliance,
+    pivot_box,
     refine_pivot,
     with_pivot,
 )
@@ -91,10 +95,11 @@ def refined_pivots(job: Job, result: JobResult) -> tuple[JobResult, str]:
                 failed.append(f"{type(err).__name__}: {err}")
                 return float("inf")
 
-        child = str(chain[k].location).split("->", 1)[1].split(":", 1)[0]
-        box = child_box(urdf, child)
+        box = pivot_box(urdf, chain[k])
         extent = None if box is None else box[1] - box[0]
-        best, figure, n = refine_pivot(chain[k], cost, extent, with_pivot, box, FULL_MAX_EVALS)
+        best, figure, n = refine_pivot(
+            chain[k], cost, extent, with_pivot, box, FULL_MAX_EVALS, FINAL_GRID
+        )
         pivot = np.asarray(best.spec["pivot"], float)
         notes.append(
             f"{chain[k].label}: {n} pivots tried, {np.round(start * 1e3, 1).tolist()} -> "

@@ -79,22 +79,29 @@ class JointCompliance(Effect):
                     out.append(self._candidate(doc, itf, axis, np.zeros(3)))
                     continue
                 main, *others = pivot_options(doc, itf, vec)
-                variants = tuple(self._candidate(doc, itf, axis, p) for p in others)
-                out.append(replace(self._candidate(doc, itf, axis, main), variants=variants))
+                variants = tuple(self._candidate(doc, itf, axis, p, main) for p in others)
+                cand = self._candidate(doc, itf, axis, main, main)
+                out.append(replace(cand, variants=variants))
         return out
 
     def _candidate(
-        self, doc: UrdfDocument, itf: Interface, axis: str, pivot: np.ndarray
-    ) -> Candidate:
+        self, doc: UrdfDocument, itf: Interface, axis: str, pivot: np.ndarray,
+        bearing: np.ndarray | None = None,
+    ) -> Candidate:  # fmt: skip
+        """The candidate about ``pivot`` (child frame, m); ``bearing``: the interface's
+        bearing centre (rotational DOFs), recorded as ``spec["bearing"]`` for the box the
+        pivot is searched in (:func:`..pivot.pivot_box`)."""
         kind, vec = axis_vector(axis)
         jname = joint_name(itf.parent, itf.child, axis)
-        spec = {
+        spec: dict = {
             "after": itf.last_joint,
             "joint": jname,
             "kind": kind,
             "axis": [float(x) for x in vec],
             "pivot": [float(x) for x in pivot],
         }
+        if bearing is not None:
+            spec["bearing"] = [float(x) for x in bearing]
         probe = self._insert(doc, spec, 1.0, 0.0)
         m = effective_inertia(probe, jname)
         k0 = m * (2 * np.pi * F_REF_HZ) ** 2
@@ -131,7 +138,7 @@ class JointCompliance(Effect):
         itf = next((i for i in interfaces(doc) if (i.parent, i.child) == (parent, child)), None)
         if itf is None:
             raise ValueError(f"{cand.label}: no interface {pair} in the model")
-        return self._candidate(doc, itf, axis, np.asarray(pivot, float))
+        return self._candidate(doc, itf, axis, np.asarray(pivot, float), itf.pivot(doc))
 
     @staticmethod
     def _insert(doc: UrdfDocument, spec: dict, k: float, d: float) -> UrdfDocument:
