@@ -89,3 +89,56 @@ def test_a_sigint_held_before_the_start_is_not_discarded(monkeypatch) -> None:
     finally:
         signal.signal(signal.SIGINT, previous)
     assert seen == ["started", "handled"]
+
+
+def _sleep_long() -> None:
+    import time
+
+    time.sleep(60)
+
+
+def test_a_process_whose_start_is_interrupted_is_stopped_not_orphaned(monkeypatch) -> None:
+    """Known answer for a CI failure: the Ctrl-C held during a worker's start is raised as the
+    start ends, before the executor records the process, so ``kill_workers`` did not reach
+    it; it outlived the run and printed a traceback (its parent's semaphores were gone). Now
+    the interrupted start stops its own process, and ``kill_workers`` also stops any such
+    process the executor does not know."""
+    import threading
+    from multiprocessing.context import SpawnProcess
+
+    from bondid.interrupt import _QuietStartProcess, kill_workers
+
+    if threading.current_thread() is not threading.main_thread():
+        pytest.skip("signals are handled in the main thread only")
+    real_start = SpawnProcess.start
+    started: list[SpawnProcess] = []
+
+    def start(self) -> None:  # really start it, with the Ctrl-C arriving meanwhile
+        real_start(self)
+        started.append(self)
+        signal.pthread_kill(threading.main_thread().ident, signal.SIGINT)
+
+    monkeypatch.setattr(SpawnProcess, "start", start)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            _QuietStartProcess(target=_sleep_long).start()
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert len(started) == 1 and not started[0].is_alive()
+    assert started[0].exitcode is not None
+
+    # the fallback: a live quiet-start process that an executor does not record
+    monkeypatch.setattr(SpawnProcess, "start", real_start)
+    orphan = _QuietStartProcess(target=_sleep_long)
+    orphan.start()
+
+    class _Executor:  # the part of ProcessPoolExecutor that kill_workers reads
+        def __init__(self) -> None:
+            self._processes: dict = {}
+
+        def shutdown(self, **_: object) -> None:
+            pass
+
+    kill_workers(_Executor(), timeout=5.0)
+    assert not orphan.is_alive()

@@ -21,6 +21,7 @@ and returns the previous ones for :func:`restore`.
 from __future__ import annotations
 
 import contextlib
+import multiprocessing
 import os
 import signal
 import threading
@@ -116,16 +117,22 @@ class _QuietStartProcess(SpawnProcess):
         if threading.current_thread() is not threading.main_thread():
             super().start()
             return
-        with sigint_deferred():
-            # ignoring a signal discards it when pending: one already held is sent again
-            held = signal.SIGINT in signal.sigpending()
-            previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-            try:
-                super().start()
-            finally:
-                signal.signal(signal.SIGINT, previous)
-                if held:
-                    signal.raise_signal(signal.SIGINT)
+        try:
+            with sigint_deferred():
+                # ignoring a signal discards it when pending: one already held is sent again
+                held = signal.SIGINT in signal.sigpending()
+                previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+                try:
+                    super().start()
+                finally:
+                    signal.signal(signal.SIGINT, previous)
+                    if held:
+                        signal.raise_signal(signal.SIGINT)
+        except BaseException:
+            # a Ctrl-C delivered as the block ends: the executor never records this process
+            # (it does so after ``start`` returns), so nobody else would stop it
+            _stop([self])
+            raise
 
 
 class _QuietStartContext(SpawnContext):
@@ -161,6 +168,18 @@ def kill_workers(executor: Any, timeout: float = 1.0) -> None:
     procs = list((getattr(executor, "_processes", None) or {}).values())
     with contextlib.suppress(Exception):
         executor.shutdown(wait=False, cancel_futures=True)
+    known = {p.pid for p in procs}
+    # a worker whose start was interrupted is not (yet) in the executor's table
+    procs += [
+        c
+        for c in multiprocessing.active_children()
+        if isinstance(c, _QuietStartProcess) and c.pid not in known
+    ]
+    _stop(procs, timeout)
+
+
+def _stop(procs: list[Any], timeout: float = 1.0) -> None:
+    """Terminate ``procs`` (SIGTERM, then SIGKILL after ``timeout`` s) and reap them."""
     for p in procs:
         with contextlib.suppress(Exception):
             p.terminate()
