@@ -74,7 +74,7 @@ def test_a_sigint_held_before_the_start_is_not_discarded(monkeypatch) -> None:
     import threading
     from multiprocessing.context import SpawnProcess
 
-    from bondid.interrupt import _QuietStartProcess, sigint_deferred
+    from bondid.interrupt import _QuietStartProcess, signals_deferred
 
     if threading.current_thread() is not threading.main_thread():
         pytest.skip("signals are handled in the main thread only")
@@ -82,7 +82,7 @@ def test_a_sigint_held_before_the_start_is_not_discarded(monkeypatch) -> None:
     monkeypatch.setattr(SpawnProcess, "start", lambda self: seen.append("started"))
     previous = signal.signal(signal.SIGINT, lambda *_: seen.append("handled"))
     try:
-        with sigint_deferred():
+        with signals_deferred():
             signal.raise_signal(signal.SIGINT)  # held: blocked here
             _QuietStartProcess().start()
             assert seen == ["started"]

@@ -14,16 +14,26 @@ process would die at once and leave its worker processes running as orphans (see
 ``bondid.diagnose`` left two workers computing for minutes). :func:`signal_number` tells which
 of the two arrived, so the command line exits 130 or 143 as shells report them.
 
+A last resort guards the promise that one signal ends the run: once one arrived, a watchdog
+thread waits :data:`GRACE_S` seconds for :func:`restore`; if the run is still going (a clean-up
+stuck in a lock or in a pool's shutdown), it writes the stacks of all threads to stderr, stops
+the worker processes and abandons the run's unfinished results, and ends the process with the
+signal's exit code. :func:`exit_process` ends a command-line process without the interpreter's
+own exit joins (threads, child processes) after an interrupt.
+
 Nothing happens on import; :func:`install` changes the process's SIGINT and SIGTERM handlers
-and returns the previous ones for :func:`restore`.
+(and starts the watchdog thread, idle until a signal) and returns the previous ones for
+:func:`restore`.
 """
 
 from __future__ import annotations
 
 import contextlib
+import faulthandler
 import multiprocessing
 import os
 import signal
+import sys
 import threading
 from collections.abc import Iterator
 from multiprocessing.context import SpawnContext, SpawnProcess
@@ -39,34 +49,101 @@ _LAST = [int(signal.SIGINT)]
 #: signal must do what it does by default (its parent terminates it with SIGTERM)
 _OWNER = [0]
 
+#: seconds a run may take to stop after its first SIGINT/SIGTERM before the watchdog ends it
+#: (a normal stop takes a second or two: workers get 1 s to end on SIGTERM, 1 s on SIGKILL)
+GRACE_S = 15.0
+
+
+class _Watchdog:
+    """One run's watchdog: a daemon thread, woken by the first signal or by :meth:`disarm`."""
+
+    def __init__(self, grace: float):
+        self.grace = grace
+        self.wake = threading.Event()
+        self.disarmed = threading.Event()
+        self.thread_id = threading.get_ident()
+        threading.Thread(target=self._watch, name="bondid-interrupt-watchdog", daemon=True).start()
+
+    def disarm(self) -> None:
+        self.disarmed.set()
+        self.wake.set()
+
+    def _watch(self) -> None:
+        self.wake.wait()
+        if self.disarmed.wait(self.grace):
+            return
+        code = 128 + _LAST[0]
+        with contextlib.suppress(Exception):
+            print(
+                f"bondid: the run did not stop within {self.grace:g} s of the signal; it is"
+                " ended now (stacks of its threads follow; please report them)",
+                file=sys.stderr,
+                flush=True,
+            )
+            faulthandler.dump_traceback(file=sys.stderr, all_threads=True)
+        _stop([c for c in multiprocessing.active_children()])
+        with contextlib.suppress(Exception):
+            from .results import close_all
+
+            close_all(self.thread_id)
+        exit_process(code)
+
+
+_WATCHDOG: list[_Watchdog | None] = [None]
+
 
 def _handler(signum: int, frame: Any) -> None:
     if os.getpid() != _OWNER[0]:
         signal.signal(signum, signal.SIG_DFL)
         os.kill(os.getpid(), signum)
         return
-    _LAST[0] = int(signum)
+    if not _FLAG.is_set():
+        _LAST[0] = int(signum)
     _FLAG.set()
+    dog = _WATCHDOG[0]
+    if dog is not None:
+        dog.wake.set()
     raise KeyboardInterrupt
 
 
-def install() -> Any:
+def install(grace: float | None = None) -> Any:
     """Record every SIGINT and SIGTERM (then raise ``KeyboardInterrupt`` as Python does on
-    SIGINT); returns the previous handlers. Does nothing outside the main thread (returns
-    None)."""
+    SIGINT) and arm the watchdog (``grace`` s, default :data:`GRACE_S`, see the module);
+    returns the previous handlers. Does nothing outside the main thread (returns None)."""
     if threading.current_thread() is not threading.main_thread():
         return None
     _FLAG.clear()
     _LAST[0] = int(signal.SIGINT)
     _OWNER[0] = os.getpid()
+    if _WATCHDOG[0] is not None:
+        _WATCHDOG[0].disarm()
+    _WATCHDOG[0] = _Watchdog(GRACE_S if grace is None else grace)
     return {sig: signal.signal(sig, _handler) for sig in _SIGNALS}
 
 
 def restore(previous: Any) -> None:
-    """Put back the handlers :func:`install` returned (None: leave them)."""
+    """Put back the handlers :func:`install` returned (None: leave them) and disarm the
+    watchdog."""
     if previous is not None and threading.current_thread() is threading.main_thread():
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+        dog, _WATCHDOG[0] = _WATCHDOG[0], None
+        if dog is not None:
+            dog.disarm()
+
+
+def exit_process(code: int) -> None:
+    """End a command-line process with ``code``. After an interrupt (codes 130 and 143) the
+    streams are flushed and the process ends at once (``os._exit``): the run has already
+    stopped its workers and abandoned its results, and the interpreter's exit would
+    otherwise join threads and child processes that a stop cut short (a hang seen once in
+    CI). Other codes exit normally (``SystemExit``)."""
+    if code in (128 + signal.SIGINT, 128 + signal.SIGTERM):
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(Exception):
+                stream.flush()
+        os._exit(code)
+    raise SystemExit(code)
 
 
 def requested() -> bool:
@@ -88,22 +165,26 @@ def check() -> None:
 
 def ignore_in_worker(*_: Any) -> None:
     """Pool initializer: the worker ignores SIGINT (its parent stops it) and dies quietly on
-    SIGTERM (a forked worker would otherwise keep the parent's handler)."""
+    SIGTERM (a forked worker would otherwise keep the parent's handler), both unblocked (a
+    worker forked inside :func:`signals_deferred` inherits the block; a SIGTERM held since
+    then ends it now)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, set(_SIGNALS))
 
 
 @contextlib.contextmanager
-def sigint_deferred() -> Iterator[None]:
-    """Context: SIGINT blocked in this thread (the main one; elsewhere nothing happens), so
-    a Ctrl-C that arrives inside is held pending and delivered, to the handler then in place,
-    when the block ends: never lost, never raised in the middle. Threads started inside
+def signals_deferred() -> Iterator[None]:
+    """Context: SIGINT and SIGTERM blocked in this thread (the main one; elsewhere nothing
+    happens), so a Ctrl-C (or ``kill``) that arrives inside is held pending and delivered, to
+    the handler then in place, when the block ends: never lost, never raised in the middle
+    (e.g. between a worker's start and the executor's record of it). Threads started inside
     inherit the block for good, which is harmless: Python runs signal handlers in the main
     thread only (and a Ctrl-C is then not taken by a thread that would find it ignored)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, set(_SIGNALS))
     try:
         yield
     finally:
@@ -118,7 +199,7 @@ class _QuietStartProcess(SpawnProcess):
             super().start()
             return
         try:
-            with sigint_deferred():
+            with signals_deferred():
                 # ignoring a signal discards it when pending: one already held is sent again
                 held = signal.SIGINT in signal.sigpending()
                 previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -148,12 +229,12 @@ def spawn_context() -> SpawnContext:
     ignored signal stays ignored across ``exec`` and Python then installs no handler of its
     own, so the parent ignores SIGINT for the moment it starts a process (main thread only;
     its own handler is put back at once). For that moment SIGINT is also blocked
-    (:func:`sigint_deferred`): Linux keeps a blocked signal pending even while it is
+    (:func:`signals_deferred`): Linux keeps a blocked signal pending even while it is
     ignored, so a Ctrl-C that arrives then reaches the parent's handler once the process has
     started (before, it was dropped and the run went on: seen once in CI, a SIGINT sent as the
     first diagnosis worker came up). A signal blocked in the main thread may still be taken by
     another thread that does not block it, so the pool starts its workers inside
-    :func:`sigint_deferred` (:class:`bondid.diagnose.pool.WorkerPool`): the executor's own
+    :func:`signals_deferred` (:class:`bondid.diagnose.pool.WorkerPool`): the executor's own
     thread then blocks SIGINT too. (Blocking alone does not protect the child: a spawned
     process starts with an empty signal mask, measured.)
     """
@@ -193,9 +274,14 @@ def _stop(procs: list[Any], timeout: float = 1.0) -> None:
 
 @contextlib.contextmanager
 def terminate_on_interrupt(executor: Any) -> Iterator[Any]:
-    """Context: on any exception (Ctrl-C included) kill ``executor``'s workers at once."""
+    """Context owning a ``ProcessPoolExecutor``: on any exception (Ctrl-C included) its
+    workers are killed at once and nothing waits for them (no ``shutdown(wait=True)``, which
+    can block for good on a pool whose workers were killed); on a normal exit it is shut down
+    as ``with executor:`` would. Submit inside :func:`signals_deferred` so that a worker
+    cannot be started but not yet recorded when a Ctrl-C lands."""
     try:
         yield executor
     except BaseException:
         kill_workers(executor)
         raise
+    executor.shutdown(wait=True)

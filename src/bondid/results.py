@@ -39,11 +39,12 @@ import os
 import secrets
 import shutil
 import threading
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
 from .exceptions import ConfigError, DataError
+from .interrupt import signals_deferred
 from .outcheck import _same, check_out
 
 __all__ = ["Results", "check_out", "close_all", "open_results", "read_manifest"]
@@ -165,7 +166,7 @@ class Results:
         for target in self._extra.values():
             if any(_same(target, i) for i in self.inputs):
                 raise ConfigError(f"{target}: refusing to overwrite an input file")
-        with _signals_deferred():  # a Ctrl-C now lands after the commit, not in its middle
+        with signals_deferred():  # a Ctrl-C now lands after the commit, not in its middle
             if self.file:
                 written = self._commit_file(files)
             else:
@@ -251,10 +252,11 @@ def open_results(
     return Results(p, command, ins, file=file, patterns=patterns).open()
 
 
-def close_all() -> None:
-    """Abandon every uncommitted :class:`Results` of this thread (called by
-    :func:`bondid.cli.run`; runs in other threads, e.g. Dask workers, are left alone)."""
-    me = threading.get_ident()
+def close_all(thread_id: int | None = None) -> None:
+    """Abandon every uncommitted :class:`Results` of this thread, or of thread ``thread_id``
+    (called by :func:`bondid.cli.run`, and by the interrupt watchdog for the run it ends;
+    runs in other threads, e.g. Dask workers, are left alone)."""
+    me = threading.get_ident() if thread_id is None else thread_id
     for r in list(_OPEN):
         if r.thread == me:
             r.close()
@@ -290,22 +292,6 @@ def read_manifest(
             ):
                 raise DataError(f"{path}: {n} is missing or differs from the run that wrote it")
     return m
-
-
-@contextlib.contextmanager
-def _signals_deferred() -> Iterator[None]:
-    """Hold SIGINT and SIGTERM back (main thread only) until the block ends."""
-    import signal
-
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    held = {signal.SIGINT, signal.SIGTERM}
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 def _sha256(path: Path) -> str:

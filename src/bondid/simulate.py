@@ -8,7 +8,6 @@ with it), reproducible by seed, written as a spec CSV or UFF58 file.
 from __future__ import annotations
 
 import argparse
-import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -232,4 +231,6 @@ def _plot(
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from .interrupt import exit_process
+
+    exit_process(main())

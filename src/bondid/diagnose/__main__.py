@@ -1,7 +1,5 @@
 """``python -m bondid.diagnose --model URDF --data FILE... [options]``: see :mod:`.cli`."""
 
-import sys
-
 from ..blas import prefer_single_threaded_blas
 
 prefer_single_threaded_blas()  # before numpy loads: many small solves, run in 2 processes
@@ -9,4 +7,6 @@ prefer_single_threaded_blas()  # before numpy loads: many small solves, run in 2
 from .cli import main  # noqa: E402
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from ..interrupt import exit_process
+
+    exit_process(main())

@@ -8,7 +8,7 @@ from collections.abc import Callable
 from typing import Any
 
 from ..blas import THREAD_VARS
-from ..interrupt import ignore_in_worker, kill_workers, sigint_deferred, spawn_context
+from ..interrupt import ignore_in_worker, kill_workers, signals_deferred, spawn_context
 from ..threads import THREADS_VAR
 
 
@@ -29,7 +29,7 @@ class WorkerPool:
             try:
                 # a Ctrl-C while the workers start is delivered when they are up (and then
                 # stops them here); the executor's thread, started inside, blocks SIGINT
-                with sigint_deferred():
+                with signals_deferred():
                     self.ex = ProcessPoolExecutor(
                         workers, mp_context=spawn_context(), initializer=ignore_in_worker
                     )

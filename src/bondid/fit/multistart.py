@@ -214,18 +214,15 @@ def _in_process(jobs: list[_Job], on_run: RunProgress | None, on_iteration: Any)
 def _in_pool(jobs: list[_Job], workers: int, on_run: RunProgress | None) -> list:
     """Run the jobs in worker processes (each builds its problem); their outcomes in the
     order of ``jobs``."""
-    from ..interrupt import ignore_in_worker, terminate_on_interrupt
+    from ..interrupt import ignore_in_worker, signals_deferred, terminate_on_interrupt
 
     runs: list[RunOutcome | None] = [None] * len(jobs)
-    with (
-        ProcessPoolExecutor(
-            max_workers=min(workers, len(jobs)), initializer=ignore_in_worker
-        ) as pool,
-        terminate_on_interrupt(pool),
-    ):
-        futures: dict[Future[RunOutcome], int] = {
-            pool.submit(_run_job, j): k for k, j in enumerate(jobs)
-        }
+    pool = ProcessPoolExecutor(max_workers=min(workers, len(jobs)), initializer=ignore_in_worker)
+    with terminate_on_interrupt(pool):
+        with signals_deferred():  # the workers start here: all recorded before a Ctrl-C lands
+            futures: dict[Future[RunOutcome], int] = {
+                pool.submit(_run_job, j): k for k, j in enumerate(jobs)
+            }
         for k, fut in enumerate(as_completed(futures)):
             out = fut.result()
             runs[futures[fut]] = out

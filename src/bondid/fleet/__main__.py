@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import sys
-
 from ..blas import prefer_single_threaded_blas
 
 prefer_single_threaded_blas()  # before numpy loads; local Dask workers inherit it
@@ -11,4 +9,6 @@ prefer_single_threaded_blas()  # before numpy loads; local Dask workers inherit 
 from .cli import main  # noqa: E402
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from ..interrupt import exit_process
+
+    exit_process(main())

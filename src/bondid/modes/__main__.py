@@ -197,4 +197,6 @@ def _serve(args, doc, result: ModalResult, fitted, index: int) -> None:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from ..interrupt import exit_process
+
+    exit_process(main())

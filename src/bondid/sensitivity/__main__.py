@@ -9,7 +9,6 @@ and with ``--out DIR`` writes ``sensitivity.json`` and PNG maps there. Exit code
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -160,4 +159,6 @@ def _analyse(
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from ..interrupt import exit_process
+
+    exit_process(main())

@@ -25,7 +25,7 @@ import numpy as np
 from ..cost import CostOptions
 from ..data.measurement import FrfData
 from ..exceptions import ComputationError, ConfigError
-from ..interrupt import ignore_in_worker, terminate_on_interrupt
+from ..interrupt import ignore_in_worker, signals_deferred, terminate_on_interrupt
 from ..model.document import UrdfDocument
 from ._common import Setup, label_masks, make_setup
 
@@ -187,13 +187,12 @@ def _evaluate(
             _STATE.clear()
         return
     try:
-        with (
-            ProcessPoolExecutor(
-                max_workers=n_workers, initializer=_init_worker, initargs=(setup, masks)
-            ) as pool,
-            terminate_on_interrupt(pool),
-        ):
-            futures = [pool.submit(_costs_for, i, todo[i]) for i in range(n_p)]
+        pool = ProcessPoolExecutor(
+            max_workers=n_workers, initializer=_init_worker, initargs=(setup, masks)
+        )
+        with terminate_on_interrupt(pool):
+            with signals_deferred():  # the workers start here: recorded before a Ctrl-C lands
+                futures = [pool.submit(_costs_for, i, todo[i]) for i in range(n_p)]
             for fut in as_completed(futures):
                 store(*fut.result())
     except (OSError, RuntimeError) as exc:  # BrokenProcessPool is a RuntimeError
