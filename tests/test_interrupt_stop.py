@@ -123,8 +123,8 @@ def test_the_watchdog_ends_a_run_whose_clean_up_hangs(tmp_path) -> None:
             (res.tmp / "part.txt").write_text("unfinished")
             lock = threading.Lock()
             lock.acquire()
-            print("ready", child.pid, flush=True)
-            try:
+            try:  # (the Ctrl-C is sent once "ready" is read: it lands inside the try)
+                print("ready", child.pid, flush=True)
                 time.sleep(60)
             except KeyboardInterrupt:
                 lock.acquire()  # a clean-up that never ends
