@@ -81,7 +81,7 @@ class _Watchdog:
                 flush=True,
             )
             faulthandler.dump_traceback(file=sys.stderr, all_threads=True)
-        _stop([c for c in multiprocessing.active_children()])
+        _stop(multiprocessing.active_children())
         with contextlib.suppress(Exception):
             from .results import close_all
 

@@ -28,7 +28,7 @@ class WorkerPool:
                 os.environ[k] = "1"
             try:
                 # a Ctrl-C while the workers start is delivered when they are up (and then
-                # stops them here); the executor's thread, started inside, blocks SIGINT
+                # stops them here); the executor's thread, started inside, blocks both signals
                 with signals_deferred():
                     self.ex = ProcessPoolExecutor(
                         workers, mp_context=spawn_context(), initializer=ignore_in_worker
