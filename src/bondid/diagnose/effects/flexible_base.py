@@ -52,11 +52,21 @@ HEIGHT = 0.1
 SCAN_HZ = tuple(float(f) for f in np.geomspace(100.0, 12000.0, 50))
 PREFIX = "flexible_base"
 GROUND = "ground"
-#: first elastic mode of the free-free chain: ω₁² = FIRST_MODE_FACTOR · k / (M/6)
-FIRST_MODE_FACTOR = 0.5
-SPLIT = (1 / 6, 1 / 3, 1 / 3, 1 / 6)  # bottom … top
+#: consistent lumping of a uniform rod, bottom … top: ends 1/(2(N−1)), inner nodes 1/(N−1)
+SPLIT = tuple((0.5 if i in (0, N_NODES - 1) else 1.0) / (N_NODES - 1) for i in range(N_NODES))
 #: every node mass may move by this factor either way from its start
 MASS_SPAN = 5.0
+
+
+def _first_mode_w2(masses: np.ndarray) -> float:
+    """First elastic ω² [rad²/s²] of a free-free chain of ``masses`` [kg] joined by unit
+    springs [N/m]."""
+    n = masses.size
+    K = np.zeros((n, n))
+    for i in range(n - 1):
+        K[i : i + 2, i : i + 2] += [[1.0, -1.0], [-1.0, 1.0]]
+    w2 = np.linalg.eigvalsh(K / np.sqrt(np.outer(masses, masses)))
+    return float(np.sort(w2)[1])
 
 
 @register
@@ -71,8 +81,8 @@ class FlexibleBase(Effect):
             return []
         M = float(lk.inertial.mass)
         w = 2 * np.pi * F0_HZ
-        m_eff = M / 6.0
-        ks = m_eff * w**2 / FIRST_MODE_FACTOR
+        m_eff = M * SPLIT[0]
+        ks = M * w**2 / _first_mode_w2(np.asarray(SPLIT))
         kc = COMPRESSION_RATIO * ks
         ds, dc = 2 * ZETA * np.sqrt(ks * m_eff), 2 * ZETA * np.sqrt(kc * m_eff)
         lo, hi = (30.0 / F0_HZ) ** 2, (40000.0 / F0_HZ) ** 2
