@@ -380,6 +380,41 @@ def test_a_modal_identification_error_reaches_the_report(doc, monkeypatch):
         assert any("status" in r for r in rows[1:])  # the model's modes are still listed
 
 
+@pytest.mark.parametrize("n_nodes", [1, 0, 2.5, True, "4"])
+def test_a_flexible_base_of_too_few_nodes_is_refused(n_nodes):
+    from bondid.diagnose.effects.flexible_base import FlexibleBase
+    from bondid.exceptions import ConfigError
+
+    with pytest.raises(ConfigError, match="n_nodes"):
+        FlexibleBase(n_nodes=n_nodes)
+
+
+def test_a_flexible_base_of_n_nodes_has_n_masses_and_its_modes(doc):
+    """Known answer: the candidate of N nodes augments the root into N lumps of the uniform
+    rod's shares of the root's mass (the total kept), and its first elastic shear mode is at
+    the candidate's reference frequency (F0_HZ) for every N."""
+    from bondid.diagnose.effects.flexible_base import F0_HZ, FlexibleBase, rod_shares
+    from bondid.model.parameters import link_inertial
+
+    M = link_inertial(doc, doc.root_link())[0]
+    for n in (2, 4, 6):
+        fb = FlexibleBase(n_nodes=n)
+        (c,) = fb.candidates(doc)
+        masses = [p.initial for p in c.parameters if p.name.endswith("_mass")]
+        assert masses == pytest.approx(M * rod_shares(n), rel=1e-12)
+        assert sum(masses) == pytest.approx(M, rel=1e-12)
+        kx = next(p.initial for p in c.parameters if p.name == "shear_x_stiffness")
+        K = np.zeros((n, n))
+        for i in range(n - 1):
+            K[i : i + 2, i : i + 2] += kx * np.array([[1.0, -1.0], [-1.0, 1.0]])
+        w2 = np.sort(np.linalg.eigvals(np.linalg.solve(np.diag(masses), K)).real)
+        assert np.sqrt(w2[1]) / (2 * np.pi) == pytest.approx(F0_HZ, rel=1e-9)
+        aug = fb.augment(doc, c)
+        lumps = [f"flexible_base_{i}" for i in range(n - 1)]
+        assert all(name in aug.link_names for name in lumps)
+        assert f"flexible_base_{n - 1}" not in aug.link_names
+
+
 def test_tied_and_modifier_parameters_refitted_through_the_core(doc):
     """Known answer: a flexible base (each shear/compression parameter ties the joints of
     every segment) and an accepted actuator lag (the FRF modifier) withheld together; the
@@ -388,11 +423,14 @@ def test_tied_and_modifier_parameters_refitted_through_the_core(doc):
     from bondid.cost.problem import CostOptions
     from bondid.diagnose.augmented import build, with_values
     from bondid.diagnose.effects import get_effect
+    from bondid.diagnose.effects.flexible_base import FlexibleBase
     from bondid.diagnose.refit import nominal_space
     from bondid.diagnose.runner import direct
     from bondid.model import get_parameter
 
-    fb = get_effect("flexible_base")
+    # four nodes: this answer is about ties and the modifier; the default chain's six masses
+    # are less determined by these 150 lines (its own known answer: test_diagnose_structural)
+    fb = FlexibleBase(n_nodes=4)
     c = fb.candidates(doc)[0]
     truth = np.array([p.initial * 0.5**p.scan for p in c.parameters])  # modes at 500 Hz
     lag = next(k for k in get_effect("actuator_lag").candidates(doc) if k.location == "y")
@@ -403,9 +441,10 @@ def test_tied_and_modifier_parameters_refitted_through_the_core(doc):
     lag0 = with_values(lag, [T / 1.3, T / 13])
     refit = build(doc.to_string(), space, data, CostOptions(), (lag0,), start).refit
     assert not any(v.held for v in refit.new)
-    # every node's mass (one link each) is free, untied; the springs and dampers tied
+    # every node's mass (one link each) is free, untied; the springs and dampers tied: one
+    # member per segment (a stiffness, the compression damper), two (the shear damper)
     assert all(len(v.ties) in (0, 2, 5) for v in refit.new if v.leader)
-    assert [len(v.ties) for v in refit.new if v.name.endswith("mass")] == [0, 0, 0, 0]
+    assert [len(v.ties) for v in refit.new if v.name.endswith("mass")] == [0] * 4
     state, _, res = refit.solve(refit.state0, direct(150, 30))
     got = dict(zip(["T", "T2", *(p.name for p in c.parameters)],
                    refit.new_values(state, own=False), strict=True))  # fmt: skip

@@ -180,7 +180,7 @@ def test_a_candidate_that_removes_a_real_error_is_accepted() -> None:
     assert acc.mean() >= MIN_POWER
 
 
-#: a candidate of many parameters (a flexible base: 7, soft mounts: 8): 4 complex amplitudes
+#: a candidate of many parameters (a flexible base, soft mounts): 4 complex amplitudes
 MANY = (3.0, 30.0, 300.0, 600.0)
 
 

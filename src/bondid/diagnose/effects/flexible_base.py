@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...exceptions import ConfigError
 from ...model.document import UrdfDocument
 from ...model.parameters import link_inertial
 from . import register
@@ -60,10 +61,15 @@ HEIGHT = 0.1
 SCAN_HZ = tuple(float(f) for f in np.geomspace(100.0, 12000.0, 50))
 PREFIX = "flexible_base"
 GROUND = "ground"
-#: consistent lumping of a uniform rod, bottom … top: ends 1/(2(N−1)), inner nodes 1/(N−1)
-SPLIT = tuple((0.5 if i in (0, N_NODES - 1) else 1.0) / (N_NODES - 1) for i in range(N_NODES))
 #: every node mass may move by this factor either way from its start
 MASS_SPAN = 5.0
+
+
+def rod_shares(n_nodes: int) -> np.ndarray:
+    """Consistent lumping of a uniform rod on ``n_nodes`` nodes, bottom … top, shape
+    ``(n_nodes,)`` (sum 1): the ends ``1/(2(N−1))``, the inner nodes ``1/(N−1)``."""
+    n = int(n_nodes)
+    return np.array([(0.5 if i in (0, n - 1) else 1.0) / (n - 1) for i in range(n)])
 
 
 def _first_mode_w2(masses: np.ndarray) -> float:
@@ -82,6 +88,12 @@ class FlexibleBase(Effect):
     name = "flexible_base"
     description = "elastic base/chassis: lumped shear/compression chain (seed report 4.2)"
 
+    def __init__(self, n_nodes: int = N_NODES) -> None:
+        """``n_nodes``: the chain's lumped masses, the root body the top one (≥ 2)."""
+        if isinstance(n_nodes, bool) or not isinstance(n_nodes, int) or n_nodes < 2:
+            raise ConfigError(f"flexible_base: n_nodes={n_nodes!r} is not valid; an integer ≥ 2 is")
+        self.n_nodes = n_nodes
+
     def candidates(self, doc: UrdfDocument) -> list[Candidate]:
         root = doc.root_link()
         lk = doc.link(root)
@@ -89,24 +101,26 @@ class FlexibleBase(Effect):
             return []
         M = float(lk.inertial.mass)
         w = 2 * np.pi * F0_HZ
-        m_eff = M * SPLIT[0]
-        ks = M * w**2 / _first_mode_w2(np.asarray(SPLIT))
+        n = self.n_nodes
+        split = rod_shares(n)
+        m_eff = M * split[0]
+        ks = M * w**2 / _first_mode_w2(split)
         kc = COMPRESSION_RATIO * ks
         ds, dc = 2 * ZETA * np.sqrt(ks * m_eff), 2 * ZETA * np.sqrt(kc * m_eff)
         lo, hi = (30.0 / F0_HZ) ** 2, (40000.0 / F0_HZ) ** 2
-        seg = [f"{PREFIX}_{lev}" for lev in range(1, N_NODES)]
+        seg = [f"{PREFIX}_{lev}" for lev in range(1, n)]
         shear_kx = tuple((f"{s}_tx.stiffness", 1.0) for s in seg)
         shear_ky = tuple((f"{s}_ty.stiffness", 1.0) for s in seg)
         shear_d = tuple((f"{s}_{a}.damping", 1.0) for s in seg for a in ("tx", "ty"))
         comp_k = tuple((f"{s}_tz.stiffness", 1.0) for s in seg)
         comp_d = tuple((f"{s}_tz.damping", 1.0) for s in seg)
-        nodes = [f"{PREFIX}_{i}" for i in range(N_NODES - 1)] + [root]
+        nodes = [f"{PREFIX}_{i}" for i in range(n - 1)] + [root]
         masses = tuple(
             NewParameter(
                 "top_mass" if n == root else f"node{i}_mass", M * share, M * share / MASS_SPAN,
                 M * share * MASS_SPAN, "kg", ((f"{n}.mass", 1.0),),
             )
-            for i, (n, share) in enumerate(zip(nodes, SPLIT, strict=True))
+            for i, (n, share) in enumerate(zip(nodes, split, strict=True))
         )  # fmt: skip
         params = (
             *masses,
@@ -128,7 +142,7 @@ class FlexibleBase(Effect):
                 params,
                 {"root": root},
                 grid,
-                f"{root} as a {N_NODES}-node elastic chain",
+                f"{root} as a {n}-node elastic chain",
                 F0_HZ,
             )
         ]
@@ -142,16 +156,17 @@ class FlexibleBase(Effect):
 
         set_link_inertial(new, root, p["top_mass"], com, I_c)
         add_link(new, GROUND)
-        nodes = [f"{PREFIX}_{i}" for i in range(N_NODES - 1)]
+        n = sum(q.name.endswith("_mass") for q in candidate.parameters)  # the candidate's
+        nodes = [f"{PREFIX}_{i}" for i in range(n - 1)]
         for i, node in enumerate(nodes):
             add_link(new, node, p[f"node{i}_mass"])
         nodes.append(root)
-        dz = HEIGHT / (N_NODES - 1)
+        dz = HEIGHT / (n - 1)
         dof_chain(new, f"{PREFIX}_0", GROUND, nodes[0], TRANSLATIONS, xyz=(0, 0, -HEIGHT),
                   stiffness=[0.0] * 3)  # fmt: skip
         k = [p["shear_x_stiffness"], p["shear_y_stiffness"], p["compression_stiffness"]]
         d = [p["shear_damping"], p["shear_damping"], p["compression_damping"]]
-        for lev in range(1, N_NODES):
+        for lev in range(1, n):
             dof_chain(
                 new, f"{PREFIX}_{lev}", nodes[lev - 1], nodes[lev], TRANSLATIONS, xyz=(0, 0, dz),
                 stiffness=k, damping=d,
