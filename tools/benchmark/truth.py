@@ -108,20 +108,12 @@ def add_compliance(
     return out
 
 
-def _chain_mode_w2(masses: np.ndarray) -> float:
-    """First elastic ω² of a free-free chain of ``masses`` joined by unit springs."""
-    n = masses.size
-    K1 = np.zeros((n, n))
-    for i in range(n - 1):
-        K1[i : i + 2, i : i + 2] += [[1.0, -1.0], [-1.0, 1.0]]
-    return float(np.sort(np.linalg.eigvals(np.linalg.solve(np.diag(masses), K1)).real)[1])
-
-
 def add_flexible_base(doc: UrdfDocument, f: float) -> UrdfDocument:
     """The root as the top of a 5-lump free-free chain, masses M·(0.3, 0.25, 0.2, 0.15, 0.1)
     bottom to top, 4 cm segments, shear x : y = 1 : 1.3, compression 3×, ζ ≈ 2.5 %; the x
     shear stiffness puts the chain's first x mode at ``f``."""
     from bondid.diagnose.effects._chain import TRANSLATIONS, add_link, dof_chain
+    from bondid.diagnose.effects.flexible_base import first_mode_w2
 
     out = doc.copy()
     root = out.root_link()
@@ -134,7 +126,7 @@ def add_flexible_base(doc: UrdfDocument, f: float) -> UrdfDocument:
         add_link(out, nodes[i], float(masses[i]))
     dof_chain(out, "tb_free", "tb_ground", nodes[0], TRANSLATIONS, xyz=(0, 0, -0.16),
               stiffness=[0.0] * 3)  # fmt: skip
-    k = (2 * np.pi * f) ** 2 / _chain_mode_w2(masses)
+    k = (2 * np.pi * f) ** 2 / first_mode_w2(masses)
     m_l = float(np.mean(masses))
     for i in range(4):
         ks = [k, 1.3 * k, 3.0 * k]

@@ -72,7 +72,7 @@ def rod_shares(n_nodes: int) -> np.ndarray:
     return np.array([(0.5 if i in (0, n - 1) else 1.0) / (n - 1) for i in range(n)])
 
 
-def _first_mode_w2(masses: np.ndarray) -> float:
+def first_mode_w2(masses: np.ndarray) -> float:
     """First elastic ω² [rad²/s²] of a free-free chain of ``masses`` [kg] joined by unit
     springs [N/m]."""
     n = masses.size
@@ -104,7 +104,7 @@ class FlexibleBase(Effect):
         n = self.n_nodes
         split = rod_shares(n)
         m_eff = M * split[0]
-        ks = M * w**2 / _first_mode_w2(split)
+        ks = M * w**2 / first_mode_w2(split)
         kc = COMPRESSION_RATIO * ks
         ds, dc = 2 * ZETA * np.sqrt(ks * m_eff), 2 * ZETA * np.sqrt(kc * m_eff)
         lo, hi = (30.0 / F0_HZ) ** 2, (40000.0 / F0_HZ) ** 2
@@ -117,10 +117,10 @@ class FlexibleBase(Effect):
         nodes = [f"{PREFIX}_{i}" for i in range(n - 1)] + [root]
         masses = tuple(
             NewParameter(
-                "top_mass" if n == root else f"node{i}_mass", M * share, M * share / MASS_SPAN,
-                M * share * MASS_SPAN, "kg", ((f"{n}.mass", 1.0),),
+                "top_mass" if node == root else f"node{i}_mass", M * share,
+                M * share / MASS_SPAN, M * share * MASS_SPAN, "kg", ((f"{node}.mass", 1.0),),
             )
-            for i, (n, share) in enumerate(zip(nodes, split, strict=True))
+            for i, (node, share) in enumerate(zip(nodes, split, strict=True))
         )  # fmt: skip
         params = (
             *masses,
