@@ -51,6 +51,20 @@ __all__ = ["Results", "check_out", "close_all", "open_results", "read_manifest"]
 
 MANIFEST_FORMAT = "bondid-manifest/1"
 _OPEN: list[Results] = []
+_AT_FORK: list[bool] = [False]
+
+
+def _forget_runs_in_child() -> None:
+    """In a forked child (a process pool's worker): close the open runs' lock files and
+    forget the runs. ``flock`` belongs to the open file, which a fork shares, so a worker that
+    outlives its killed parent would otherwise hold the output's lock (seen in CI: the next
+    run into the folder was refused while a killed fit's workers were still computing)."""
+    for run in _OPEN:
+        if run._lock_fd is not None:
+            with contextlib.suppress(OSError):
+                os.close(run._lock_fd)
+            run._lock_fd = None
+    _OPEN.clear()
 
 
 def manifest_name(command: str) -> str:
@@ -103,6 +117,9 @@ class Results:
             except FileNotFoundError:
                 pass
             os.close(fd)
+        if not _AT_FORK[0]:
+            os.register_at_fork(after_in_child=_forget_runs_in_child)
+            _AT_FORK[0] = True
         os.ftruncate(fd, 0)
         os.write(fd, f"pid {os.getpid()} (bondid.{self.command})\n".encode())
         self._lock_fd, self._lock_path = fd, path

@@ -5,6 +5,7 @@ points 2 and 7)."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -216,3 +217,30 @@ def test_sigkill_never_leaves_a_mixed_or_partial_folder(inputs, tmp_path):
     _no_litter(tmp_path)
     fit = json.loads((out / "fit.json").read_text())
     assert fit["parameters"][0]["name"] == "x_guide_ry.stiffness"
+
+
+def test_a_forked_worker_that_outlives_a_killed_run_does_not_hold_its_lock(tmp_path):
+    """A run takes the output's lock, forks a worker (as a process pool does) and dies
+    without releasing (``os._exit``, as under SIGKILL); while the orphaned worker still runs,
+    the next run into the same folder gets the lock."""
+    out = tmp_path / "out"
+    script = (
+        "import multiprocessing as mp, os, sys, time\n"
+        "from bondid.results import open_results\n"
+        "r = open_results(sys.argv[1], 'fit', [])\n"
+        "p = mp.get_context('fork').Process(target=time.sleep, args=(60,))\n"
+        "p.start()\n"
+        "print(p.pid, flush=True)\n"
+        "os._exit(0)\n"
+    )
+    log = tmp_path / "pid.txt"  # a file, not a pipe: the orphan keeps its parent's stdout
+    with log.open("w") as f:
+        subprocess.run([sys.executable, "-c", script, str(out)], stdout=f, timeout=60,
+                       check=True)  # fmt: skip
+    orphan = int(log.read_text().split()[0])
+    try:
+        assert _alive({orphan}, grace=0.0) == {orphan}  # the worker outlived its parent
+        open_results(out, "fit", []).close()
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(orphan, signal.SIGKILL)
