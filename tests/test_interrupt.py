@@ -1,46 +1,98 @@
-"""Worker processes and Ctrl-C: spawned workers start with SIGINT ignored."""
+"""Worker processes and Ctrl-C: spawned workers start with SIGINT held (blocked) until their
+initializer ignores it; a signal during a start is never lost."""
 
 from __future__ import annotations
 
+import os
 import signal
+import threading
+import time
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 
 import pytest
 
-from bondid.interrupt import spawn_context
+from bondid.interrupt import ignore_in_worker, spawn_context
 
 
-def _sigint_handler_name() -> str:
-    h = signal.getsignal(signal.SIGINT)
-    return "ignored" if h == signal.SIG_IGN else repr(h)
+def _sigint_state() -> str:
+    blocked = signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, [])
+    ignored = signal.getsignal(signal.SIGINT) == signal.SIG_IGN
+    return "ignored" if ignored else "blocked" if blocked else "handled"
 
 
-def test_spawned_workers_ignore_sigint_from_their_start() -> None:
+def test_spawned_workers_hold_sigint_from_their_start() -> None:
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # as the CLI has it
     try:
         with ProcessPoolExecutor(1, mp_context=spawn_context()) as ex:  # no initializer
-            assert ex.submit(_sigint_handler_name).result(timeout=120) == "ignored"
-        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # it is back
+            assert ex.submit(_sigint_state).result(timeout=120) == "blocked"
+        with ProcessPoolExecutor(1, mp_context=spawn_context(), initializer=ignore_in_worker) as ex:
+            assert ex.submit(_sigint_state).result(timeout=120) == "ignored"
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # untouched
+        assert signal.SIGINT not in signal.pthread_sigmask(signal.SIG_BLOCK, [])
     finally:
         signal.signal(signal.SIGINT, previous)
 
 
-def test_a_plain_spawned_worker_would_not_ignore_it() -> None:
-    """The reference: without :func:`spawn_context` the worker has Python's own handler
-    (when the parent handles SIGINT itself: a parent started in the background with SIGINT
-    ignored passes that on to every child, which is why the test sets the handler)."""
+def _ctrl_c_at_start(context: object) -> int:
+    """Start a one-worker pool, send SIGINT to the worker while it boots (as a Ctrl-C sent
+    to the process group would), and return its answer to ``7 * 6``."""
+    with ProcessPoolExecutor(1, mp_context=context, initializer=ignore_in_worker) as ex:
+        fut = ex.submit(int.__mul__, 7, 6)
+        for pid in list(ex._processes):  # (the worker exists once submit returns)
+            os.kill(pid, signal.SIGINT)
+        return fut.result(timeout=120)
+
+
+def test_a_ctrl_c_while_a_worker_boots_does_not_break_the_pool() -> None:
+    """Known answer, and the reference: a plain spawned worker dies of the same SIGINT (or
+    raises ``KeyboardInterrupt`` in its bootstrap) and the pool is broken."""
     import multiprocessing as mp
 
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
-        with ProcessPoolExecutor(1, mp_context=mp.get_context("spawn")) as ex:
-            assert ex.submit(_sigint_handler_name).result(timeout=120) != "ignored"
+        assert _ctrl_c_at_start(spawn_context()) == 42
+        with pytest.raises(BrokenProcessPool):
+            _ctrl_c_at_start(mp.get_context("spawn"))
     finally:
         signal.signal(signal.SIGINT, previous)
 
 
+def test_a_process_directed_signal_during_a_start_is_not_lost(monkeypatch) -> None:
+    """Known answer for a CI failure: a SIGINT sent to the process while a worker started was
+    taken by another thread (the kernel hands a process-directed signal to any thread that
+    does not block it) while the parent ignored SIGINT for the child's sake, and discarded;
+    the diagnosis went on. Now it is recorded and raised as the start ends."""
+    from multiprocessing.context import SpawnProcess
+
+    from bondid import interrupt
+
+    if threading.current_thread() is not threading.main_thread():
+        pytest.skip("signals are handled in the main thread only")
+    stop = threading.Event()
+    other = threading.Thread(target=stop.wait)  # started here: the signals not blocked
+    other.start()
+    seen: list[str] = []
+
+    def start(self) -> None:
+        os.kill(os.getpid(), signal.SIGINT)  # the main thread blocks it: `other` takes it
+        time.sleep(0.3)
+        seen.append("started")
+
+    monkeypatch.setattr(SpawnProcess, "start", start)
+    previous = interrupt.install(grace=120)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            interrupt._QuietStartProcess().start()
+        assert seen == ["started"] and interrupt.requested()
+    finally:
+        interrupt.restore(previous)
+        stop.set()
+        other.join()
+
+
 def test_a_sigint_while_a_worker_starts_reaches_the_handler_after_it(monkeypatch) -> None:
-    """Known answer: a SIGINT that arrives while a process starts (the parent ignores SIGINT
+    """Known answer: a SIGINT that arrives while a process starts (the main thread blocks it
     then, for the child's sake) is delivered to the parent's handler once the start is done,
     once. Before, it was dropped (seen in CI: a diagnosis that went on after its Ctrl-C)."""
     import threading
@@ -69,8 +121,9 @@ def test_a_sigint_while_a_worker_starts_reaches_the_handler_after_it(monkeypatch
 
 
 def test_a_sigint_held_before_the_start_is_not_discarded(monkeypatch) -> None:
-    """A SIGINT already pending (blocked) when the start ignores SIGINT would be discarded by
-    the ignore; it is sent again and handled after the start."""
+    """A SIGINT already pending (blocked) when a start begins stays pending through it (an
+    earlier design ignored SIGINT for the start, which discards a pending one) and is
+    handled after the start."""
     import threading
     from multiprocessing.context import SpawnProcess
 

@@ -91,6 +91,11 @@ class _Watchdog:
 
 _WATCHDOG: list[_Watchdog | None] = [None]
 
+#: depth of :func:`signals_deferred` blocks in the main thread, and whether a signal that
+#: arrived inside one is waiting to be raised as it ends
+_DEFER = [0]
+_HELD = [False]
+
 
 def _handler(signum: int, frame: Any) -> None:
     if os.getpid() != _OWNER[0]:
@@ -103,6 +108,9 @@ def _handler(signum: int, frame: Any) -> None:
     dog = _WATCHDOG[0]
     if dog is not None:
         dog.wake.set()
+    if _DEFER[0] > 0:  # inside signals_deferred: raised when the block ends
+        _HELD[0] = True
+        return
     raise KeyboardInterrupt
 
 
@@ -166,8 +174,8 @@ def check() -> None:
 def ignore_in_worker(*_: Any) -> None:
     """Pool initializer: the worker ignores SIGINT (its parent stops it) and dies quietly on
     SIGTERM (a forked worker would otherwise keep the parent's handler), both unblocked (a
-    worker forked inside :func:`signals_deferred` inherits the block; a SIGTERM held since
-    then ends it now)."""
+    worker started inside :func:`signals_deferred`, forked or spawned, inherits the block;
+    a SIGINT held since then is discarded, a SIGTERM held since then ends it now)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, set(_SIGNALS))
@@ -175,43 +183,58 @@ def ignore_in_worker(*_: Any) -> None:
 
 @contextlib.contextmanager
 def signals_deferred() -> Iterator[None]:
-    """Context: SIGINT and SIGTERM blocked in this thread (the main one; elsewhere nothing
-    happens), so a Ctrl-C (or ``kill``) that arrives inside is held pending and delivered, to
-    the handler then in place, when the block ends: never lost, never raised in the middle
-    (e.g. between a worker's start and the executor's record of it). Threads started inside
-    inherit the block for good, which is harmless: Python runs signal handlers in the main
-    thread only (and a Ctrl-C is then not taken by a thread that would find it ignored)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
+    """Context: a SIGINT or SIGTERM that arrives inside is raised (``KeyboardInterrupt``) when
+    the block ends: never lost, never raised in the middle (e.g. between a worker's start
+    and the executor's record of it, or inside a commit of results).
+
+    Two layers. The handler :func:`install` puts in place records a signal that arrives
+    inside and returns; the block's end raises it. This holds whichever thread the kernel
+    hands a process-directed signal to (Python runs the handler in the main thread anyway).
+    And both signals are blocked in this thread for the block (any thread): a process
+    started here inherits the mask, so a spawned worker starts with them held until its
+    initializer (:func:`ignore_in_worker`) ignores SIGINT and unblocks them (no
+    ``KeyboardInterrupt`` in its bootstrap). Threads started inside inherit the block for
+    good, which is harmless: signals are handled in the main thread only."""
     old = signal.pthread_sigmask(signal.SIG_BLOCK, set(_SIGNALS))
+    main = threading.current_thread() is threading.main_thread()
+    if main:
+        _DEFER[0] += 1
+    held = False
     try:
         yield
     finally:
+        if main:
+            _DEFER[0] -= 1
+            if _DEFER[0] == 0:
+                held, _HELD[0] = _HELD[0], False
+        # (a signal pending at the OS level is handled now, by a handler that raises)
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
+    if held:
+        raise KeyboardInterrupt
+
+
+def _ensure_resource_tracker() -> None:
+    """Start ``multiprocessing``'s resource tracker now if it is not running: starting it
+    unblocks SIGINT and SIGTERM in the calling thread (measured), which inside a
+    :func:`signals_deferred` block would let a worker start with them unblocked."""
+    with contextlib.suppress(Exception):
+        from multiprocessing import resource_tracker
+
+        resource_tracker.ensure_running()
 
 
 class _QuietStartProcess(SpawnProcess):
-    """A spawned process started while the parent ignores SIGINT (see :func:`spawn_context`)."""
+    """A spawned process that starts with SIGINT and SIGTERM blocked (see
+    :func:`spawn_context`)."""
 
     def start(self) -> None:
-        if threading.current_thread() is not threading.main_thread():
-            super().start()
-            return
+        _ensure_resource_tracker()
         try:
             with signals_deferred():
-                # ignoring a signal discards it when pending: one already held is sent again
-                held = signal.SIGINT in signal.sigpending()
-                previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-                try:
-                    super().start()
-                finally:
-                    signal.signal(signal.SIGINT, previous)
-                    if held:
-                        signal.raise_signal(signal.SIGINT)
+                super().start()
         except BaseException:
-            # a Ctrl-C delivered as the block ends: the executor never records this process
-            # (it does so after ``start`` returns), so nobody else would stop it
+            # a signal during the start, raised as it ends (here, or at the end of an outer
+            # block): the executor has not recorded this process, so nobody else stops it
             _stop([self])
             raise
 
@@ -221,23 +244,24 @@ class _QuietStartContext(SpawnContext):
 
 
 def spawn_context() -> SpawnContext:
-    """A ``multiprocessing`` "spawn" context whose processes start with SIGINT ignored.
+    """A ``multiprocessing`` "spawn" context whose processes start with SIGINT and SIGTERM
+    blocked.
 
     :func:`ignore_in_worker` runs only once a spawned worker has imported what it needs; a
     Ctrl-C that reaches the process group while a worker is still starting up would otherwise
-    raise ``KeyboardInterrupt`` in its bootstrap and print a traceback (seen under load). An
-    ignored signal stays ignored across ``exec`` and Python then installs no handler of its
-    own, so the parent ignores SIGINT for the moment it starts a process (main thread only;
-    its own handler is put back at once). For that moment SIGINT is also blocked
-    (:func:`signals_deferred`): Linux keeps a blocked signal pending even while it is
-    ignored, so a Ctrl-C that arrives then reaches the parent's handler once the process has
-    started (before, it was dropped and the run went on: seen once in CI, a SIGINT sent as the
-    first diagnosis worker came up). A signal blocked in the main thread may still be taken by
-    another thread that does not block it, so the pool starts its workers inside
-    :func:`signals_deferred` (:class:`bondid.diagnose.pool.WorkerPool`): the executor's own
-    thread then blocks SIGINT too. (Blocking alone does not protect the child: a spawned
-    process starts with an empty signal mask, measured.)
+    raise ``KeyboardInterrupt`` in its bootstrap and print a traceback (seen under load). A
+    signal mask survives ``fork`` and ``exec`` and Python's start-up leaves it alone
+    (measured), so the parent starts each process inside :func:`signals_deferred`: the
+    worker holds a SIGINT until its initializer ignores it (discarding it), and a SIGTERM
+    from the parent until the initializer unblocks it (then it ends; a worker that never
+    gets there is killed one second later, :func:`kill_workers`).
+
+    (Before, the parent *ignored* SIGINT while it started a process, as an ignored signal
+    also survives ``exec``. A process-directed SIGINT that arrived in that moment was taken
+    by another thread of the parent, which did not block it, and discarded: a diagnosis
+    went on after its Ctrl-C, seen in CI.)
     """
+    _ensure_resource_tracker()
     return _QuietStartContext()
 
 
