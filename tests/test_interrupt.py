@@ -76,7 +76,9 @@ def test_a_process_directed_signal_during_a_start_is_not_lost(monkeypatch) -> No
 
     def start(self) -> None:
         os.kill(os.getpid(), signal.SIGINT)  # the main thread blocks it: `other` takes it
-        time.sleep(0.3)
+        t0 = time.monotonic()  # until the handler has run (never, when the signal is lost)
+        while not interrupt.requested() and time.monotonic() - t0 < 10.0:
+            time.sleep(0.01)
         seen.append("started")
 
     monkeypatch.setattr(SpawnProcess, "start", start)
@@ -89,6 +91,9 @@ def test_a_process_directed_signal_during_a_start_is_not_lost(monkeypatch) -> No
         interrupt.restore(previous)
         stop.set()
         other.join()
+    assert not interrupt.requested()  # the run's interrupt ends with it (it stopped a later
+    # test's solve in this process once)
+    interrupt.check()
 
 
 def test_a_sigint_while_a_worker_starts_reaches_the_handler_after_it(monkeypatch) -> None:

@@ -130,11 +130,14 @@ def install(grace: float | None = None) -> Any:
 
 
 def restore(previous: Any) -> None:
-    """Put back the handlers :func:`install` returned (None: leave them) and disarm the
-    watchdog."""
+    """Put back the handlers :func:`install` returned (None: leave them), disarm the
+    watchdog and forget the run's interrupt (:func:`check` and :func:`requested` then see
+    none: code that runs later in the same process is not stopped by it)."""
     if previous is not None and threading.current_thread() is threading.main_thread():
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+        _FLAG.clear()
+        _HELD[0] = False
         dog, _WATCHDOG[0] = _WATCHDOG[0], None
         if dog is not None:
             dog.disarm()
