@@ -4,6 +4,7 @@ workers come up with the signals unblocked, the watchdog ends a run whose clean-
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -174,3 +175,43 @@ def test_a_run_that_stops_in_time_is_not_touched_by_the_watchdog(tmp_path) -> No
     out, err = p.communicate(timeout=30)
     assert p.returncode == 130, err
     assert "after 130" in out and "did not stop" not in err
+
+
+@pytest.mark.parametrize("method", ["fork", "spawn"])
+def test_a_pool_worker_ends_when_its_parent_is_killed(tmp_path, method) -> None:
+    """Known answer: the parent dies at once (``os._exit``, as under SIGKILL) while its pool
+    worker computes; the worker (its initializer :func:`ignore_in_worker`) ends by itself.
+    Reference: a process of the same script without the initializer outlives the parent."""
+    p = _script(
+        tmp_path,
+        f"""
+        import multiprocessing as mp, os, time
+        from concurrent.futures import ProcessPoolExecutor
+        from bondid.interrupt import ignore_in_worker
+
+        if __name__ == "__main__":
+            ctx = mp.get_context({method!r})
+            pool = ProcessPoolExecutor(1, mp_context=ctx, initializer=ignore_in_worker)
+            pool.submit(time.sleep, 60)
+            plain = ctx.Process(target=time.sleep, args=(60,))
+            plain.start()
+            while not pool._processes:
+                time.sleep(0.01)
+            time.sleep(1.0)  # the worker is at work
+            with open("pids.txt", "w") as f:  # (a file: the orphans keep the pipes open)
+                print(*pool._processes, plain.pid, file=f, flush=True)
+            os._exit(0)
+    """,
+    )
+    assert p.wait(timeout=120) == 0
+    worker, plain = (int(w) for w in (tmp_path / "pids.txt").read_text().split())
+    try:
+        t0 = time.monotonic()
+        while _alive(worker) and time.monotonic() - t0 < 30:
+            time.sleep(0.1)
+        assert not _alive(worker)
+        assert _alive(plain)
+    finally:
+        for pid in (worker, plain):
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)

@@ -35,6 +35,7 @@ import os
 import signal
 import sys
 import threading
+import time
 from collections.abc import Iterator
 from multiprocessing.context import SpawnContext, SpawnProcess
 from typing import Any
@@ -178,10 +179,39 @@ def ignore_in_worker(*_: Any) -> None:
     """Pool initializer: the worker ignores SIGINT (its parent stops it) and dies quietly on
     SIGTERM (a forked worker would otherwise keep the parent's handler), both unblocked (a
     worker started inside :func:`signals_deferred`, forked or spawned, inherits the block;
-    a SIGINT held since then is discarded, a SIGTERM held since then ends it now)."""
+    a SIGINT held since then is discarded, a SIGTERM held since then ends it now).
+
+    And the worker ends once its parent is gone (:func:`_end_with_parent`): a parent killed
+    with SIGKILL cannot stop its workers, which went on computing as orphans (seen in CI:
+    a killed fit's worker still there a quarter of an hour later)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, set(_SIGNALS))
+    _end_with_parent()
+
+
+#: seconds between a worker's checks that its parent still runs
+PARENT_POLL_S = 1.0
+_WATCHED = [0]  # the process whose parent watcher runs (a fork copies the list)
+
+
+def _end_with_parent(poll: float | None = None) -> None:
+    """Start (once per process) a daemon thread that ends this process (``os._exit``, exit
+    code 143 as for SIGTERM) within ``poll`` s (default :data:`PARENT_POLL_S`) of its parent's
+    end, seen as a change of ``os.getppid()`` (the orphan is adopted by another process)."""
+    if _WATCHED[0] == os.getpid():
+        return
+    _WATCHED[0] = os.getpid()
+    parent = os.getppid()
+    wait = PARENT_POLL_S if poll is None else poll
+
+    def watch() -> None:
+        while True:
+            time.sleep(wait)
+            if os.getppid() != parent:
+                os._exit(128 + int(signal.SIGTERM))
+
+    threading.Thread(target=watch, name="bondid-parent-watch", daemon=True).start()
 
 
 @contextlib.contextmanager
