@@ -195,19 +195,18 @@ PARENT_POLL_S = 1.0
 _WATCHED = [0]  # the process whose parent watcher runs (a fork copies the list)
 
 
-def _end_with_parent(poll: float | None = None) -> None:
+def _end_with_parent() -> None:
     """Start (once per process) a daemon thread that ends this process (``os._exit``, exit
-    code 143 as for SIGTERM) within ``poll`` s (default :data:`PARENT_POLL_S`) of its parent's
-    end, seen as a change of ``os.getppid()`` (the orphan is adopted by another process)."""
+    code 143 as for SIGTERM) within :data:`PARENT_POLL_S` of its parent's end, seen as a
+    change of ``os.getppid()`` (the orphan is adopted by another process)."""
     if _WATCHED[0] == os.getpid():
         return
     _WATCHED[0] = os.getpid()
     parent = os.getppid()
-    wait = PARENT_POLL_S if poll is None else poll
 
     def watch() -> None:
         while True:
-            time.sleep(wait)
+            time.sleep(PARENT_POLL_S)
             if os.getppid() != parent:
                 os._exit(128 + int(signal.SIGTERM))
 
@@ -294,7 +293,6 @@ def spawn_context() -> SpawnContext:
     by another thread of the parent, which did not block it, and discarded: a diagnosis
     went on after its Ctrl-C, seen in CI.)
     """
-    _ensure_resource_tracker()
     return _QuietStartContext()
 
 
