@@ -28,7 +28,7 @@ import numpy as np
 from ..exceptions import BondidError
 from .augmented import Augmented
 from .effects import Candidate
-from .job import Job, direct
+from .job import Job, direct, with_option
 from .keep import held_of, replaces
 from .pivot import (
     FULL_EVAL_ITER,
@@ -202,9 +202,10 @@ def at_refined_pivot(
 
 def variant_options(job: Job) -> list[Candidate]:
     """The job's candidate's options as its effect lists them on the nominal model (the
-    candidate of the same label and its variants, each without variants; those with another
-    number of new parameters left out). The job's own candidate may be one variant already
-    (the screening's choice), so its own ``variants`` are not enough."""
+    candidate of the same label and its variants, each without variants; a variant may have
+    other new parameters: refit it with :func:`.job.with_option`). The job's own candidate
+    may be one variant already (the screening's choice), so its own ``variants`` are not
+    enough."""
     from ..model.document import UrdfDocument
     from .effects import get_effect
 
@@ -214,8 +215,7 @@ def variant_options(job: Job) -> list[Candidate]:
     same = [c for c in get_effect(cand.effect).candidates(doc) if c.label == cand.label]
     if not same:
         return []
-    return [replace(v, variants=()) for v in (same[0], *same[0].variants)
-            if len(v.parameters) == len(cand.parameters)]  # fmt: skip
+    return [replace(v, variants=()) for v in (same[0], *same[0].variants)]
 
 
 def other_variants(
@@ -233,7 +233,7 @@ def other_variants(
     for v in variant_options(job):
         if v.spec == cand.spec:
             continue
-        other = replace(job, candidate=v)
+        other = with_option(job, v)
         tried += 1
         try:
             a2, s2, r2 = _fit(other)

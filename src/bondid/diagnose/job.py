@@ -7,7 +7,7 @@ to a worker process.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -31,6 +31,20 @@ def short(n: int) -> list[Step]:
         Step("presolve", kind=PRESOLVE_KIND, norm="l2", max_iter=n, keep_if_lower=True),
         Step("all", max_iter=n),
     ]
+
+
+def with_option(job: Job, option: Candidate) -> Job:
+    """``job`` refitting ``option`` (one of its candidate's variants; variants cleared). The
+    screening's start for the new parameters (``Job.start_new``) goes with it only when
+    ``option`` has the same new parameters (a flexible base's chain of another length has
+    other node masses: it then gets its own scans)."""
+    cand = job.candidate
+    same = cand is not None and [p.name for p in option.parameters] == [
+        p.name for p in cand.parameters
+    ]
+    return replace(
+        job, candidate=replace(option, variants=()), start_new=job.start_new if same else ()
+    )
 
 
 @dataclass

@@ -54,7 +54,6 @@ data at 0.78–0.79× the noise level. Two findings make the path back:
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -314,6 +313,7 @@ def modal_step(
     the job with the candidate kept, the refit and a note per variant tried
     ("<variant>: <note>", "; "-joined)."""
     from .alternatives import stuck, variant_options
+    from .job import with_option
     from .runner import _setup
 
     cand = job.candidate
@@ -324,7 +324,7 @@ def modal_step(
     for k, option in enumerate(order):
         if k and not stuck(job, aug, state, res):
             break
-        sub = replace(job, candidate=replace(option, variants=()))
+        sub = with_option(job, option)
         aug0 = _setup(job.urdf, sub)
         aug, state, res, note = modal_restarts(job, aug0, option, aug, state, res, measured)
         if aug is aug0:

@@ -53,7 +53,6 @@ What a job carries in and out, and its solve schedules: :mod:`.job` (:class:`Job
 from __future__ import annotations
 
 import time
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -61,7 +60,7 @@ import numpy as np
 from ..exceptions import BondidError
 from .augmented import Augmented, build, chain_of
 from .effects import Candidate
-from .job import Job, JobResult, direct, short
+from .job import Job, JobResult, direct, short, with_option
 from .keep import held_of, replaces
 from .refit import Refit, State
 
@@ -198,14 +197,14 @@ def _screen_variants(job: Job) -> tuple[Job, float]:
     urdf = job.alt_urdf if job.alt_urdf is not None else job.urdf
     pick: int | None = None
     for option in (cand, *cand.variants):
-        sub = replace(job, candidate=replace(option, variants=()))
+        sub = with_option(job, option)
         aug = _setup(urdf, sub)
         _, cost, k = _alt_start(sub, aug.refit, [], only=pick)
         pick = k
         if best is None or cost < best[0]:
             best = (cost, option)
     assert best is not None
-    return replace(job, candidate=replace(best[1], variants=())), best[0]
+    return with_option(job, best[1]), best[0]
 
 
 def _fit(job: Job) -> tuple[Augmented, State, Any]:

@@ -85,14 +85,14 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..exceptions import BondidError
 from .augmented import build
 from .effects import Candidate
-from .job import Job
+from .job import Job, with_option
 from .joint_profile import damped_step, joint_profile
 from .modal_start import applies, placed_alternation
 from .refit import Refit, State
@@ -243,7 +243,7 @@ def screen(job: Job) -> Screening:
     floor = math.nan
     both = (math.nan, math.nan)
     for k, option in enumerate((cand, *cand.variants)):
-        sub = replace(job, candidate=replace(option, variants=()))
+        sub = with_option(job, option)
         try:
             c_new, c_fig, pick, new, f, b, r = _figure(sub, N_STARTS if k == 0 else 1, pick, k == 0)
             floor = f if k == 0 else floor

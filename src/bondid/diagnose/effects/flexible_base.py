@@ -20,7 +20,13 @@ withheld 5-lump bases (``tools/truth_refit.py``, the true candidate refitted by 
 diagnosis's own steps, training / held-out weighted dB against the truth model's): with
 ``N = 4``, polar/fb/acc ended at 0.941 / 0.987 (truth 0.512 / 0.664), also when started from
 the truth's nominal parameters, and gantry/fb/coh at 0.757 / 0.811 (truth 0.562 / 0.602);
-with ``N = 6`` at 0.518 / 0.675 and 0.613 / 0.782.
+with ``N = 6`` at 0.518 / 0.675 and 0.613 / 0.782. Neither length is best everywhere:
+polar/fb/mob ended at 0.736 / 0.961 with ``N = 4`` but stuck at 1.289 / 1.772 with ``N = 6``
+(truth 0.709 / 0.736). So the candidate carries a four-node chain as its variant
+(:data:`VARIANT_NODES`; ``spec["nodes"]`` tells them apart): the screening keeps the one whose
+start fits best, and a refit that stays above the noise level gets the other's full refit
+from its own scans (:func:`..alternatives.other_variants`; the node masses differ, so the
+screening's start does not carry over: :func:`..job.with_option`).
 
 Joints: ``flexible_base_{level}_{tx,ty,tz}``, level 0 the free bottom, 1 … N−1 the elastic
 segments; links ``flexible_base_0`` (bottom) … ``flexible_base_{N−2}``. One candidate, located
@@ -44,6 +50,8 @@ all stiffnesses together from 100 Hz to 12 kHz, then each stiffness alone (:mod:
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ...exceptions import ConfigError
@@ -54,6 +62,8 @@ from ._chain import TRANSLATIONS, add_link, dof_chain
 from .base import Candidate, Effect, NewParameter
 
 N_NODES = 6
+#: the lengths of the candidate's variants (:attr:`~.base.Candidate.variants`)
+VARIANT_NODES = (4,)
 F0_HZ = 1000.0
 ZETA = 0.02
 COMPRESSION_RATIO = 3.5
@@ -88,11 +98,16 @@ class FlexibleBase(Effect):
     name = "flexible_base"
     description = "elastic base/chassis: lumped shear/compression chain (seed report 4.2)"
 
-    def __init__(self, n_nodes: int = N_NODES) -> None:
-        """``n_nodes``: the chain's lumped masses, the root body the top one (≥ 2)."""
-        if isinstance(n_nodes, bool) or not isinstance(n_nodes, int) or n_nodes < 2:
-            raise ConfigError(f"flexible_base: n_nodes={n_nodes!r} is not valid; an integer ≥ 2 is")
+    def __init__(
+        self, n_nodes: int = N_NODES, variant_nodes: tuple[int, ...] = VARIANT_NODES
+    ) -> None:
+        """``n_nodes``: the chain's lumped masses, the root body the top one (≥ 2);
+        ``variant_nodes``: the lengths of the candidate's variants (each ≥ 2)."""
+        for n in (n_nodes, *variant_nodes):
+            if isinstance(n, bool) or not isinstance(n, int) or n < 2:
+                raise ConfigError(f"flexible_base: n_nodes={n!r} is not valid; an integer ≥ 2 is")
         self.n_nodes = n_nodes
+        self.variant_nodes = tuple(n for n in dict.fromkeys(variant_nodes) if n != n_nodes)
 
     def candidates(self, doc: UrdfDocument) -> list[Candidate]:
         root = doc.root_link()
@@ -100,8 +115,13 @@ class FlexibleBase(Effect):
         if lk.inertial is None or not (lk.inertial.mass or 0) > 0:
             return []
         M = float(lk.inertial.mass)
+        main = self._candidate(root, M, self.n_nodes)
+        others = tuple(self._candidate(root, M, n) for n in self.variant_nodes)
+        return [replace(main, variants=others)]
+
+    def _candidate(self, root: str, M: float, n: int) -> Candidate:
+        """The root body ``root`` (mass ``M`` [kg]) as an ``n``-node chain."""
         w = 2 * np.pi * F0_HZ
-        n = self.n_nodes
         split = rod_shares(n)
         m_eff = M * split[0]
         ks = M * w**2 / first_mode_w2(split)
@@ -135,17 +155,11 @@ class FlexibleBase(Effect):
                          scan=0.5),
         )  # fmt: skip
         grid = tuple((f / F0_HZ) ** 2 for f in SCAN_HZ)
-        return [
-            Candidate(
-                self.name,
-                root,
-                params,
-                {"root": root},
-                grid,
-                f"{root} as a {n}-node elastic chain",
-                F0_HZ,
-            )
-        ]
+        return Candidate(
+            self.name, root, params, {"root": root, "nodes": n}, grid,
+            f"{root} as a {n}-node elastic chain",
+            F0_HZ,
+        )  # fmt: skip
 
     def augment(self, doc: UrdfDocument, candidate: Candidate) -> UrdfDocument:
         new = doc.copy()

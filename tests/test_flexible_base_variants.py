@@ -1,0 +1,93 @@
+"""The flexible base's chains of two lengths: the candidate (six nodes) carries a four-node
+variant, a variant with other new parameters is refitted from its own scans, and a stuck
+refit of one length is replaced by the other's when that reaches lower."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from models import noisy_bonder_data
+
+from bondid.diagnose.effects import get_effect
+from bondid.model import UrdfDocument
+
+ROOT = Path(__file__).resolve().parents[1]
+MODEL = ROOT / "urdf" / "bonder.urdf"
+FEW = ["x_stage.mass", "y_stage.mass", "z_stage.mass", "x_guide_ry.stiffness"]
+#: the four-node variant's refit lowers the objective below this share of the six-node's
+#: (measured: 5.28 against 6.19, the truth's own 5.28)
+VARIANT_COST_SHARE = 0.9
+#: a truth chain's stiffness factors on the variant's start (shear x, shear y, compression):
+#: modes between the start's 1 kHz and 500 Hz
+TRUTH_STIFFNESS = (0.35, 0.5, 0.4)
+
+
+@pytest.fixture(scope="module")
+def doc() -> UrdfDocument:
+    return UrdfDocument.load(MODEL)
+
+
+def _nodes(c) -> int:  # type: ignore[no-untyped-def]
+    return sum(p.name.endswith("_mass") for p in c.parameters)
+
+
+def test_the_chain_carries_a_shorter_variant(doc):
+    """One candidate at the root, a six-node chain with a four-node variant; each builds a
+    chain of its own length (three translations per node, the bottom one free)."""
+    (c,) = get_effect("flexible_base").candidates(doc)
+    assert _nodes(c) == 6 and [_nodes(v) for v in c.variants] == [4]
+    assert c.label == c.variants[0].label and c.variants[0].variants == ()
+    fb = get_effect("flexible_base")
+    for cand, n in ((c, 6), (c.variants[0], 4)):
+        aug = fb.augment(doc, cand)
+        added = [j for j in aug.joint_names if j.startswith("flexible_base_")]
+        assert len(added) == 3 * n, (n, added)
+
+
+def test_a_variant_with_other_parameters_gets_its_own_scans(doc):
+    """:func:`with_option` keeps the screening's start for a variant with the same new
+    parameters and drops it for one with others (it would not fit their number)."""
+    from bondid.cost.problem import CostOptions
+    from bondid.diagnose.job import Job, with_option
+
+    (c,) = get_effect("flexible_base").candidates(doc)
+    start = tuple(p.initial for p in c.parameters)
+    job = Job(doc.to_string(), None, [], [], [], replace(c, variants=()), CostOptions(),  # type: ignore[arg-type]
+              start_new=start)  # fmt: skip
+    same = with_option(job, c)
+    assert same.start_new == start and same.candidate is not None
+    assert same.candidate.variants == ()
+    other = with_option(job, c.variants[0])
+    assert other.start_new == () and other.candidate is not None
+    assert _nodes(other.candidate) == 4
+
+
+def test_a_stuck_chain_is_replaced_by_the_other_length(doc):
+    """Known answer: data from a four-node chain (stiffnesses off the start); the six-node
+    candidate's refit (as if the screening had kept it, with its start) is replaced by the
+    four-node variant's full refit from its own scans, at a lower objective."""
+    from bondid.diagnose.alternatives import other_variants
+    from bondid.diagnose.augmented import with_values
+    from bondid.diagnose.refit import nominal_space
+    from bondid.diagnose.runner import Job, _fit
+
+    fb = get_effect("flexible_base")
+    (c,) = fb.candidates(doc)
+    four = c.variants[0]
+    k = dict(zip(("shear_x_stiffness", "shear_y_stiffness", "compression_stiffness"),
+                 TRUTH_STIFFNESS, strict=True))  # fmt: skip
+    truth = np.array([p.initial * k.get(p.name, 1.0) for p in four.parameters])
+    data = noisy_bonder_data(fb.augment(doc, with_values(four, truth)))
+    text = doc.to_string()
+    from bondid.cost.problem import CostOptions
+
+    job = Job(text, nominal_space(doc, FEW, 4000.0), data, data, data, replace(c, variants=()),
+              CostOptions(), alt_urdf=text, start_new=tuple(p.initial for p in c.parameters),
+              all_iter=60)  # fmt: skip
+    aug, state, res = _fit(job)
+    job2, aug2, state2, _ = other_variants(job, aug, state, res)
+    assert job2.candidate is not None and _nodes(job2.candidate) == 4
+    assert aug2.refit.cost(state2) < VARIANT_COST_SHARE * aug.refit.cost(state)
