@@ -91,3 +91,22 @@ def test_a_stuck_chain_is_replaced_by_the_other_length(doc):
     job2, aug2, state2, _ = other_variants(job, aug, state, res)
     assert job2.candidate is not None and _nodes(job2.candidate) == 4
     assert aug2.refit.cost(state2) < VARIANT_COST_SHARE * aug.refit.cost(state)
+
+
+@pytest.mark.parametrize("variant_nodes", [(1,), (4, 0), (2.5,), (True,), 4, "4"])
+def test_variant_lengths_that_are_no_chain_are_refused(variant_nodes):
+    """A variant length below two nodes, or not an integer, or no tuple, is a ConfigError
+    that names ``variant_nodes``."""
+    from bondid.diagnose.effects.flexible_base import FlexibleBase
+    from bondid.exceptions import ConfigError
+
+    with pytest.raises(ConfigError, match="variant_nodes"):
+        FlexibleBase(variant_nodes=variant_nodes)
+
+
+def test_a_variant_of_the_main_length_is_dropped(doc):
+    """A variant length equal to the main one, or repeated, gives one chain of that length."""
+    from bondid.diagnose.effects.flexible_base import FlexibleBase
+
+    (c,) = FlexibleBase(n_nodes=4, variant_nodes=(4, 3, 3)).candidates(doc)
+    assert _nodes(c) == 4 and [_nodes(v) for v in c.variants] == [3]

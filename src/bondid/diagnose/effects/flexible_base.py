@@ -103,9 +103,15 @@ class FlexibleBase(Effect):
     ) -> None:
         """``n_nodes``: the chain's lumped masses, the root body the top one (≥ 2);
         ``variant_nodes``: the lengths of the candidate's variants (each ≥ 2)."""
-        for n in (n_nodes, *variant_nodes):
+        if isinstance(variant_nodes, (str, bytes)) or not hasattr(variant_nodes, "__iter__"):
+            raise ConfigError(
+                f"flexible_base: variant_nodes={variant_nodes!r} is not valid; a tuple of"
+                " integers ≥ 2 is"
+            )
+        lengths = [("n_nodes", n_nodes), *(("variant_nodes", n) for n in variant_nodes)]
+        for what, n in lengths:
             if isinstance(n, bool) or not isinstance(n, int) or n < 2:
-                raise ConfigError(f"flexible_base: n_nodes={n!r} is not valid; an integer ≥ 2 is")
+                raise ConfigError(f"flexible_base: {what} holds {n!r}; an integer ≥ 2 is valid")
         self.n_nodes = n_nodes
         self.variant_nodes = tuple(n for n in dict.fromkeys(variant_nodes) if n != n_nodes)
 
