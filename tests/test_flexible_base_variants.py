@@ -110,3 +110,12 @@ def test_a_variant_of_the_main_length_is_dropped(doc):
 
     (c,) = FlexibleBase(n_nodes=4, variant_nodes=(4, 3, 3)).candidates(doc)
     assert _nodes(c) == 4 and [_nodes(v) for v in c.variants] == [3]
+
+
+def test_variant_lengths_from_a_generator_are_kept(doc):
+    """Lengths given by a one-pass iterable (a generator) give their chains too: they are
+    read once, not once to check and again to keep."""
+    from bondid.diagnose.effects.flexible_base import FlexibleBase
+
+    (c,) = FlexibleBase(n_nodes=6, variant_nodes=(n for n in (4, 3))).candidates(doc)
+    assert [_nodes(v) for v in c.variants] == [4, 3]

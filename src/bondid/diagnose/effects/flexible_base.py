@@ -50,6 +50,7 @@ all stiffnesses together from 100 Hz to 12 kHz, then each stiffness alone (:mod:
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import replace
 
 import numpy as np
@@ -99,15 +100,16 @@ class FlexibleBase(Effect):
     description = "elastic base/chassis: lumped shear/compression chain (seed report 4.2)"
 
     def __init__(
-        self, n_nodes: int = N_NODES, variant_nodes: tuple[int, ...] = VARIANT_NODES
+        self, n_nodes: int = N_NODES, variant_nodes: Iterable[int] = VARIANT_NODES
     ) -> None:
         """``n_nodes``: the chain's lumped masses, the root body the top one (≥ 2);
-        ``variant_nodes``: the lengths of the candidate's variants (each ≥ 2)."""
+        ``variant_nodes``: the lengths of the candidate's variants (each ≥ 2; any iterable)."""
         if isinstance(variant_nodes, (str, bytes)) or not hasattr(variant_nodes, "__iter__"):
             raise ConfigError(
                 f"flexible_base: variant_nodes={variant_nodes!r} is not valid; a tuple of"
                 " integers ≥ 2 is"
             )
+        variant_nodes = tuple(variant_nodes)  # a generator is iterated once, here
         lengths = [("n_nodes", n_nodes), *(("variant_nodes", n) for n in variant_nodes)]
         for what, n in lengths:
             if isinstance(n, bool) or not isinstance(n, int) or n < 2:
