@@ -142,23 +142,16 @@ def test_the_modal_step_tries_the_other_variants_while_stuck(monkeypatch):
     kept_spec = c.variants[0].spec
     tried: list[dict] = []
 
-    carried_by: list[list] = []
-
     class Aug:
         def __init__(self, spec):
             self.spec = spec
-            self.refit = self
-
-        def new_values(self, state):
-            return ("values of", self.spec, state)
 
     def fake_setup(urdf, job):
         return Aug(job.candidate.spec)
 
-    def fake_restarts(job, aug0, option, aug, state, res, measured, carried=()):
+    def fake_restarts(job, aug0, option, aug, state, res, measured):
         assert measured == [["m"]]  # identified once, passed to every variant
         tried.append(option.spec)
-        carried_by.append(list(carried))
         if option.spec == kept_spec:
             return aug0, "s2", "r2", "kept"
         return aug, state, res, "not kept"
@@ -170,8 +163,6 @@ def test_the_modal_step_tries_the_other_variants_while_stuck(monkeypatch):
     job = runner.Job(doc.to_string(), None, [], [], [], replace(c, variants=()), CostOptions())  # type: ignore[arg-type]
     job2, aug, state, res, note = ms.modal_step(job, Aug(c.spec), "s", "r")
     assert tried == [c.spec, kept_spec]  # the third centre is not tried: no longer stuck
-    # the other centre starts first from the springs of the refit so far (same parameters)
-    assert carried_by == [[], [("values of", c.spec, "s")]]
     assert job2.candidate is not None and job2.candidate.spec == kept_spec
     assert not job2.candidate.variants
     assert aug.spec == kept_spec and (state, res) == ("s2", "r2")

@@ -260,11 +260,9 @@ def alternation(
 def modal_restarts(
     job: Job, aug0: Augmented, cand: Candidate, aug: Augmented, state: State, res: Any,
     measured: Sequence[Sequence[IdentifiedMode]] | None = None,
-    carried: Sequence[np.ndarray] = (),
 ) -> tuple[Augmented, State, Any, str]:  # fmt: skip
     """The restart alternation from every start of :func:`modal_starts` (on ``job``'s data
-    and hints), after the ``carried`` starts ``(n_new,)`` (SI; :func:`modal_step`), on
-    ``aug0`` (the job's model augmented with its candidate ``cand``: the first
+    and hints) on ``aug0`` (the job's model augmented with its candidate ``cand``: the first
     origin); the start of lowest training objective is compared with the refit so far
     (``aug``, ``state``, ``res``) by :func:`.keep.replaces`; the starts after one that ends at
     the training noise level (:func:`.rescue.above_noise`) are not tried. Returns the kept
@@ -274,8 +272,7 @@ def modal_restarts(
     from .rescue import above_noise
 
     refit = aug0.refit
-    starts = [np.asarray(v, float) for v in carried]
-    starts += modal_starts(refit, cand, job.full, job.hints_hz, measured)
+    starts = modal_starts(refit, cand, job.full, job.hints_hz, measured)
     if not starts:
         return aug, state, res, "no measured mode to match"
     best: tuple[State, float, Any] | None = None
@@ -293,8 +290,6 @@ def modal_restarts(
             if not above_noise(refit, s):  # judged only when the best moved
                 break
     note = f"{tried} of {len(starts)} start(s) from the measured modes"
-    if carried:
-        note += f" ({len(carried)} carried over from the refit so far)"
     if failed:
         note += f", {len(failed)} failed (first: {failed[0]})"
     if best is None:
@@ -303,11 +298,6 @@ def modal_restarts(
         job, aug, state, res, aug0, best[0], best[2], "restart alternation"
     )
     return aug, state, res, f"{note}; {kept}"
-
-
-def _same_parameters(a: Candidate, b: Candidate) -> bool:
-    """Do two variants of a candidate add the same new parameters (names, in order)?"""
-    return [q.name for q in a.parameters] == [q.name for q in b.parameters]
 
 
 def modal_step(
@@ -331,17 +321,13 @@ def modal_step(
     measured = job_modes(job)
     order = [cand, *(o for o in variant_options(job) if o.spec != cand.spec and others)]
     notes = []
-    kept = cand  # the candidate of the refit so far
     for k, option in enumerate(order):
         if k and not stuck(job, aug, state, res):
             break
         sub = with_option(job, option)
         aug0 = _setup(job.urdf, sub)
-        carried = [aug.refit.new_values(state)] if k and _same_parameters(kept, option) else []
-        aug, state, res, note = modal_restarts(
-            job, aug0, option, aug, state, res, measured, carried
-        )
+        aug, state, res, note = modal_restarts(job, aug0, option, aug, state, res, measured)
         if aug is aug0:
-            job, kept = sub, option
+            job = sub
         notes.append(f"{option.description}: {note}" if len(order) > 1 else note)
     return job, aug, state, res, "; ".join(notes)
