@@ -262,15 +262,6 @@ def reason(test: dict[str, Any], candidate_score: float, baseline_score: float) 
                 " no noise level for this cost)")  # fmt: skip
     L = test["heldout_noise_level_db"]
     parts = [f"{head}; held-out noise level {L:.3f} dB (n = {test['heldout_n_eff']:.0f})"]
-    pair = test.get("compound") or {}
-    if test.get("accepted") and pair.get("accepted"):
-        other = pair["with"]
-        parts.append(
-            f"accepted together with {other['effect']}@{other['location']}: the pair removes"
-            f" {pair['pair']['excess_share']:.0%} of the first step's excess over the noise"
-            f" (needs >= {MIN_EXCESS_SHARE:.0%})"
-        )
-        return "; ".join(parts)
     if not test["base_above_noise"]:
         parts.append(f"the base is at the noise level ({test['base_over_noise']:.3f}x)")
     if test["lr"] <= test["lr_threshold"]:
@@ -280,12 +271,6 @@ def reason(test: dict[str, Any], candidate_score: float, baseline_score: float) 
     elif test["excess_share"] < MIN_EXCESS_SHARE:
         parts.append(f"removes {test['excess_share']:.0%} of the excess over the noise (needs"
                      f" >= {MIN_EXCESS_SHARE:.0%})")  # fmt: skip
-        if pair.get("with"):
-            other = pair["with"]
-            parts.append(
-                f"with the next step's best ({other['effect']}@{other['location']}) the pair"
-                f" removes {pair['pair']['excess_share']:.0%}, not accepted"
-            )
     return "; ".join(parts)
 
 

@@ -21,12 +21,9 @@ accepted so far — and
    :func:`.scoring.accept` (the base above the held-out noise level, the improvement
    significant given that noise; the same rule at every step).
 
-A first step refused only because its best refit removes too small a share of the excess
-over the noise looks one step ahead: the two effects are accepted together when the pair
-passes the whole rule (:mod:`.compound`). The search stops at the first step that accepts
-nothing, or after :attr:`Context.max_effects` accepted effects. The first accepted effect is
-the verdict; the list of accepted effects, each with the gap after it, is ``effects`` in
-``diagnosis.json``.
+The search stops at the first step that accepts nothing, or after
+:attr:`Context.max_effects` accepted effects. The first accepted effect is the verdict; the
+list of accepted effects, each with the gap after it, is ``effects`` in ``diagnosis.json``.
 """
 
 from __future__ import annotations
@@ -41,7 +38,6 @@ from ..cost.problem import CostOptions
 from ..data.measurement import FrfData
 from ..model.document import UrdfDocument
 from . import scoring
-from .compound import look_ahead
 from .effects import Candidate
 from .job import Job, JobResult
 from .parsimony import prefer_simpler
@@ -280,18 +276,9 @@ def search(
     base = replace(baseline, chain=())
     base_score = scoring.score(base.heldout_rms, base.n_train, 0)
     steps: list[Step] = []
-
-    def run_step(index: int, base: JobResult, base_score: float) -> Step:
-        return _step(ctx, pool, index, base, base_score, say)
-
-    while len(steps) < ctx.max_effects:
-        step = run_step(len(steps), base, base_score)
+    for index in range(ctx.max_effects):
+        step = _step(ctx, pool, index, base, base_score, say)
         steps.append(step)
-        if step.winner is None and _open(ctx, step.results[0] if step.results else base):
-            nxt = look_ahead(ctx, step, run_step)  # two effects together (compound.py)
-            if nxt is not None:
-                steps.append(nxt)
-                step = nxt
         if step.winner is None or not _open(ctx, step.winner):
             break
         base, base_score = step.winner, step.scores[0]
