@@ -6,6 +6,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -75,7 +76,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         from ..results import open_results
         from ..validation import check_inputs, load_model
         from .pipeline import Settings, diagnose
-        from .report import gaps, to_json_dict, write_outputs
+        from .report import gaps, to_json_dict, write_outputs, write_plots
         from .summary import summary
 
         cli.check_workers(args.workers)
@@ -108,10 +109,16 @@ def main(argv: Sequence[str] | None = None) -> int:
             prog.count = done - 1
             prog.update(1, label)
 
-        diag = diagnose(doc, data, settings, progress=on_progress)
+        plot_dir = None if res is None or args.no_plots else res.tmp
+
+        def draw(d: Any) -> None:  # while a worker runs the final fit
+            if plot_dir is not None:
+                write_plots(d, plot_dir)
+
+        diag = diagnose(doc, data, settings, progress=on_progress, during_final=draw)
         prog.close()
         if res is not None:
-            staged = write_outputs(diag, res.tmp, plots=not args.no_plots, warnings=warnings)
+            staged = write_outputs(diag, res.tmp, plots=False, warnings=warnings)
             content = __import__("json").loads(staged[0].read_text())
             written = res.commit(warnings=warnings, main="diagnosis.json")
         else:

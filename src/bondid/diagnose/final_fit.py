@@ -36,6 +36,7 @@ held-out noise level) 35 s for no gain: hence the held-out test.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 from ..optim.ipopt import WARM_START
@@ -110,11 +111,22 @@ def judged(source: JobResult, job: Job, result: JobResult) -> FinalFit:
     return FinalFit(source, model, True, note, rescue, pivot)
 
 
+def start_final(
+    source: JobResult, base: Job, max_iter: int, pool: object | None = None
+) -> Callable[[], FinalFit]:
+    """Start the final fit of ``source`` (:func:`final_fit`) in ``pool`` and return what waits
+    for it: the caller can do other work (e.g. draw the plots) while a worker fits. Without a
+    pool the fit runs here, before this returns."""
+    job = final_job(source, base, max_iter)
+    if pool is None:
+        result = run_final(job)
+        return lambda: judged(source, job, result)
+    future = pool.submit(run_final, job)  # type: ignore[attr-defined]
+    return lambda: judged(source, job, future.result())
+
+
 def final_fit(source: JobResult, base: Job, max_iter: int, pool: object | None = None) -> FinalFit:
     """Refit the final model ``source`` on all data (module docstring). ``base``: a job with
     the diagnosis's data, space and options; ``pool``: a worker pool with ``submit`` (None:
     run here)."""
-    job = final_job(source, base, max_iter)
-    if pool is None:
-        return judged(source, job, run_final(job))
-    return judged(source, job, pool.submit(run_final, job).result())  # type: ignore[attr-defined]
+    return start_final(source, base, max_iter, pool)()

@@ -44,7 +44,7 @@ from ..frf.aligned import model_frf
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameter, select_parameters
 from .effects import Candidate, get_effects
-from .final_fit import FinalFit, final_fit
+from .final_fit import FinalFit, start_final
 from .gap import missing_mode_hints
 from .job import Job, JobResult
 from .pool import WorkerPool
@@ -264,6 +264,7 @@ def diagnose(
     settings: Settings | None = None,
     *,
     progress: Callable[[int, int, str], None] | None = None,
+    during_final: Callable[[Diagnosis], None] | None = None,
 ) -> Diagnosis:
     """Diagnose the gap between ``doc`` and the measured ``datasets`` (see module docstring).
 
@@ -272,6 +273,9 @@ def diagnose(
         datasets: measured FRFs (one per operating point), any quantity.
         settings: choices (default :class:`Settings`).
         progress: ``progress(done, total, label)`` after the baseline and each candidate.
+        during_final: called with the diagnosis so far (``final`` still None) while a worker
+            runs the final fit on all data, e.g. to draw the plots, which do not depend on
+            it; an error it raises stops the diagnosis.
 
     Raises:
         ConfigError, DataError, ParameterError: bad choices or data.
@@ -299,24 +303,29 @@ def diagnose(
             last.urdf, p.space, p.train, p.held, p.full, None, p.options,
             heldout_noise_db=level,
         )  # fmt: skip
-        final = final_fit(last, data, s.ipopt_iter, pool)
+        pending = start_final(last, data, s.ipopt_iter, pool)
+        first = steps[0]
+        diag = Diagnosis(
+            nominal=doc, datasets=p.full, channels=p.channels, names=p.names,
+            baseline=baseline, results=first.results, scores=first.scores,
+            baseline_score=first.base_score,
+            winner=pruning.kept[0].model if pruning.kept else None,
+            nominal_H=[model_frf(doc, d) for d in p.full], bands=bands, modes=modes,
+            modes_by_dataset=by_ds, antiresonances=anti, fit_info=fit_info,
+            split_info=p.split_info, wall_s=math.nan, weighting=p.weighting,
+            steps=steps, final=None, pruning=pruning,
+        )  # fmt: skip
+        if during_final is not None:
+            during_final(diag)
+        diag.final = pending()
         say("final fit on all data")
-        nominal_H = [model_frf(doc, d) for d in p.full]
     except BaseException:
         pool.kill()
         raise
     finally:
         pool.close()
-    first = steps[0]
-    return Diagnosis(
-        nominal=doc, datasets=p.full, channels=p.channels, names=p.names, baseline=baseline,
-        results=first.results, scores=first.scores, baseline_score=first.base_score,
-        winner=pruning.kept[0].model if pruning.kept else None, nominal_H=nominal_H,
-        bands=bands, modes=modes,
-        modes_by_dataset=by_ds, antiresonances=anti, fit_info=fit_info,
-        split_info=p.split_info, wall_s=time.perf_counter() - t0, weighting=p.weighting,
-        steps=steps, final=final, pruning=pruning,
-    )  # fmt: skip
+    diag.wall_s = time.perf_counter() - t0
+    return diag
 
 
 def _announcer(progress: Callable[[int, int, str], None] | None) -> Callable[[str], None]:

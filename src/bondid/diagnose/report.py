@@ -315,6 +315,13 @@ def write_outputs(
     return written
 
 
+def write_plots(diag: Diagnosis, out_dir: Path) -> list[Path]:
+    """Write the residual map and the Bode PNGs of ``diag`` into ``out_dir`` (they do not
+    depend on the final fit: ``bondid.diagnose`` draws them while a worker runs it)."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    return _plots(diag, gaps(diag), out_dir)
+
+
 def _plots(diag: Diagnosis, reports: dict[str, GapReport], out_dir: Path) -> list[Path]:
     from ..data.weights import noise_estimate
     from ..plots import Curve, noise_curve, plot_bode, plot_residual_map
