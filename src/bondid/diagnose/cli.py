@@ -6,7 +6,6 @@ import argparse
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -109,12 +108,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             prog.count = done - 1
             prog.update(1, label)
 
-        plot_dir = None if res is None or args.no_plots else res.tmp
-
-        def draw(d: Any) -> None:  # while a worker runs the final fit
-            if plot_dir is not None:
-                write_plots(d, plot_dir)
-
+        # the plots are drawn while a worker runs the final fit (they do not depend on it)
+        draw = None
+        if res is not None and not args.no_plots:
+            plot_dir = res.tmp
+            draw = lambda d: write_plots(d, plot_dir)  # noqa: E731
         diag = diagnose(doc, data, settings, progress=on_progress, during_final=draw)
         prog.close()
         if res is not None:

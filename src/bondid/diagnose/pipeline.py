@@ -264,7 +264,7 @@ def diagnose(
     settings: Settings | None = None,
     *,
     progress: Callable[[int, int, str], None] | None = None,
-    during_final: Callable[[Diagnosis], None] | None = None,
+    during_final: Callable[[Diagnosis], object] | None = None,
 ) -> Diagnosis:
     """Diagnose the gap between ``doc`` and the measured ``datasets`` (see module docstring).
 
