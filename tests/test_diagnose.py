@@ -486,15 +486,43 @@ def test_tied_and_modifier_parameters_refitted_through_the_core(doc):
     assert np.all(fit.std[live] >= 0.999 * res.result.std[live])
 
 
-def test_the_plots_are_drawn_while_the_final_fit_runs(doc, tmp_path):
+def _spy_start_final(monkeypatch) -> tuple[list, list]:
+    """Record the source of every final fit the pipeline starts, and what it returned."""
+    from bondid.diagnose import pipeline
+
+    sources: list = []
+    pending: list = []
+    real = pipeline.start_final
+
+    def spy(source, *a, **k):
+        sources.append(source)
+        pending.append(real(source, *a, **k))
+        return pending[-1]
+
+    monkeypatch.setattr(pipeline, "start_final", spy)
+    return sources, pending
+
+
+def test_the_plots_are_drawn_while_the_final_fit_runs(doc, tmp_path, monkeypatch):
     """``during_final`` sees the diagnosis before its final fit (``final`` None, the plots'
     inputs all there) while a worker runs it; the returned diagnosis has the final fit and a
-    finite wall time; the plots drawn then are the residual map and a Bode PNG per data set."""
+    finite wall time; the plots drawn then are the residual map and a Bode PNG per data set.
+    When no effect can be accepted, the final fit is the one queued behind the first step's
+    refits (of the parameter refit, started once), and it equals the same fit run here."""
     import math
 
-    from bondid.diagnose import diagnose
+    from bondid.diagnose import diagnose, pipeline, scoring
+    from bondid.diagnose.final_fit import judged
+    from bondid.diagnose.final_pivot import run_final
     from bondid.diagnose.report import write_plots
 
+    # no effect can be accepted (these data's base sits just above the level's tolerance)
+    monkeypatch.setattr(scoring, "may_accept", lambda score, noise: False)
+    sources, pending = _spy_start_final(monkeypatch)
+    real_prune, pruned_after = pipeline.prune, []
+    monkeypatch.setattr(
+        pipeline, "prune", lambda *a: pruned_after.append(len(sources)) or real_prune(*a)
+    )
     seen = []
 
     def draw(d):
@@ -508,3 +536,50 @@ def test_the_plots_are_drawn_while_the_final_fit_runs(doc, tmp_path):
     names = {"residual_map.png", *(f"bode_{k + 1}.png" for k in range(len(data)))}
     assert {p.name for p in seen[1:]} == names
     assert all(p.stat().st_size > 0 for p in seen[1:])
+    # started once, before the search was over (the pruning follows the search)
+    assert diag.winner is None and sources == [diag.baseline] and pruned_after == [1]
+    assert diag.final.source is diag.baseline
+    job = pending[0].job  # the same job run here
+    here = judged(diag.baseline, job, run_final(job))
+    assert here.kept == diag.final.kept
+    assert here.model.db_rms == pytest.approx(diag.final.model.db_rms, rel=SAME_FIT)
+
+
+#: relative agreement of one final fit run in a worker and here
+SAME_FIT = 1e-6
+
+
+def test_the_final_fit_is_queued_ahead_only_when_no_effect_can_be_accepted(doc, monkeypatch):
+    """With the base above the noise level (an effect may be accepted) nothing is queued
+    ahead: one final fit, of the pruning's model. With the base at the level the parameter
+    refit's final fit is queued behind the first step's refits; should the pruning still end
+    at another model, the final fit is started again from that one."""
+    from dataclasses import replace
+    from types import SimpleNamespace
+
+    from bondid.diagnose import diagnose, pipeline, scoring
+
+    sources, _ = _spy_start_final(monkeypatch)
+    seen: dict = {}
+
+    def fake_search(ctx, pool, baseline, say, submitted):
+        submitted(0, "screening")
+        assert sources == []  # not ahead of the screening
+        submitted(0, "refits")
+        seen["baseline"] = baseline
+        return [SimpleNamespace(results=[], scores=[], base_score=0.0)]
+
+    def fake_prune(ctx, pool, steps, baseline, say):
+        seen["final"] = replace(baseline, label="with an effect")
+        return SimpleNamespace(final=seen["final"], kept=[])
+
+    monkeypatch.setattr(pipeline, "search", fake_search)
+    monkeypatch.setattr(pipeline, "prune", fake_prune)
+    s = _settings(effects=["sensor_delay"], free=FEW[:1], n_points=60, workers=2)
+    data = _data(doc, n=60)
+    for may, queued in ((True, False), (False, True)):
+        sources.clear()
+        monkeypatch.setattr(scoring, "may_accept", lambda score, noise, may=may: may)
+        diag = diagnose(doc, data, s)
+        assert sources == [seen["baseline"]] * queued + [seen["final"]]
+        assert diag.final is not None and diag.final.source is seen["final"]

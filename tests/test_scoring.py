@@ -69,6 +69,15 @@ def test_a_base_at_the_noise_level_accepts_nothing() -> None:
     assert not t["base_above_noise"] and not t["accepted"]
 
 
+def test_nothing_may_be_accepted_against_a_base_at_the_noise_level() -> None:
+    """may_accept is the rule's first condition alone: False only with a noise reference and
+    a base at its level; the rule then accepts no candidate at all."""
+    assert not scoring.may_accept(1.05, REF) and scoring.may_accept(2.0, REF)
+    assert scoring.may_accept(1.05, None) and scoring.may_accept(math.nan, REF)
+    assert not any(scoring.tests(s1, 1.05, p, REF)["accepted"] for s1 in (0.1, 0.9) for p in (1, 7))
+    assert scoring.may_accept(2.0, REF) == scoring.tests(1.0, 2.0, 1, REF)["base_above_noise"]
+
+
 def test_a_real_gap_closed_is_accepted() -> None:
     t = scoring.tests(1.02, 2.0, 2, REF)
     assert t["base_above_noise"] and t["significant"] and t["accepted"]

@@ -36,8 +36,9 @@ held-out noise level) 35 s for no gain: hence the held-out test.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from concurrent.futures import Future
 from dataclasses import dataclass, replace
+from typing import Any
 
 from ..optim.ipopt import WARM_START
 from .final_pivot import run_final
@@ -111,18 +112,36 @@ def judged(source: JobResult, job: Job, result: JobResult) -> FinalFit:
     return FinalFit(source, model, True, note, rescue, pivot)
 
 
+@dataclass
+class PendingFinal:
+    """A final fit started in a worker (:func:`start_final`): call it to wait for the
+    :class:`FinalFit`; :meth:`cancel` drops it if no worker has started it yet."""
+
+    source: JobResult
+    job: Job
+    future: Any  # a concurrent.futures.Future of the job's JobResult
+
+    def __call__(self) -> FinalFit:
+        return judged(self.source, self.job, self.future.result())
+
+    def cancel(self) -> bool:
+        """Drop the fit if it has not started (True); a running fit finishes unused."""
+        return bool(self.future.cancel())
+
+
 def start_final(
     source: JobResult, base: Job, max_iter: int, pool: object | None = None
-) -> Callable[[], FinalFit]:
+) -> PendingFinal:
     """Start the final fit of ``source`` (:func:`final_fit`) in ``pool`` and return what waits
     for it: the caller can do other work (e.g. draw the plots) while a worker fits. Without a
     pool the fit runs here, before this returns."""
     job = final_job(source, base, max_iter)
     if pool is None:
-        result = run_final(job)
-        return lambda: judged(source, job, result)
-    future = pool.submit(run_final, job)  # type: ignore[attr-defined]
-    return lambda: judged(source, job, future.result())
+        future: Future[JobResult] = Future()
+        future.set_result(run_final(job))
+    else:
+        future = pool.submit(run_final, job)  # type: ignore[attr-defined]
+    return PendingFinal(source, job, future)
 
 
 def final_fit(source: JobResult, base: Job, max_iter: int, pool: object | None = None) -> FinalFit:

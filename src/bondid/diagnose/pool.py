@@ -46,6 +46,11 @@ class WorkerPool:
                     else:
                         os.environ[k] = v
 
+    @property
+    def parallel(self) -> bool:
+        """Do jobs run in worker processes (else here, at submission)?"""
+        return self.ex is not None
+
     def submit(self, fn: Callable[..., Any], *args: Any) -> Any:
         if self.ex is not None:
             return self.ex.submit(fn, *args)

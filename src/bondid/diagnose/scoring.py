@@ -206,6 +206,22 @@ def usable(noise: NoiseReference | None) -> TypeGuard[NoiseReference]:
     return noise is not None and noise.level_db > 0 and noise.n_eff > 0
 
 
+def above_level(baseline_score: float, noise: NoiseReference) -> bool:
+    """Condition 1 of the verdict rule (module docstring): is a base of held-out score
+    ``baseline_score`` [dB] above the noise level of ``noise``?"""
+    s0, L2, n = baseline_score**2, noise.level_db**2, noise.n_eff
+    return bool(s0 > (1.0 + LEVEL_TOL) ** 2 * L2 * (1.0 + Z / math.sqrt(n)))
+
+
+def may_accept(baseline_score: float, noise: NoiseReference | None) -> bool:
+    """Can any candidate be accepted against a base of held-out score ``baseline_score``
+    [dB]? Not when the rule runs on a noise reference and the base is at its level
+    (:func:`above_level`); else (or without a finite score) it may."""
+    if not (usable(noise) and math.isfinite(baseline_score)):
+        return True
+    return above_level(baseline_score, noise)
+
+
 def tests(
     candidate_score: float, baseline_score: float, n_new: int, noise: NoiseReference | None
 ) -> dict[str, Any]:
@@ -220,7 +236,7 @@ def tests(
         ok = gain >= REL_MARGIN * baseline_score and gain >= ABS_MARGIN_DB
         return {"accepted": bool(ok), "rule": "margin"}
     s0, s1, L2, n = baseline_score**2, candidate_score**2, noise.level_db**2, noise.n_eff
-    above = s0 > (1.0 + LEVEL_TOL) ** 2 * L2 * (1.0 + Z / math.sqrt(n))
+    above = above_level(baseline_score, noise)
     lr = n * (s0 - s1) / L2
     threshold = lr_threshold(n_new)
     excess = (s0 - s1) / (s0 - L2) if s0 > L2 else 0.0

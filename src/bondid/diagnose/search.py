@@ -136,6 +136,8 @@ class Step:
 
 
 Progress = Callable[[str], None]
+#: ``submitted(step index, "screening" | "refits")``: a step's jobs are queued
+Submitted = Callable[[int, str], None]
 
 
 def _job(
@@ -197,13 +199,15 @@ def verdict_order(results: Sequence[JobResult], scores: Sequence[float]) -> list
 
 
 def _step(
-    ctx: Context, pool: Any, index: int, base: JobResult, base_score: float, progress: Progress
-) -> Step:
+    ctx: Context, pool: Any, index: int, base: JobResult, base_score: float, progress: Progress,
+    submitted: Submitted,
+) -> Step:  # fmt: skip
     cands = _open(ctx, base)
     # later steps screen from their base alone: it is the first effect's refit, which the
     # full refits also ran from the nominal model
     futures = {pool.submit(screen, _job(ctx, base, c, alt=index == 0)): i
                for i, c in enumerate(cands)}  # fmt: skip
+    submitted(index, "screening")
     screenings: list[Screening | None] = [None] * len(cands)
     for f in as_completed(futures):
         s = f.result()
@@ -221,6 +225,7 @@ def _step(
                     done[i].refit_start(i in picks, i in placed), modal=i in modal_ok)
             for i in chosen}  # fmt: skip
     futs = {pool.submit(run_job, jobs[i]): i for i in chosen}
+    submitted(index, "refits")
     results, used = [], []
     for f in as_completed(futs):
         r = f.result()
@@ -268,16 +273,20 @@ def _step(
 
 
 def search(
-    ctx: Context, pool: Any, baseline: JobResult, progress: Progress | None = None
-) -> list[Step]:
+    ctx: Context, pool: Any, baseline: JobResult, progress: Progress | None = None,
+    submitted: Submitted | None = None,
+) -> list[Step]:  # fmt: skip
     """Steps of the search from the parameter refit ``baseline`` (module docstring); the
-    last step is the one that accepted nothing (unless ``max_effects`` were accepted)."""
+    last step is the one that accepted nothing (unless ``max_effects`` were accepted).
+    ``submitted(step index, "screening" | "refits")`` is called once a step's screenings,
+    then its full refits, are queued in ``pool`` (e.g. to queue more work behind them)."""
     say = progress or (lambda _label: None)
+    queued = submitted or (lambda _index, _what: None)
     base = replace(baseline, chain=())
     base_score = scoring.score(base.heldout_rms, base.n_train, 0)
     steps: list[Step] = []
     for index in range(ctx.max_effects):
-        step = _step(ctx, pool, index, base, base_score, say)
+        step = _step(ctx, pool, index, base, base_score, say, queued)
         steps.append(step)
         if step.winner is None or not _open(ctx, step.winner):
             break
