@@ -356,8 +356,12 @@ def test_two_withheld_effects_are_found_in_order(doc, tmp_path):
     assert content["verdict"]["effect"] == content["effects"][0]["effect"]
     after = [x["db_rms_after"] for x in content["effects"]]
     assert after[1] < after[0] < content["gap"]["db_rms"]
+    # the third step: its base (both effects) at the noise level, so recorded, not run
     steps = {x["step"] for x in content["candidates"]}
-    assert steps == {1, 2, 3}  # the third step ran and accepted nothing
+    third = content["scoring"]["steps"][2]
+    assert steps == {1, 2} and len(content["scoring"]["steps"]) == 3
+    assert third["screened"] is False and not third["accepted"]
+    assert third["base_above_noise"] is False and third["base_over_noise"] > 0
     assert all("refitted" in x and "screening_db" in x for x in content["candidates"])
     assert "→ +" in summary(diag, content)
     written = write_outputs(diag, tmp_path, plots=False)

@@ -173,7 +173,7 @@ def test_a_diagnosis_with_a_dropped_effect_writes_the_kept_one(doc, tmp_path, mo
     cands = {c.location: c for c in e.candidates(doc)}
     data = _data(_with_values(e, doc, cands[TRUE_AT], scale=3.0))
 
-    def two_steps(ctx, pool, baseline, say):  # type: ignore[no-untyped-def]
+    def two_steps(ctx, pool, baseline, say, submitted=None):  # type: ignore[no-untyped-def]
         def job(urdf, cand, chain=()):  # type: ignore[no-untyped-def]
             return Job(urdf, ctx.space, ctx.train, ctx.heldout, ctx.full, cand, ctx.options,
                        accepted=chain, alt_urdf=doc.to_string(), wider=False)  # fmt: skip

@@ -22,8 +22,11 @@ accepted so far — and
    significant given that noise; the same rule at every step).
 
 The search stops at the first step that accepts nothing, or after
-:attr:`Context.max_effects` accepted effects. The first accepted effect is the verdict; the
-list of accepted effects, each with the gap after it, is ``effects`` in ``diagnosis.json``.
+:attr:`Context.max_effects` accepted effects. A step after the first whose base is already at
+the held-out noise level is not run: no candidate can pass the rule's first condition there
+(:func:`.scoring.may_accept`), so it is recorded as a step that accepted nothing, without
+screenings (:func:`at_level_step`). The first accepted effect is the verdict; the list of
+accepted effects, each with the gap after it, is ``effects`` in ``diagnosis.json``.
 """
 
 from __future__ import annotations
@@ -286,12 +289,29 @@ def search(
     base_score = scoring.score(base.heldout_rms, base.n_train, 0)
     steps: list[Step] = []
     for index in range(ctx.max_effects):
+        if index and not scoring.may_accept(base_score, ctx.noise):
+            steps.append(at_level_step(index, base, base_score, ctx.noise))
+            break
         step = _step(ctx, pool, index, base, base_score, say, queued)
         steps.append(step)
         if step.winner is None or not _open(ctx, step.winner):
             break
         base, base_score = step.winner, step.scores[0]
     return steps
+
+
+def at_level_step(
+    index: int, base: JobResult, base_score: float, noise: scoring.NoiseReference | None
+) -> Step:
+    """The record of a step not run because its base (held-out score ``base_score`` [dB]) is
+    at the noise level of ``noise`` (module docstring): nothing screened or refitted, the
+    test refused with the reason."""
+    ratio = base_score / noise.level_db if scoring.usable(noise) else math.nan
+    why = (f"the base is at the held-out noise level ({ratio:.3f}x): no candidate can pass "
+           "the rule's first condition, so the step was not run")  # fmt: skip
+    test = {"accepted": False, "rule": "none", "why": why, "screened": False,
+            "base_over_noise": ratio, "base_above_noise": False}  # fmt: skip
+    return Step(index, base, base_score, [], [], test=test)
 
 
 def accepted(steps: Sequence[Step]) -> list[JobResult]:
