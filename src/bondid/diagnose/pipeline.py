@@ -28,10 +28,10 @@
    accepted (:func:`.scoring.may_accept`) and the final fit is the parameter refit's: with
    worker processes it is then queued behind the first step's full refits, where a worker
    would otherwise wait for the slowest of them. Measured on the bundled reference case (its
-   base at 1.02× the level), side by side in one run: 57.8 / 56.1 s before, 51.3 / 48.9 s
-   after (0.89× / 0.87×), the same outputs. Queued whatever the base (as first tried), it
-   cost a case with an effect (bonder/sd/coh) 3–4 %: the second process slows the refit
-   beside it, and the fit is then thrown away.
+   base at 1.02× the level), side by side, alternating: 52.5 / 60.1 / 58.8 s before, 46.4 /
+   51.3 / 52.4 s after (0.85–0.89×), the same outputs. Queued whatever the base (as first
+   tried), it cost a case with an effect (bonder/sd/coh) 3–4 %: the second process slows the
+   refits beside it, and the fit is then thrown away.
 """
 
 from __future__ import annotations
