@@ -38,7 +38,6 @@ from __future__ import annotations
 import math
 from concurrent.futures import Future
 from dataclasses import dataclass, replace
-from typing import Any
 
 from ..optim.ipopt import WARM_START
 from .final_pivot import run_final
@@ -119,7 +118,7 @@ class PendingFinal:
 
     source: JobResult
     job: Job
-    future: Any  # a concurrent.futures.Future of the job's JobResult
+    future: Future[JobResult]
 
     def __call__(self) -> FinalFit:
         return judged(self.source, self.job, self.future.result())

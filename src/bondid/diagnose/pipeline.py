@@ -317,9 +317,7 @@ def diagnose(
         # a base at the noise level: no effect can be accepted (scoring, condition 1), so
         # the final fit is the parameter refit's; queued behind the first step's refits, it
         # runs on a worker that would otherwise wait for the slowest of them
-        certain = not scoring.may_accept(
-            scoring.score(baseline.heldout_rms, baseline.n_train, 0), p.noise
-        )
+        certain = not scoring.may_accept(scoring.base_score(baseline), p.noise)
 
         def submitted(index: int, what: str) -> None:
             if certain and pool.parallel and (index, what) == (0, "refits") and not ahead:

@@ -206,6 +206,12 @@ def usable(noise: NoiseReference | None) -> TypeGuard[NoiseReference]:
     return noise is not None and noise.level_db > 0 and noise.n_eff > 0
 
 
+def base_score(base: Any) -> float:
+    """:func:`score` of a step's base ``base`` (a refit result with ``heldout_rms`` [dB] and
+    ``n_train``): no parameters added over itself."""
+    return score(base.heldout_rms, base.n_train, 0)
+
+
 def above_level(baseline_score: float, noise: NoiseReference) -> bool:
     """Condition 1 of the verdict rule (module docstring): is a base of held-out score
     ``baseline_score`` [dB] above the noise level of ``noise``?"""

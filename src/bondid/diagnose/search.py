@@ -286,7 +286,7 @@ def search(
     say = progress or (lambda _label: None)
     queued = submitted or (lambda _index, _what: None)
     base = replace(baseline, chain=())
-    base_score = scoring.score(base.heldout_rms, base.n_train, 0)
+    base_score = scoring.base_score(base)
     steps: list[Step] = []
     for index in range(ctx.max_effects):
         if index and not scoring.may_accept(base_score, ctx.noise):
