@@ -83,6 +83,9 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--workers", type=int, default=2, help="diagnose --workers (default 2)")
     p.add_argument("--effects", help="diagnose --effects subset (for quick checks only)")
     p.add_argument("--no-fit", action="store_true", help="do not time bondid.fit")
+    p.add_argument("--no-visibility", action="store_true",
+                   help="single-effect cases as listed: no oracle check that strengthens "
+                   "an effect the data do not show (benchmark/visibility.py)")  # fmt: skip
     p.add_argument("--out", type=Path, help="write the rows as JSON")
     p.add_argument("--tables", type=Path, help="print the tables of a rows JSON (--out) and stop")
     p.add_argument("--keep", type=Path,
@@ -106,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     s = Settings(args.freq or (300 if args.quick else 2000),
                  args.points or (120 if args.quick else 500), args.workers, args.effects,
-                 not args.no_fit, args.keep)  # fmt: skip
+                 not args.no_fit, args.keep, not args.no_visibility)  # fmt: skip
 
     done: list[dict[str, Any]] = []
 

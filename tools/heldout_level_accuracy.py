@@ -25,7 +25,8 @@ import numpy as np  # noqa: E402
 from benchmark.cases import all_cases  # noqa: E402
 from benchmark.designs import design  # noqa: E402
 from benchmark.regimes import REGIMES  # noqa: E402
-from truth_refit import _data, _truth_db  # noqa: E402
+from benchmark.visibility import truth_model_db  # noqa: E402
+from truth_refit import _data  # noqa: E402
 
 #: a truth this far above the level counts as an outlier in the summary
 OUTLIER = 1.2
@@ -41,11 +42,11 @@ def row(case, keep: Path | None, freq: int) -> dict[str, float | str]:
     with tempfile.TemporaryDirectory(prefix="heldout_level_") as tmp:
         paths = _data(case, keep, freq, Path(tmp))
         p = prepare_data(doc, [read_frf(x) for x in paths], Settings(n_points=500))
-    truth = _truth_db(case, p.held, p.channels)
+    truth = truth_model_db(case, p.held, p.channels)
     level = p.noise.level_db if p.noise is not None else float("nan")
     n_eff = p.noise.n_eff if p.noise is not None else float("nan")
     return {"case": case.name, "regime": case.regime, "level_db": level, "n_eff": n_eff,
-            "truth_db": truth, "ratio": truth / level}  # fmt: skip
+            "truth_model_db": truth, "ratio": truth / level}  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -66,7 +67,7 @@ def main(argv: list[str] | None = None) -> int:
         r = row(c, a.keep, a.freq)
         rows.append(r)
         print(f"{r['case']:26s} L {r['level_db']:.3f} dB (n {r['n_eff']:5.0f})  truth "
-              f"{r['truth_db']:.3f} dB  ratio {r['ratio']:.2f}", flush=True)  # fmt: skip
+              f"{r['truth_model_db']:.3f} dB  ratio {r['ratio']:.2f}", flush=True)  # fmt: skip
     for reg in REGIMES:
         x = np.array([float(r["ratio"]) for r in rows if r["regime"] == reg])
         if x.size:

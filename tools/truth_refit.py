@@ -40,39 +40,14 @@ sys.path[:0] = [str(ROOT / "src"), str(ROOT / "tools")]
 
 from benchmark.cases import Case, all_cases  # noqa: E402
 from benchmark.designs import design  # noqa: E402
-from benchmark.regimes import measure  # noqa: E402
-from benchmark.truth import signal_factor, truth_model  # noqa: E402
+from benchmark.visibility import case_files, truth_model_db  # noqa: E402
 
 
 def _data(case: Case, keep: Path | None, freq: int, tmp: Path) -> list[Path]:
     """The case's data files: kept ones, else simulated into ``tmp``."""
     if keep is not None and (keep / case.name / "op0.csv").exists():
         return sorted((keep / case.name).glob("op*.csv"))
-    from bondid.model import UrdfDocument
-
-    dz = design(case.design)
-    truth = truth_model(UrdfDocument.load(dz.path), case.effects, case.seed)
-    f = np.logspace(0.0, np.log10(4000.0), freq)
-
-    def factor(ff, outs, ins):
-        return signal_factor(case.effects, ff, outs, ins)
-
-    paths, _ = measure(truth, dz.operating_points, f, case.regime, factor, tmp, case.seed)
-    return paths
-
-
-def _truth_db(case: Case, sets: list, channels: list[str]) -> float:
-    """The truth model's weighted db_rms on ``sets`` (their quantity and points)."""
-    from bondid.diagnose.gap import gap_report
-    from bondid.frf.aligned import model_frf
-    from bondid.model import UrdfDocument
-
-    truth = truth_model(UrdfDocument.load(design(case.design).path), case.effects, case.seed)
-    H = [
-        model_frf(truth, d) * signal_factor(case.effects, d.freq_hz, d.outputs, d.inputs)
-        for d in sets
-    ]
-    return float(gap_report(sets, H, channels=channels, weighting="coherence").db_rms)
+    return case_files(case, tmp, freq)[0]
 
 
 def _noise_db(sets: list, doc: Any, names: list[str], options: Any) -> float:
@@ -161,8 +136,8 @@ def run(
         "cand_train": seen.get("train", float("nan")), "cand_cost_db": float(r.train_rms),
         "cand_held": r.heldout_db_rms,
         "cand_x_noise": float(r.train_rms) / noise_tr,
-        "truth_train": _truth_db(case, p.train, p.channels),
-        "truth_held": _truth_db(case, p.held, p.channels),
+        "truth_train": truth_model_db(case, p.train, p.channels),
+        "truth_held": truth_model_db(case, p.held, p.channels),
         "noise_train": noise_tr, "noise_held": _noise_db(p.held, doc, p.names, p.options),
         "screen_cost": scr.cost, "start": [float(x) for x in scr.start],
         "initial": [p.initial for p in match[0].parameters],

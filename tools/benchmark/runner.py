@@ -25,6 +25,7 @@ from .cases import Case
 from .designs import ROOT, design
 from .regimes import measure
 from .truth import signal_factor, truth_model
+from .visibility import frequencies, visible_case
 
 
 @dataclass(frozen=True)
@@ -37,6 +38,8 @@ class Settings:
     workers: int = 2
     effects: str | None = None
     fit: bool = True
+    #: strengthen a single effect the oracle parameter refit does not see (:mod:`.visibility`)
+    visibility: bool = True
     #: a folder to copy each case's data files and outputs into (``<keep>/<design>/<effect>/
     #: <regime>/``), for a look at a case afterwards; None: nothing kept
     keep: Path | None = None
@@ -113,17 +116,22 @@ def fit_cmd(model: Path, paths: list[Path], out: Path) -> list[str]:
 
 
 def run_case(case: Case, s: Settings) -> dict[str, Any]:
-    """Build, measure, diagnose (and fit); the row of the case (``error`` when a step failed)."""
+    """Build (strengthened until its effect shows, :mod:`.visibility`), measure, diagnose (and
+    fit); the row of the case (``error`` when a step failed)."""
+    vis: dict[str, Any] = {}
+    if s.visibility:
+        case, vis = visible_case(case, s.freq, s.points)
     dz = design(case.design)
     nominal = UrdfDocument.load(dz.path)
     truth = truth_model(nominal, case.effects, case.seed)
-    f = np.logspace(0.0, np.log10(4000.0), s.freq)
+    f = frequencies(s.freq)
 
     def factor(ff, outs, ins):
         return signal_factor(case.effects, ff, outs, ins)
 
     row: dict[str, Any] = {"case": case.name, "design": case.design, "regime": case.regime,
-                           "truth": [[e.effect, e.location] for e in case.effects]}  # fmt: skip
+                           "truth": [[e.effect, e.location] for e in case.effects],
+                           "spec": [dict(e.spec) for e in case.effects], **vis}  # fmt: skip
     with tempfile.TemporaryDirectory(prefix="bondid_blind_") as tmp:
         folder = Path(tmp)
         paths, exact = measure(
