@@ -77,3 +77,12 @@ def test_the_oracle_sees_a_clear_effect_and_not_parameter_errors(tmp_path: Path)
     paths, _ = visibility.case_files(bare, tmp_path / "none", 300)
     none = visibility.oracle(bare, paths, 120)
     assert none["ratio"] == pytest.approx(1.0, abs=0.1)
+
+
+def test_the_command_line_maps_onto_the_runner_settings(tmp_path: Path) -> None:
+    import blind_benchmark
+
+    s = blind_benchmark.settings(blind_benchmark.parse(["--keep", str(tmp_path), "--no-fit"]))
+    assert s.keep == tmp_path and s.visibility is True and s.fit is False
+    s = blind_benchmark.settings(blind_benchmark.parse(["--quick", "--no-visibility"]))
+    assert (s.freq, s.points, s.keep, s.visibility) == (300, 120, None, False)

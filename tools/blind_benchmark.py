@@ -96,6 +96,16 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     return args
 
 
+def settings(args: argparse.Namespace) -> Settings:
+    """The runner's settings of the command line ``args``."""
+    return Settings(
+        freq=args.freq or (300 if args.quick else 2000),
+        points=args.points or (120 if args.quick else 500),
+        workers=args.workers, effects=args.effects, fit=not args.no_fit, keep=args.keep,
+        visibility=not args.no_visibility,
+    )  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse(argv)
     if args.tables:  # e.g. the rows a long run wrote before it was stopped
@@ -107,9 +117,7 @@ def main(argv: list[str] | None = None) -> int:
         for c in cases:
             print(f"{c.name}: {c.label} @ {c.where}")
         return 0
-    s = Settings(args.freq or (300 if args.quick else 2000),
-                 args.points or (120 if args.quick else 500), args.workers, args.effects,
-                 not args.no_fit, args.keep, not args.no_visibility)  # fmt: skip
+    s = settings(args)
 
     done: list[dict[str, Any]] = []
 

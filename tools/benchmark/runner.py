@@ -38,11 +38,11 @@ class Settings:
     workers: int = 2
     effects: str | None = None
     fit: bool = True
-    #: strengthen a single effect the oracle parameter refit does not see (:mod:`.visibility`)
-    visibility: bool = True
     #: a folder to copy each case's data files and outputs into (``<keep>/<design>/<effect>/
     #: <regime>/``), for a look at a case afterwards; None: nothing kept
     keep: Path | None = None
+    #: strengthen a single effect the oracle parameter refit does not see (:mod:`.visibility`)
+    visibility: bool = True
 
 
 #: the subprocesses running now (:func:`terminate_children` stops them with the benchmark)
