@@ -288,7 +288,8 @@ def _rows(old: str, new: str) -> str:
         (_rows(",0.8", ""), DataError, "line 6 .*3 cells"),
         (_rows("3.0,", "1.5,"), DataError, "line 7: unsorted"),
         (_rows("2.0,", "1.0,"), DataError, "line 6: duplicate"),
-        (_rows("1.0,", "0.0,"), DataError, "line 5: .*not positive"),
+        # (a 0 Hz first line is an analyser's DC line: dropped, not an error)
+        (_rows("1.0,", "-1.0,"), DataError, "line 5: .*not positive"),
         (_rows("0.8", "1.2"), DataError, r"line 6, column 'x\.x\.coh': coherence 1\.2 outside"),
         (GOOD + HEADER, DataError, "no data rows"),
     ],
@@ -407,3 +408,37 @@ def test_noise_floor_per_output_and_absent_channels() -> None:
     assert np.allclose(coh_ch[0, 0], coh_ch[0, 1])  # floor relative to each channel's own peak
     assert np.max(coh_out[0, 1]) < 0.1  # weak cross-term drowned by the sensor's floor
     assert np.isnan(coh_ch[0, 2]).all() and np.isnan(coh_out[0, 2]).all()
+
+
+def test_a_dc_line_is_dropped_with_a_note(tmp_path: Path) -> None:
+    """An analyser's 0 Hz line (CSV row or UFF point 1, mixed quantities too) is dropped, the
+    rest read as it is, and the reader says so in ``notes`` (the commands' warnings); a 0 Hz
+    line anywhere else, or a negative one, is still an error."""
+    from bondid.validation.data import check_values
+
+    d = _sample(n_freq=20)
+    path = write_csv(d, tmp_path / "a.csv")
+    lines = path.read_text().splitlines()
+    first = next(k for k, x in enumerate(lines) if x[:1].isdigit())
+    cells = lines[first].split(",")
+    lines.insert(first, ",".join(["0.0", *cells[1:]]))
+    (tmp_path / "dc.csv").write_text("\n".join(lines) + "\n")
+    r = read_csv(tmp_path / "dc.csv")
+    assert np.array_equal(r.freq_hz, d.freq_hz) and _same_bits(r.H, d.H)
+    assert len(r.notes) == 1 and "dc.csv: line" in r.notes[0] and "0 Hz (DC)" in r.notes[0]
+    sane = FrfData(r.freq_hz, ("x",), ("x",), np.ones((1, 1, r.freq_hz.size)), notes=r.notes)
+    assert r.notes[0] in check_values(sane)
+    assert read_csv(path).notes == ()
+    lines.insert(first + 3, ",".join(["0.0", *cells[1:]]))
+    (tmp_path / "dc2.csv").write_text("\n".join(lines) + "\n")
+    with pytest.raises(DataError, match=r"not positive|strictly increasing"):
+        read_csv(tmp_path / "dc2.csv")
+    f = np.r_[0.0, np.linspace(10.0, 100.0, 5)]
+    acc = _foreign_record(2, ordinate_spec_data_type=12, x=f, data=(3 - 1j) * (f + 1))
+    mob = _foreign_record(1, x=f, data=(1 + 2j) * (f + 1))
+    u = read_uff58(_write_foreign(tmp_path / "dc.uff", [mob, acc]), channel_map=FOREIGN_MAP)
+    assert np.array_equal(u.freq_hz, f[1:]) and len(u.notes) == 1
+    np.testing.assert_allclose(u.channel("a.a"), (1 + 2j) * (f[1:] + 1), rtol=1e-15)
+    np.testing.assert_allclose(
+        u.channel("b.a"), (3 - 1j) * (f[1:] + 1) / (2j * np.pi * f[1:]), rtol=1e-15
+    )

@@ -587,3 +587,38 @@ def test_the_final_fit_is_queued_ahead_only_when_no_effect_can_be_accepted(doc, 
         diag = diagnose(doc, data, s)
         assert sources == [seen["baseline"]] * queued + [seen["final"]]
         assert diag.final is not None and diag.final.source is seen["final"]
+
+
+def test_the_summary_says_why_a_candidate_or_the_modes_are_missing():
+    """A refit whose strength the data leave open is marked in the candidate list (it cannot
+    be the verdict whatever its score), and a failed modal identification is printed instead
+    of an empty pairing."""
+    from types import SimpleNamespace
+
+    from bondid.diagnose.summary import summary
+
+    gap = {
+        "db_rms": 2.0,
+        "by_channel": {"x.x": 2.0},
+        "by_band": [],
+        "modes": [],
+        "modes_error": "modal identification failed: a.csv: no channel without a gap",
+    }
+    stage = {"db_rms": 2.0}
+    content = {
+        "stages": {"nominal": {"db_rms": 3.0}, "effect": stage}, "gap": gap,
+        "candidates": [
+            {"step": 1, "refitted": True, "effect": "joint_compliance", "location": "a->b:ry",
+             "score": 1.1, "strength_z": 1e-4},
+            {"step": 1, "refitted": True, "effect": "sensor_delay", "location": "x",
+             "score": 1.9, "strength_z": 12.0},
+        ],
+        "verdict": {"effect": "none", "reason": "no candidate passes"},
+    }  # fmt: skip
+    diag = SimpleNamespace(channels=["x.x"], baseline_score=2.0, wall_s=1.0)
+    text = summary(diag, content)  # type: ignore[arg-type]
+    assert "modes: modal identification failed: a.csv" in text
+    lines = text.splitlines()
+    jc = next(x for x in lines if "joint_compliance@a->b:ry" in x)
+    sd = next(x for x in lines if "sensor_delay@x" in x)
+    assert "strength undetermined: z = 0.0001 < 3" in jc and "undetermined" not in sd

@@ -37,9 +37,12 @@ REL_CHASSIS = 0.03
 REL_CHASSIS_MASS = 0.05
 #: the refined pivot within this of the true pivot in each direction [m]
 PIVOT_TOL_M = 0.006
-#: the refit at the refined pivot within this factor of the exact pivot's cost; the bearing
-#: centre's at least CENTRE_COST_FACTOR times the refined pivot's
-PIVOT_COST_FACTOR = 1.3
+#: the refit at the refined pivot leaves at most this share of the bearing centre's excess
+#: cost over the exact pivot's (measured: 0.06 with the weights before stop 51 and after,
+#: the same refined pivot; the exact pivot's cost itself fell from 6.37 to 3.63, so a ratio
+#: to it moved from 1.24 to 1.44 with nothing else changed); the bearing centre's at least
+#: CENTRE_COST_FACTOR times the refined pivot's
+PIVOT_EXCESS_SHARE = 0.15
 CENTRE_COST_FACTOR = 2.0
 #: the other elastic centre's refit lowers the objective below this share of the CoM's
 VARIANT_COST_SHARE = 0.8
@@ -202,7 +205,8 @@ def test_a_pivot_off_the_bearing_centre_in_both_directions_is_found(doc):
 
     c_exact, c_got, c_centre = refit(exact), refit(refined.candidate), refit(c)
     figures = (c_exact, c_got, c_centre)
-    assert c_got < PIVOT_COST_FACTOR * c_exact and c_centre > CENTRE_COST_FACTOR * c_got, figures
+    assert c_got - c_exact < PIVOT_EXCESS_SHARE * (c_centre - c_exact), figures
+    assert c_centre > CENTRE_COST_FACTOR * c_got, figures
 
 
 def test_the_warm_pivot_search_finds_a_pivot_far_off_the_centre(doc):

@@ -18,11 +18,12 @@ ROOT = Path(__file__).resolve().parents[1]
 MODEL = ROOT / "urdf" / "bonder.urdf"
 FEW = ["x_stage.mass", "y_stage.mass", "z_stage.mass", "x_guide_ry.stiffness"]
 #: the four-node variant's refit lowers the objective below this share of the six-node's
-#: (measured: 5.28 against 6.19, the truth's own 5.28)
+#: (measured, stop 51's weights: data costs 3.27 against 4.44, the noise level's 4.02)
 VARIANT_COST_SHARE = 0.9
 #: a truth chain's stiffness factors on the variant's start (shear x, shear y, compression):
-#: modes between the start's 1 kHz and 500 Hz
-TRUTH_STIFFNESS = (0.35, 0.5, 0.4)
+#: modes between the start's 1 kHz and 500 Hz (with (0.35, 0.5, 0.4), stop 44's choice, the
+#: six-node refit reaches the noise level too since stop 51's weights: nothing is stuck)
+TRUTH_STIFFNESS = (0.25, 0.35, 0.3)
 
 
 @pytest.fixture(scope="module")

@@ -95,6 +95,21 @@ def test_synthetic_two_percent_noise(synthetic) -> None:
     _check(modes, lam, 0.01, 0.05)
 
 
+def test_drive_points_alone_give_the_modes(synthetic) -> None:
+    """No output row complete (only the diagonal measured, 2 % noise): every channel is
+    identified alone; the poles are the system's, the absent channels' residues NaN and
+    undetermined."""
+    f, H, lam = synthetic
+    Hd = noisy(H, 0.02, 4)
+    off = ~np.eye(3, dtype=bool)
+    Hd[off] = np.nan
+    modes = identify_modes(FrfData(f, NAMES, NAMES, Hd))
+    _check(modes, lam, 0.01, 0.05)
+    for m in modes:
+        assert np.all(np.isnan(m.residues[off])) and not np.any(m.determined[off])
+        assert np.all(np.isfinite(np.diag(m.residues)))
+
+
 def test_cross_check_with_sdypy_ema(synthetic) -> None:
     EMA = pytest.importorskip("sdypy.EMA", reason="sdypy-EMA (peer LSCF) is not installed")
     M, K, D = three_dof()

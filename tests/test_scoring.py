@@ -98,6 +98,21 @@ def test_a_small_share_of_the_excess_is_refused() -> None:
     assert not t["accepted"]
 
 
+def test_an_accepted_refit_must_lower_the_gap_on_all_data() -> None:
+    """The rule's last condition: a held-out winner whose weighted gap on all data is not
+    lower than its base's is refused, and the reason says so; a lower one stays accepted."""
+    t = scoring.tests(1.02, 2.0, 2, REF)
+    scoring.refuse_unless_lower(t, 1.5, 1.4)
+    assert not t["accepted"] and t["gap_not_lower"]
+    assert "not lower than the base's" in scoring.reason(t, 1.02, 2.0)
+    t = scoring.tests(1.02, 2.0, 2, REF)
+    scoring.refuse_unless_lower(t, 1.3, 1.4)
+    assert t["accepted"] and "gap_not_lower" not in t
+    t = scoring.tests(0.9, 1.0, 1, None)  # the margins' rule alike
+    scoring.refuse_unless_lower(t, 2.0, 1.0)
+    assert not t["accepted"] and "not lower" in scoring.reason(t, 0.9, 1.0)
+
+
 def test_without_reference_the_margins_decide() -> None:
     assert scoring.accept(0.9, 1.0, 1, None)
     assert not scoring.accept(0.97, 1.0, 1, None)

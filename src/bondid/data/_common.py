@@ -71,6 +71,19 @@ def parse_operating_point(
     return op
 
 
+def has_dc_line(freq_hz: np.ndarray) -> bool:
+    """Does the grid start with a 0 Hz (DC) line before positive frequencies? Analysers
+    write one; a readers drops it (an FRF model is evaluated at f > 0, and the DC line of
+    an FFT estimate is no measurement of it) and says so in ``FrfData.notes``."""
+    f = np.asarray(freq_hz, dtype=float)
+    return bool(f.size > 1 and f[0] == 0.0 and np.all(f[1:] > 0))
+
+
+def dc_note(where: str) -> str:
+    """The note of a dropped DC line."""
+    return f"{where}: the 0 Hz (DC) line dropped; the model is compared at f > 0 only"
+
+
 def check_frequencies(freq_hz: np.ndarray, where: str, labels: list[str] | None = None) -> None:
     """Raise :class:`DataError` unless ``freq_hz`` (Hz) is positive and strictly increasing.
 

@@ -32,7 +32,9 @@ from ._common import (
     check_coherence,
     check_frequencies,
     check_joint_name,
+    dc_note,
     format_operating_point,
+    has_dc_line,
     parse_operating_point,
     read_file_bytes,
     written_channels,
@@ -205,12 +207,16 @@ def read_csv(path: str | os.PathLike[str], *, drop_nan: bool = False) -> FrfData
     rows, linenos = _data_rows(p, parsed[1:], h + 2)
     values = _parse_rows(p, rows, linenos, header)
     values, linenos = _finite_rows(p, values, linenos, header, drop_nan)
+    notes: tuple[str, ...] = ()
+    if has_dc_line(values[:, 0]):
+        notes = (dc_note(f"{p}: line {linenos[0]}"),)
+        values, linenos = values[1:], linenos[1:]
     freq = values[:, 0].copy()
     check_frequencies(freq, str(p), [f"line {n}" for n in linenos])
     H, coh = _channel_arrays(p, values, columns, (outputs, inputs), linenos, header)
     if "quantities" in meta:
         _convert_outputs(p, meta["quantities"], outputs, quantity, freq, H)
-    return FrfData(freq, tuple(outputs), tuple(inputs), H, quantity, op, coh, str(p))
+    return FrfData(freq, tuple(outputs), tuple(inputs), H, quantity, op, coh, str(p), notes)
 
 
 def _file_metadata(path: Path, meta: dict[str, tuple[str, int]]) -> tuple[str, dict[str, float]]:

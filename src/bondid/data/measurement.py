@@ -25,6 +25,8 @@ class FrfData:
         coherence: ``(n_out, n_in, n_freq)`` in 0..1, or None when the file has none;
             NaN where a channel carries no coherence.
         source: the file the data came from, for error messages (None if built in memory).
+        notes: what the reader changed on the way in (e.g. a 0 Hz line dropped), reported as
+            warnings by the commands.
     """
 
     freq_hz: np.ndarray
@@ -35,6 +37,7 @@ class FrfData:
     operating_point: dict[str, float] = field(default_factory=dict)
     coherence: np.ndarray | None = None
     source: str | None = None
+    notes: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         where = self.source or "<in-memory FRF>"

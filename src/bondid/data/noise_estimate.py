@@ -236,9 +236,11 @@ def estimate_channel(freq_hz: np.ndarray, H: np.ndarray) -> tuple[np.ndarray, np
     phi2 = np.minimum(phi2, CAP_FACTOR * q / -math.log1p(-CAP_QUANTILE))
     phi2 = _continued_at_ends(freq_hz, phi2, lo, hi)
     wide = _widened(freq_hz, lo, hi)
-    if wide.any():
-        envelope = _power_law_envelope(freq_hz, phi2, rho2 * q)
-        phi2 = np.where(wide, np.minimum(phi2, ENVELOPE_FACTOR * envelope), phi2)
+    if wide.sum() >= MIN_POINTS:
+        # the envelope of the sparse part alone: on a linear grid that is the low end, whose
+        # floor the dense part's power law, extrapolated by decades, says nothing of
+        envelope = _power_law_envelope(freq_hz[wide], phi2[wide], (rho2 * q)[wide])
+        phi2[wide] = np.minimum(phi2[wide], ENVELOPE_FACTOR * envelope)
     sigma = np.sqrt(rho2 * mag2 + phi2)
     return sigma, np.sqrt(phi2), math.sqrt(rho2)
 

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..exceptions import ChannelError, DataError
 from ..frf.quantity import QUANTITIES, convert_quantity
-from ._common import check_coherence, check_frequencies, check_joint_name
+from ._common import check_coherence, check_frequencies, check_joint_name, has_dc_line
 
 #: UFF 58 function types
 FUNC_FRF = 4
@@ -161,7 +161,7 @@ class RecordSet:
         """The file's frequency grid (Hz): the first record's; later records must repeat it."""
         if self.freq is None:
             self.freq, self.first = x, number
-            check_frequencies(x, where)
+            check_frequencies(x[1:] if has_dc_line(x) else x, where)
         elif x.shape != self.freq.shape or not np.array_equal(x, self.freq):
             raise DataError(
                 f"{where}: frequency grid differs from record {self.first}; "
@@ -194,7 +194,8 @@ class RecordSet:
                 f"one file holds one operating point"
             )
         if q != self.quantity:
-            values = convert_quantity(values, freq, q, self.quantity)
+            with np.errstate(divide="ignore", invalid="ignore"):  # a DC line, dropped later
+                values = convert_quantity(values, freq, q, self.quantity)
         return values.astype(complex)
 
     def arrays(self, p: Path) -> tuple[list[str], list[str], np.ndarray, np.ndarray | None]:

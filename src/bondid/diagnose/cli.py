@@ -92,6 +92,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             doc, args.data, drop_nan=args.drop_nan, channel_map=cli.uff_channel_map(args)
         )
         warnings += check_inputs(doc, data, args.data)
+        if not args.quiet:  # at once, not only after a run of minutes (the summary repeats them)
+            for line in cli.warn_lines(warnings):
+                print(line, file=sys.stderr, flush=True)
         settings = Settings(
             effects=cli.split_names([args.effects]) if args.effects else None,
             free=cli.split_names(args.free) if args.free else None,

@@ -40,7 +40,10 @@ itself (variable projection over ``ln ω``, ``ln ζ``; error weighted by
 from LSFD on each band (all poles near the band, lower residual terms ``1/s, 1/s², 1/s³``
 for the rigid-body mass lines, upper ``1, s``), and modes whose prominence is below
 ``min_prominence`` (computational poles) are dropped. Output rows holding a missing
-channel are left out of the pole estimation.
+channel are left out of the pole estimation; where no output row is complete (e.g. only the
+drive points were measured), each present channel is identified alone and their modes
+merged, as the rows are (stop 51: such files used to get no modes at all, and the diagnosis
+then had no measured modes to start its structural candidates from).
 """
 
 from __future__ import annotations
@@ -154,27 +157,35 @@ def identify_modes(
         The modes, lowest frequency first.
 
     Raises:
-        DataError: too few frequencies, or no output row with every channel present.
+        DataError: too few frequencies, or no channel present at every frequency.
     """
     f, H, coh, rows = _prepared(data, f_range, use_coherence)
     n_max = 24 if max_order is None else int(max_order)
     plan = _lscf.band_plan(f, band_ratio, overlap)
 
-    def poles(sel: np.ndarray) -> list[tuple[complex, int]]:
+    def poles(sub: tuple[slice | np.ndarray, slice]) -> list[tuple[complex, int]]:
         out: list[tuple[complex, int]] = []
         for lo, hi in plan:
             out += _band_poles(
-                f, H[sel], coh[sel], (lo, hi), n_max, overlap=overlap, edge_margin=edge_margin,
-                stability=stability, zeta_max=zeta_max, tol_f=tol_f, tol_zeta=tol_zeta,
+                f, H[sub], coh[sub], (lo, hi), n_max, overlap=overlap,
+                edge_margin=edge_margin, stability=stability, zeta_max=zeta_max, tol_f=tol_f,
+                tol_zeta=tol_zeta,
             )  # fmt: skip
         return out
 
-    merged = _merge_close(poles(rows), tol_f)
-    if rows.size > 1:
-        by_row = _merge_close([c for k in range(rows.size) for c in poles(rows[k : k + 1])], tol_f)
+    every = slice(None)
+    if rows.size:
+        merged = _merge_close(poles((rows, every)), tol_f)
+        parts = [(rows[k : k + 1], every) for k in range(rows.size)] if rows.size > 1 else []
+    else:  # no output has every input (e.g. the drive points alone): channel by channel
+        merged = []
+        present = np.argwhere(np.all(np.isfinite(H), axis=2))
+        parts = [(np.array([o]), slice(i, i + 1)) for o, i in present]
+    if parts:
+        more = _merge_close([c for sub in parts for c in poles(sub)], tol_f)
         inner = (f[0] * edge_margin, f[-1] / edge_margin)
-        by_row = [c for c in by_row if inner[0] <= abs(c[0]) / (2 * np.pi) <= inner[1]]
-        merged = _with_new(merged, by_row, tol_f)
+        more = [c for c in more if inner[0] <= abs(c[0]) / (2 * np.pi) <= inner[1]]
+        merged = _with_new(merged, more, tol_f) if merged else more
     if not merged:
         return []
     lam = np.array([c[0] for c in merged])
@@ -188,7 +199,8 @@ def _prepared(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(f, H, coh, rows)`` of the receptance in ``f_range``: frequencies ``(n_f,)`` [Hz],
     FRF and coherence ``(n_out, n_in, n_f)`` (coherence clipped to [1e-3, 1], 1 where unknown
-    or unused) and the indices of the output rows with every channel present."""
+    or unused, 1e-3 in a missing channel) and the indices of the output rows with every
+    channel present (possibly none)."""
     d = data.to_quantity("receptance") if data.quantity != "receptance" else data
     f = d.freq_hz
     m = np.ones(f.size, bool) if f_range is None else (f >= f_range[0]) & (f <= f_range[1])
@@ -200,9 +212,11 @@ def _prepared(
     if use_coherence and d.coherence is not None:
         coh = np.where(np.isfinite(d.coherence[:, :, m]), d.coherence[:, :, m], 1.0)
         coh = np.clip(coh, 1e-3, 1.0)
+    if not np.any(np.all(np.isfinite(H), axis=2)):
+        raise DataError(f"{where}: identify_modes needs at least one channel without a gap")
+    # a missing channel determines nothing (its residues are NaN, its weight the least)
+    coh = np.where(np.isfinite(H), coh, 1e-3)
     rows = np.flatnonzero(np.all(np.isfinite(H), axis=(1, 2)))
-    if rows.size == 0:
-        raise DataError(f"{where}: identify_modes needs an output with every input present")
     return f, H, coh, rows
 
 

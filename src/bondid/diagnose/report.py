@@ -187,6 +187,9 @@ def _gap_section(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, An
                                  "zeta_measured", "zeta_model")}
         for row in diag.modes if "status" in row
     ]  # fmt: skip
+    failed = [str(row["error"]) for row in diag.modes if "error" in row]
+    if failed:  # why ``modes`` holds no measured mode (spec extension)
+        gap["modes_error"] = failed[0]
     gap["antiresonances"] = diag.antiresonances
     return gap
 

@@ -261,6 +261,7 @@ def _step(
         # p of the test: this step's own candidate parameters (best.n_new also counts the
         # effects accepted before, already in the base)
         step.test = scoring.tests(step.scores[0], base_score, best.n_own, ctx.noise)
+        scoring.refuse_unless_lower(step.test, best.db_rms, base.db_rms)
         if displaced is not None:  # the simpler equivalent modifier (parsimony.py)
             d = results[displaced]
             step.test["preferred_over"] = {

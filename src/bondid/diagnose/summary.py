@@ -6,6 +6,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
+from .scoring import Z
+
 if TYPE_CHECKING:
     from .pipeline import Diagnosis
 
@@ -27,7 +29,9 @@ def summary(diag: Diagnosis, content: dict[str, Any]) -> str:
     )
     miss = [m for m in g["modes"] if m["status"] == "missing"]
     spur = [m for m in g["modes"] if m["status"] == "spurious"]
-    if g["modes"]:
+    if g.get("modes_error"):
+        lines.append(f"  modes: {g['modes_error']}")
+    elif g["modes"]:
         lines.append(
             f"  modes: {len(g['modes']) - len(miss) - len(spur)} paired, missing in the model at "
             + (", ".join(f"{m['f_measured_hz']:.0f}" for m in miss) or "-")
@@ -45,7 +49,10 @@ def summary(diag: Diagnosis, content: dict[str, Any]) -> str:
     for c in [c for c in first if c.get("refitted")][:5]:
         lab = _label(c)
         sc = c["score"]
-        lines.append(f"  {lab:42s} {sc if sc is not None else float('nan'):8.3f}")
+        z = c.get("strength_z")
+        # a refit whose strength the data leave open is not the verdict's to take (scoring)
+        why = f"  (strength undetermined: z = {z:.2g} < {Z:g})" if z is not None and z < Z else ""
+        lines.append(f"  {lab:42s} {sc if sc is not None else float('nan'):8.3f}{why}")
     v = content["verdict"]
     if v["effect"] == "none":
         lines.append(f"verdict: none — {v['reason']}")

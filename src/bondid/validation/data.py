@@ -14,7 +14,8 @@ the CSV reader counts them) and the column:
   least 1e-6 of its largest), so structurally weak cross terms do not trip it.
 
 Warnings (returned): a channel 3–6 decades from the model's scale (units?), fewer than 20
-frequencies, coherence below 0.5 almost everywhere in a channel.
+frequencies, coherence below 0.5 almost everywhere in a channel, and what the reader changed
+on the way in (``FrfData.notes``: a 0 Hz line dropped).
 """
 
 from __future__ import annotations
@@ -72,7 +73,7 @@ def check_values(ds: FrfData) -> list[str]:
             f"{where}: {n_f} frequency line(s); valid: at least {MIN_FREQUENCIES} (an FRF is"
             " fitted over a band)"
         )
-    warnings = []
+    warnings = list(ds.notes)
     if n_f < FEW_FREQUENCIES:
         warnings.append(f"{where}: only {n_f} frequencies; modes between them are not resolved")
     for a, o in enumerate(ds.outputs):
