@@ -30,7 +30,6 @@ from ._common import (
     check_joint_name,
     dc_note,
     format_operating_point,
-    has_dc_line,
     parse_operating_point,
     written_channels,
 )
@@ -262,12 +261,8 @@ def read_uff58(
         raise DataError(f"{p}: no type-58 FRF records (function type 4); nothing to read")
     op = parse_operating_point(" ".join(found.op_text or []), f"{p}: ID lines 3-5")
     outputs, inputs, H, C = found.arrays(p)
-    freq = found.freq
-    notes: tuple[str, ...] = ()
-    if has_dc_line(freq):  # see :func:`._common.has_dc_line`
-        freq, H, notes = freq[1:], H[:, :, 1:], (dc_note(f"{p}: point 1"),)
-        C = None if C is None else C[:, :, 1:]
-    freq, H, C = _drop_nan_points(p, freq, H, C, drop_nan)
+    notes = (dc_note(f"{p}: point 1"),) if found.dc_dropped else ()
+    freq, H, C = _drop_nan_points(p, found.freq, H, C, drop_nan)
     return FrfData(freq, tuple(outputs), tuple(inputs), H, found.quantity, op, C, str(p), notes)
 
 

@@ -128,6 +128,10 @@ class RecordSet:
     op_text: list[str] | None = None
     freq: np.ndarray | None = None
     first: int = 0
+    #: the first record's grid as written; ``freq`` is it without a leading 0 Hz line
+    #: (dropped from every record as it comes, ``dc_dropped`` set: :func:`._common.has_dc_line`)
+    written: np.ndarray | None = None
+    dc_dropped: bool = False
 
     def add(
         self,
@@ -150,24 +154,28 @@ class RecordSet:
                 f"give each channel once"
             )
         self.origin[key] = number
-        freq = self._grid(np.asarray(rec["x"], dtype=float), where, number)
-        values = np.asarray(rec["data"])
+        keep = self._grid(np.asarray(rec["x"], dtype=float), where, number)
+        values = np.asarray(rec["data"])[keep]
+        freq = self.freq
+        assert freq is not None  # set by the first record's grid
         if func == FUNC_COHERENCE:
             self.coh[(out, inp)] = _coherence_values(values, where)
         else:
             self.frf[(out, inp)] = self._frf_values(rec, sign * values, freq, where)
 
-    def _grid(self, x: np.ndarray, where: str, number: int) -> np.ndarray:
-        """The file's frequency grid (Hz): the first record's; later records must repeat it."""
-        if self.freq is None:
-            self.freq, self.first = x, number
-            check_frequencies(x[1:] if has_dc_line(x) else x, where)
-        elif x.shape != self.freq.shape or not np.array_equal(x, self.freq):
+    def _grid(self, x: np.ndarray, where: str, number: int) -> slice:
+        """Check a record's frequency grid (Hz), the first record's (``freq``, checked) or a
+        repeat of it; return the slice of its values to keep (all but a leading 0 Hz line)."""
+        if self.written is None:
+            self.written, self.first, self.dc_dropped = x, number, has_dc_line(x)
+            self.freq = x[1:] if self.dc_dropped else x
+            check_frequencies(self.freq, where)
+        elif x.shape != self.written.shape or not np.array_equal(x, self.written):
             raise DataError(
                 f"{where}: frequency grid differs from record {self.first}; "
                 f"all records of a file must share one grid"
             )
-        return self.freq
+        return slice(1, None) if self.dc_dropped else slice(None)
 
     def _frf_values(
         self, rec: dict[str, Any], values: np.ndarray, freq: np.ndarray, where: str
@@ -194,8 +202,7 @@ class RecordSet:
                 f"one file holds one operating point"
             )
         if q != self.quantity:
-            with np.errstate(divide="ignore", invalid="ignore"):  # a DC line, dropped later
-                values = convert_quantity(values, freq, q, self.quantity)
+            values = convert_quantity(values, freq, q, self.quantity)
         return values.astype(complex)
 
     def arrays(self, p: Path) -> tuple[list[str], list[str], np.ndarray, np.ndarray | None]:
