@@ -287,6 +287,8 @@ def refuse_unless_lower(test: dict[str, Any], gap_after: float, gap_before: floa
 
 def reason(test: dict[str, Any], candidate_score: float, baseline_score: float) -> str:
     """One sentence on why the rule accepted or refused (``test`` from :func:`tests`)."""
+    if test.get("rule") == "none" and not math.isfinite(candidate_score):  # nothing refitted
+        return f"held-out score of the base {baseline_score:.3f} dB: {test.get('why', 'no test')}"
     head = f"held-out score {candidate_score:.3f} dB vs {baseline_score:.3f} dB"
     if test.get("rule") == "none":
         return f"{head}: {test.get('why', 'no test')}"

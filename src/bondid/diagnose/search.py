@@ -25,7 +25,10 @@ The search stops at the first step that accepts nothing, or after
 :attr:`Context.max_effects` accepted effects. A step after the first whose base is already at
 the held-out noise level is not run: no candidate can pass the rule's first condition there
 (:func:`.scoring.may_accept`), so it is recorded as a step that accepted nothing, without
-screenings (:func:`at_level_step`). The first accepted effect is the verdict; the list of
+screenings (:func:`at_level_step`). The first step, whose candidates are the report's, is
+screened whatever its base, but when the parameter refit is at that level none is refitted
+(:func:`at_level_test`): the screening's one-step figures stand for them, and the final fit
+starts at once. The first accepted effect is the verdict; the list of
 accepted effects, each with the gap after it, is ``effects`` in ``diagnosis.json``.
 """
 
@@ -218,6 +221,13 @@ def _step(
         progress(f"step {index + 1} screened {s.label}")
     done = [s for s in screenings if s is not None]
     assert len(done) == len(cands)  # done[i] is the screening of cands[i]
+    if not scoring.may_accept(base_score, ctx.noise):
+        # only the first step gets here (search): its base, the parameter refit, is at the
+        # held-out noise level, so no refit could be accepted; the screenings are the report
+        step = Step(index, base, base_score, done, [])
+        step.test = at_level_test(base_score, ctx.noise, screened=True)
+        submitted(index, "refits")
+        return step
     later = 0 if index == 0 else 1
     picks = profile_picks(done, ctx.n_profile[later])
     placed = placed_picks(done, ctx.n_placed[later])
@@ -307,12 +317,22 @@ def at_level_step(
     """The record of a step not run because its base (held-out score ``base_score`` [dB]) is
     at the noise level of ``noise`` (module docstring): nothing screened or refitted, the
     test refused with the reason."""
+    return Step(index, base, base_score, [], [], test=at_level_test(base_score, noise, False))
+
+
+def at_level_test(
+    base_score: float, noise: scoring.NoiseReference | None, screened: bool
+) -> dict[str, Any]:
+    """The refused test of a step whose base (held-out score ``base_score`` [dB]) is at the
+    noise level of ``noise``: nothing refitted, and ``screened`` says whether the candidates
+    were screened (the first step's are, for the report; a later step is not run at all)."""
     ratio = base_score / noise.level_db if scoring.usable(noise) else math.nan
+    done = ("so no candidate was refitted (the screening's figures are reported)"
+            if screened else "so the step was not run")  # fmt: skip
     why = (f"the base is at the held-out noise level ({ratio:.3f}x): no candidate can pass "
-           "the rule's first condition, so the step was not run")  # fmt: skip
-    test = {"accepted": False, "rule": "none", "why": why, "screened": False,
+           f"the rule's first condition, {done}")  # fmt: skip
+    return {"accepted": False, "rule": "none", "why": why, "screened": screened,
             "base_over_noise": ratio, "base_above_noise": False}  # fmt: skip
-    return Step(index, base, base_score, [], [], test=test)
 
 
 def accepted(steps: Sequence[Step]) -> list[JobResult]:

@@ -41,11 +41,14 @@ def summary(diag: Diagnosis, content: dict[str, Any]) -> str:
         )
     first = [c for c in content["candidates"] if c.get("step") == 1]
     n_ref = sum(1 for c in first if c.get("refitted"))
-    lines.append(
-        f"candidates: {len(first)} screened, {n_ref} refitted (held-out score, dB; lower is"
-        " better):"
-    )
-    lines.append(f"  {'parameter refit only':42s} {diag.baseline_score:8.3f}")
+    if first and not n_ref:
+        lines += _screened_only(first, content)
+    else:
+        lines.append(
+            f"candidates: {len(first)} screened, {n_ref} refitted (held-out score, dB; lower"
+            " is better):"
+        )
+        lines.append(f"  {'parameter refit only':42s} {diag.baseline_score:8.3f}")
     for c in [c for c in first if c.get("refitted")][:5]:
         lab = _label(c)
         sc = c["score"]
@@ -76,6 +79,23 @@ def summary(diag: Diagnosis, content: dict[str, Any]) -> str:
             lines.append(f"  pivot searched again on all data: {ff['pivot']}")
     lines.append(f"time {diag.wall_s:.1f} s")
     return "\n".join(lines)
+
+
+def _screened_only(first: Sequence[dict[str, Any]], content: dict[str, Any]) -> list[str]:
+    """The candidate lines of a first step that refitted none (its base at the held-out noise
+    level, :func:`.search.at_level_test`): the best five by the screening's training figure
+    [dB], beside the parameter refit's own training figure."""
+    train = (content.get("refit") or {}).get("train_weighted_rms")
+    out = [
+        f"candidates: {len(first)} screened, none refitted: the parameter refit is at the"
+        " held-out noise level (training figure after one screening step, dB):"
+    ]
+    if train is not None:
+        out.append(f"  {'parameter refit only':42s} {train:8.3f}")
+    for c in first[:5]:
+        db = c.get("screening_db")
+        out.append(f"  {_label(c):42s} {db if db is not None else float('nan'):8.3f}")
+    return out
 
 
 def _label(c: dict[str, Any]) -> str:
