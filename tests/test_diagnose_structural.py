@@ -323,18 +323,18 @@ def test_the_pivot_box_takes_in_the_bearing_centre(doc):
     stage's hull; the box the pivot is searched in is the hull's box grown to take it in,
     for the candidate and for each of its variants."""
     from bondid.diagnose.effects import get_effect
-    from bondid.diagnose.pivot import child_box, pivot_box
+    from bondid.diagnose.effects.topology import link_box
+    from bondid.diagnose.pivot import pivot_box
 
     cands = get_effect("joint_compliance").candidates(doc)
     c = next(k for k in cands if k.location == "x_stage->y_stage:ry")
-    urdf = doc.to_string()
-    hull = child_box(urdf, "y_stage")
+    hull = link_box(doc, "y_stage")
     assert hull is not None
     bearing = np.array(c.spec["bearing"])
     assert np.allclose(bearing, c.spec["pivot"])
     assert not np.all((hull[0] <= bearing) & (bearing <= hull[1]))  # the case it is for
     for k in (c, *c.variants):
-        box = pivot_box(urdf, k)
+        box = pivot_box(k)
         assert box is not None
         assert np.all(box[0] <= bearing) and np.all(bearing <= box[1])
         assert np.all(box[0] <= hull[0]) and np.all(box[1] >= hull[1])

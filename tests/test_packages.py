@@ -66,3 +66,36 @@ def test_example_robot_data_meshes_resolve_without_options():
     hulls = link_hulls(doc, ["forearm_link"])
     assert hulls["forearm_link"] is not None
     assert "package://" not in text_with_resolved_meshes(doc)
+
+
+def test_the_diagnosis_model_text_finds_its_meshes_in_any_folder(tmp_path, monkeypatch):
+    """The diagnosis hands model texts to worker processes (no file, no folder): with the mesh
+    filenames made absolute (``with_absolute_meshes``) a text read in another folder finds the
+    hull boxes its candidates need, and a written model gets the user's names back."""
+    import numpy as np
+
+    from bondid.diagnose.effects import get_effect
+    from bondid.diagnose.effects.topology import link_box
+    from bondid.diagnose.pivot import pivot_box
+    from bondid.model.packages import restore_mesh_names, with_absolute_meshes
+
+    doc = UrdfDocument.load(_urdf(tmp_path, "../ws/mypkg/meshes/cube.stl"))
+    doc.add_transmission("x")  # an FRF input, as every diagnosed model has
+    monkeypatch.chdir(tmp_path)  # not the URDF's folder
+    with pytest.raises(ModelError, match="cube.stl"):  # the text alone: relative to nothing
+        link_box(UrdfDocument.from_string(doc.to_string()), "arm")
+    work, names = with_absolute_meshes(doc)
+    assert list(names.values()) == ["../ws/mypkg/meshes/cube.stl"]
+    assert work.source == doc.source and "cube.stl" in next(iter(names))
+    text = UrdfDocument.from_string(work.to_string())
+    box = link_box(text, "arm")
+    assert box is not None and np.allclose(box[1] - box[0], 0.2, atol=SIZE_TOL)
+    rot = [c for c in get_effect("joint_compliance").candidates(text)
+           if c.spec["kind"] == "revolute"]  # fmt: skip
+    assert rot and all(np.allclose(c.spec["box"], box) for c in rot)
+    for c in rot:  # the pivot's search box, in a worker, from the candidate alone
+        lo, hi = pivot_box(c)
+        assert np.all(lo <= box[0]) and np.all(hi >= box[1])
+    assert restore_mesh_names(work.to_string(), names) == doc.to_string()
+    bonder = UrdfDocument.load(Path(__file__).parents[1] / "urdf" / "bonder.urdf")
+    assert with_absolute_meshes(bonder) == (bonder, {})  # no mesh: nothing changes

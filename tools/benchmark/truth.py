@@ -138,12 +138,12 @@ def add_flexible_base(doc: UrdfDocument, f: float) -> UrdfDocument:
 
 def _root_extent(doc: UrdfDocument) -> tuple[np.ndarray, np.ndarray]:
     """(min, max) corners of the root link's collision hull (link frame, m)."""
-    from bondid.consistency.hull import link_hull
+    from bondid.diagnose.effects.topology import link_box
 
-    hull = link_hull(doc.link(doc.root_link()))
-    if hull is None:
+    box = link_box(doc, doc.root_link())
+    if box is None:
         return np.array([-0.2, -0.2, 0.0]), np.array([0.2, 0.2, 0.1])
-    return hull.vertices.min(axis=0), hull.vertices.max(axis=0)
+    return box
 
 
 def add_soft_mounts(doc: UrdfDocument, f: float) -> UrdfDocument:

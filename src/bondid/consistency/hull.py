@@ -13,7 +13,7 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, lru_cache
 from typing import Any
 
 import numpy as np
@@ -195,20 +195,30 @@ def _element_points(
     return None
 
 
-def _mesh_points(mesh: Any, resolve: Callable[[str], str] | None, label: str) -> FloatArray:
+@lru_cache(maxsize=64)
+def _mesh_vertices(path: str, _mtime_ns: int, _size: int) -> FloatArray:
+    """The vertices of the mesh file ``path`` (read-only; cached per file version: a
+    diagnosis asks for the hull of one link once per candidate)."""
     import trimesh
 
+    loaded: Any = trimesh.load(path, force="mesh")
+    out = np.asarray(loaded.vertices, dtype=np.float64).reshape(-1, 3).copy()
+    out.setflags(write=False)
+    return out
+
+
+def _mesh_points(mesh: Any, resolve: Callable[[str], str] | None, label: str) -> FloatArray:
     filename = str(mesh.filename)
     if resolve is None:
         raise ModelError(f"{label}: mesh {filename!r} needs a resolve(filename) -> path callable")
     path = resolve(filename)
     if not os.path.isfile(path):
         raise ModelError(f"{label}: mesh {filename!r} resolved to {path!r}, which is not a file")
+    st = os.stat(path)
     try:
-        loaded: Any = trimesh.load(path, force="mesh")
+        vertices: FloatArray = _mesh_vertices(os.path.abspath(path), st.st_mtime_ns, st.st_size)
     except Exception as exc:  # trimesh raises many types for unreadable files
         raise ModelError(f"{label}: cannot read mesh {path!r}: {exc}") from exc
-    vertices: FloatArray = np.asarray(loaded.vertices, dtype=np.float64).reshape(-1, 3)
     if mesh.scale is not None:
         vertices = vertices * np.broadcast_to(np.asarray(mesh.scale, dtype=np.float64), (3,))
     return vertices

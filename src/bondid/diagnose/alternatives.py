@@ -136,7 +136,7 @@ def refine_job_pivot(
             failed.append(_failure(f"pivot {np.round(c.spec['pivot'], 4).tolist()}", err))
             return float("inf")
 
-    box = pivot_box(urdf, cand)
+    box = pivot_box(cand)
     extent = None if box is None else box[1] - box[0]
     best, c, n = refine_pivot(cand, cost, extent, move, box, FULL_MAX_EVALS if full else MAX_EVALS)
     kind = "start" if warm is None else ("all parameters" if full else "warm")

@@ -95,7 +95,7 @@ def refined_pivots(job: Job, result: JobResult) -> tuple[JobResult, str]:
                 failed.append(f"{type(err).__name__}: {err}")
                 return float("inf")
 
-        box = pivot_box(urdf, chain[k])
+        box = pivot_box(chain[k])
         extent = None if box is None else box[1] - box[0]
         best, figure, n = refine_pivot(
             chain[k], cost, extent, with_pivot, box, FULL_MAX_EVALS, FINAL_GRID

@@ -130,6 +130,9 @@ class Diagnosis:
     #: the backward elimination of the accepted effects (:mod:`.prune`); ``winner`` is its
     #: first kept effect's model. None: not run (every accepted effect kept)
     pruning: Pruning | None = None
+    #: ``{absolute path: as the user wrote it}`` of the model's meshes
+    #: (:func:`bondid.model.packages.with_absolute_meshes`): the written URDFs use the latter
+    mesh_names: dict[str, str] = field(default_factory=dict)
 
 
 def used_channels(datasets: Sequence[FrfData], requested: Sequence[str] | None) -> list[str]:
@@ -289,8 +292,13 @@ def diagnose(
     Raises:
         ConfigError, DataError, ParameterError: bad choices or data.
     """
+    from ..model.packages import with_absolute_meshes
+
     t0 = time.perf_counter()
     s = settings or Settings()
+    # every model text the diagnosis hands to a worker names its meshes by absolute path, so
+    # the hulls its candidates need are found there too; the outputs get the names back
+    doc, mesh_names = with_absolute_meshes(doc)
     p = prepare_data(doc, datasets, s)
     pool = WorkerPool(max(1, s.workers))
     say = _announcer(progress)
@@ -341,7 +349,7 @@ def diagnose(
             nominal_H=[model_frf(doc, d) for d in p.full], bands=bands, modes=modes,
             modes_by_dataset=by_ds, antiresonances=anti, fit_info=fit_info,
             split_info=p.split_info, wall_s=math.nan, weighting=p.weighting,
-            steps=steps, final=None, pruning=pruning,
+            steps=steps, final=None, pruning=pruning, mesh_names=mesh_names,
         )  # fmt: skip
         if during_final is not None:
             during_final(diag)

@@ -70,29 +70,20 @@ def with_pivot(cand: Candidate, pivot: np.ndarray) -> Candidate:
     return replace(cand, spec=spec, variants=(), description=f"{head} pivot {where} mm")
 
 
-def child_box(urdf: str, child: str) -> tuple[np.ndarray, np.ndarray] | None:
-    """Lower and upper corners (m, child frame) of ``child``'s collision hull's bounding box,
-    or None without a hull."""
-    from ..consistency.hull import link_hull
-    from ..model.document import UrdfDocument
-
-    hull = link_hull(UrdfDocument.from_string(urdf).link(child))
-    return None if hull is None else (hull.vertices.min(axis=0), hull.vertices.max(axis=0))
-
-
-def pivot_box(urdf: str, cand: Candidate) -> tuple[np.ndarray, np.ndarray] | None:
+def pivot_box(cand: Candidate) -> tuple[np.ndarray, np.ndarray] | None:
     """The box (lower and upper corners, m, child frame) a rotational compliance's pivot is
-    searched in: the child's :func:`child_box` grown to take in the interface's bearing
-    centre (``spec["bearing"]``, when the candidate records it) and the candidate's pivot
-    (module docstring); None when the child has no hull."""
-    child = str(cand.location).split("->", 1)[1].split(":", 1)[0]
-    box = child_box(urdf, child)
+    searched in: the child's hull box (``spec["box"]``, recorded with the candidate:
+    :func:`.effects.topology.link_box`) grown to take in the interface's bearing centre
+    (``spec["bearing"]``, when the candidate records it) and the candidate's pivot (module
+    docstring); None when the child has no hull."""
+    box = cand.spec.get("box")
     if box is None:
         return None
     pts = [np.asarray(cand.spec["pivot"], float)]
     if "bearing" in cand.spec:
         pts.append(np.asarray(cand.spec["bearing"], float))
-    return np.minimum(box[0], np.min(pts, axis=0)), np.maximum(box[1], np.max(pts, axis=0))
+    lo, hi = np.asarray(box[0], float), np.asarray(box[1], float)
+    return np.minimum(lo, np.min(pts, axis=0)), np.maximum(hi, np.max(pts, axis=0))
 
 
 def grid_points(

@@ -39,6 +39,7 @@ from typing import Any
 
 from ..atomic import write_text_atomic
 from ..jsonsafe import json_safe as _num
+from ..model.packages import restore_mesh_names
 from . import scoring
 from .gap import GapReport, gap_report
 from .job import JobResult
@@ -305,14 +306,18 @@ def write_outputs(
     content = to_json_dict(diag, reports)
     content["warnings"] = list(warnings)
     written = [write_text_atomic(out_dir / "diagnosis.json", json.dumps(content, indent=2) + "\n")]
-    written.append(write_text_atomic(out_dir / "refit.urdf", diag.baseline.urdf))
+
+    def urdf(name: str, text: str) -> None:  # the meshes named as the user named them
+        written.append(write_text_atomic(out_dir / name, restore_mesh_names(text, diag.mesh_names)))
+
+    urdf("refit.urdf", diag.baseline.urdf)
     if diag.winner is not None and diag.winner.urdf:
-        written.append(write_text_atomic(out_dir / "augmented.urdf", diag.winner.urdf))
+        urdf("augmented.urdf", diag.winner.urdf)
     kept = kept_effects(diag)
     if len(kept) > 1 and kept[-1].model.urdf:  # every kept effect built in
-        written.append(write_text_atomic(out_dir / "augmented_all.urdf", kept[-1].model.urdf))
+        urdf("augmented_all.urdf", kept[-1].model.urdf)
     if diag.final is not None and diag.final.model.urdf:
-        written.append(write_text_atomic(out_dir / "final.urdf", diag.final.model.urdf))
+        urdf("final.urdf", diag.final.model.urdf)
     if plots:
         written += _plots(diag, reports, out_dir)
     return written

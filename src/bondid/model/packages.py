@@ -85,13 +85,62 @@ def mesh_resolver(doc: Any, extra: Sequence[str | os.PathLike[str]] = ()) -> Cal
 
 def text_with_resolved_meshes(doc: Any, extra: Sequence[str | os.PathLike[str]] = ()) -> str:
     """``doc``'s URDF text with every mesh filename replaced by the absolute path of its file
-    (for readers that know no package path, e.g. Pinocchio's geometry from a string)."""
+    (for readers that know no package path, e.g. Pinocchio's geometry from a string).
+
+    Raises:
+        ModelError: a mesh is not found (the message says where it was looked for).
+    """
+    return _resolved_text(doc, extra, strict=True)[0]
+
+
+def with_absolute_meshes(doc: Any) -> tuple[Any, dict[str, str]]:
+    """A copy of ``doc`` (same source and package path) whose mesh filenames are the absolute
+    paths of their files, so that its text, read anywhere (a worker process, another folder),
+    still finds them; and ``{absolute path: filename as written}`` for
+    :func:`restore_mesh_names`. A mesh that is not found keeps its name (what needs it says so
+    later). ``doc`` itself and ``{}`` when nothing changes."""
+    from .document import UrdfDocument
+
+    text, names = _resolved_text(doc, (), strict=False)
+    if not names:
+        return doc, {}
+    out = UrdfDocument.from_string(text, source=doc.source)
+    out.package_path = list(getattr(doc, "package_path", []))
+    return out, names
+
+
+def restore_mesh_names(text: str, names: dict[str, str]) -> str:
+    """URDF ``text`` with the absolute mesh paths of :func:`with_absolute_meshes` (``names``)
+    put back as the user wrote them (``package://…``, relative)."""
+    from xml.sax.saxutils import quoteattr
+
+    for path, name in names.items():
+        text = text.replace(f"filename={quoteattr(path)}", f"filename={quoteattr(name)}")
+    return text
+
+
+def _resolved_text(
+    doc: Any, extra: Sequence[str | os.PathLike[str]], strict: bool
+) -> tuple[str, dict[str, str]]:
+    """``doc``'s text with its mesh filenames resolved, and ``{absolute: as written}`` of
+    those changed; ``strict``: raise on a mesh not found (else it is left as written)."""
     import xml.etree.ElementTree as ET
 
-    root = ET.fromstring(doc.to_string())
+    text = doc.to_string()
+    root = ET.fromstring(text)
     resolve = mesh_resolver(doc, extra)
+    names: dict[str, str] = {}
     for mesh in root.iter("mesh"):
         name = mesh.get("filename")
-        if name:
-            mesh.set("filename", resolve(name))
-    return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+        if not name:
+            continue
+        try:
+            path = os.path.abspath(resolve(name))
+        except ModelError:
+            if strict:
+                raise
+            continue
+        if path != name:
+            mesh.set("filename", path)
+            names[path] = name
+    return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n", names

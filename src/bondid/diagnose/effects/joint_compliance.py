@@ -25,7 +25,10 @@ from ...model.authoring import insert_parasitic_joint
 from ...model.document import UrdfDocument, rotation_and_translation
 from . import register
 from .base import Candidate, Effect, NewParameter
-from .topology import Interface, axis_vector, effective_inertia, interfaces
+from .topology import Interface, axis_vector, effective_inertia, interfaces, link_box
+
+#: a link's hull box: lower and upper corners (m, link frame)
+Box = tuple[np.ndarray, np.ndarray]
 
 F_REF_HZ = 300.0
 ZETA = 0.03
@@ -36,21 +39,23 @@ SCAN_HZ = tuple(float(f) for f in np.geomspace(15.0, 12000.0, 70))
 PIVOT_TOL = 0.003
 
 
-def pivot_options(doc: UrdfDocument, itf: Interface, axis: np.ndarray) -> list[np.ndarray]:
+def pivot_options(
+    doc: UrdfDocument, itf: Interface, axis: np.ndarray, box: Box | bool | None = True
+) -> list[np.ndarray]:
     """Pivots (child frame, m) to try for a rotational DOF about ``axis`` at ``itf``: the
     bearing centre first (:meth:`~.topology.Interface.pivot`), then, for each of the two
     coordinate directions across the axis, that coordinate moved to the child frame's origin,
-    the child's CoM and the extremes of its collision hull (the others kept)."""
-    from ...consistency.hull import link_hull
-
+    the child's CoM and the extremes of its collision hull (the others kept). ``box``: the
+    child's hull box (:func:`~.topology.link_box`; None: no hull), True: found here."""
     centre = np.asarray(itf.pivot(doc), float)
     lk = doc.link(itf.child)
     levels = [np.zeros(3)]
     if lk.inertial is not None:
         levels.append(rotation_and_translation(lk.inertial.origin)[1])
-    hull = link_hull(lk)
-    if hull is not None:
-        levels += [hull.vertices.min(axis=0), hull.vertices.max(axis=0)]
+    if box is True:
+        box = link_box(doc, itf.child)
+    if box:
+        levels += [np.asarray(box[0], float), np.asarray(box[1], float)]
     out = [centre]
     for d in np.flatnonzero(np.abs(axis) < 0.5):
         for level in levels:
@@ -73,24 +78,29 @@ class JointCompliance(Effect):
     def candidates(self, doc: UrdfDocument) -> list[Candidate]:
         out = []
         for itf in interfaces(doc):
+            box = None
             for axis in itf.missing:
                 kind, vec = axis_vector(axis)
                 if kind != "revolute":
                     out.append(self._candidate(doc, itf, axis, np.zeros(3)))
                     continue
-                main, *others = pivot_options(doc, itf, vec)
-                variants = tuple(self._candidate(doc, itf, axis, p, main) for p in others)
-                cand = self._candidate(doc, itf, axis, main, main)
+                if box is None:  # the child's hull, read once per interface
+                    box = (link_box(doc, itf.child),)
+                main, *others = pivot_options(doc, itf, vec, box[0])
+                variants = tuple(self._candidate(doc, itf, axis, p, main, box[0])
+                                 for p in others)  # fmt: skip
+                cand = self._candidate(doc, itf, axis, main, main, box[0])
                 out.append(replace(cand, variants=variants))
         return out
 
     def _candidate(
         self, doc: UrdfDocument, itf: Interface, axis: str, pivot: np.ndarray,
-        bearing: np.ndarray | None = None,
+        bearing: np.ndarray | None = None, box: Box | None = None,
     ) -> Candidate:  # fmt: skip
         """The candidate about ``pivot`` (child frame, m); ``bearing``: the interface's
-        bearing centre (rotational DOFs), recorded as ``spec["bearing"]`` for the box the
-        pivot is searched in (:func:`..pivot.pivot_box`)."""
+        bearing centre (rotational DOFs) and ``box`` the child's hull box, recorded as
+        ``spec["bearing"]`` and ``spec["box"]`` for the box the pivot is searched in
+        (:func:`..pivot.pivot_box`; a worker need not read the child's meshes again)."""
         kind, vec = axis_vector(axis)
         jname = joint_name(itf.parent, itf.child, axis)
         spec: dict = {
@@ -102,6 +112,8 @@ class JointCompliance(Effect):
         }
         if bearing is not None:
             spec["bearing"] = [float(x) for x in bearing]
+        if box is not None:
+            spec["box"] = [[float(x) for x in corner] for corner in box]
         probe = self._insert(doc, spec, 1.0, 0.0)
         m = effective_inertia(probe, jname)
         k0 = m * (2 * np.pi * F_REF_HZ) ** 2
@@ -138,7 +150,11 @@ class JointCompliance(Effect):
         itf = next((i for i in interfaces(doc) if (i.parent, i.child) == (parent, child)), None)
         if itf is None:
             raise ValueError(f"{cand.label}: no interface {pair} in the model")
-        return self._candidate(doc, itf, axis, np.asarray(pivot, float), itf.pivot(doc))
+        box = cand.spec.get("box")
+        return self._candidate(
+            doc, itf, axis, np.asarray(pivot, float), itf.pivot(doc),
+            None if box is None else (np.asarray(box[0]), np.asarray(box[1])),
+        )  # fmt: skip
 
     @staticmethod
     def _insert(doc: UrdfDocument, spec: dict, k: float, d: float) -> UrdfDocument:

@@ -43,6 +43,7 @@ from ...model.parameters import link_inertial
 from . import register
 from ._chain import ROTATIONS, TRANSLATIONS, add_link, dof_chain, total_mass
 from .base import Candidate, Effect, NewParameter
+from .topology import link_box
 
 F0_HZ = 30.0
 ZETA = 0.05
@@ -56,12 +57,10 @@ CENTRE_TOL = 0.003
 def centre_options(doc: UrdfDocument, root: str, com: np.ndarray) -> list[np.ndarray]:
     """Elastic centres (root frame, m) to try: the root's CoM, then the point of the bottom
     face of its collision hull below the CoM and that face's centre (none without a hull)."""
-    from ...consistency.hull import link_hull
-
     out = [np.asarray(com, float)]
-    hull = link_hull(doc.link(root))
-    if hull is not None:
-        lo, hi = hull.vertices.min(axis=0), hull.vertices.max(axis=0)
+    box = link_box(doc, root)
+    if box is not None:
+        lo, hi = box
         for p in (np.array([com[0], com[1], lo[2]]), np.r_[(lo[:2] + hi[:2]) / 2, lo[2]]):
             if all(np.linalg.norm(p - q) > CENTRE_TOL for q in out):
                 out.append(p)

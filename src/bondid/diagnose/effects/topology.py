@@ -138,3 +138,18 @@ def effective_inertia(doc: UrdfDocument, joint: str) -> float:
     M = am.mass_matrix()
     j = am.dofs.index(joint)
     return float(1.0 / np.linalg.inv(M)[j, j])
+
+
+def link_box(doc: UrdfDocument, link: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """Lower and upper corners (m, ``link``'s frame) of the bounding box of its collision hull
+    (:func:`bondid.consistency.hull.link_hull`; meshes found as every command finds them,
+    :func:`bondid.model.packages.mesh_resolver`), or None when it has no geometry.
+
+    Raises:
+        ModelError: a mesh that cannot be found or read.
+    """
+    from ...consistency.hull import link_hull
+    from ...model.packages import mesh_resolver
+
+    hull = link_hull(doc.link(link), mesh_resolver(doc), name=link)
+    return None if hull is None else (hull.vertices.min(axis=0), hull.vertices.max(axis=0))
