@@ -151,3 +151,27 @@ def test_bad_files_name_the_file(tmp_path):
         UrdfDocument.load(p)
     with pytest.raises(ModelError, match=r"missing\.urdf"):
         UrdfDocument.load(tmp_path / "missing.urdf")
+
+
+def test_frames_written_with_mass_zero_are_massless():
+    """ROS URDFs write their frames as ``<inertial>`` of mass 0 and zero inertia (UR5's
+    ``ee_link``): massless, as a link without ``<inertial>``; a mass 0 with a non-zero inertia
+    is still refused."""
+    from bondid.linear.affine import build_affine_model
+    from bondid.validation.model import check_model
+
+    doc = sprung_robot("ur5")
+    assert float(doc.link("ee_link").inertial.mass) == 0.0
+    check_model(doc)  # refused "ee_link has mass 0" before
+    names = parameter_names(doc)
+    assert not [n for n in names if n.startswith("ee_link.")]
+    assert "wrist_3_link.mass" in names
+    am = build_affine_model(doc)
+    assert "ee_link" not in am.bodies
+    # the same M as Pinocchio's, which holds the frame's zero inertia
+    model = doc.build_pinocchio_model()
+    ref = pin.crba(model, model.createData(), pin.neutral(model))
+    np.testing.assert_allclose(am.mass_matrix(), np.triu(ref) + np.triu(ref, 1).T, atol=1e-12)
+    doc.link("ee_link").inertial.inertia = np.diag([1e-4, 1e-4, 1e-4])
+    with pytest.raises(ModelError, match=r"ee_link.*mass 0"):
+        check_model(doc)

@@ -82,7 +82,7 @@ def test_the_diagnosis_model_text_finds_its_meshes_in_any_folder(tmp_path, monke
     doc = UrdfDocument.load(_urdf(tmp_path, "../ws/mypkg/meshes/cube.stl"))
     doc.add_transmission("x")  # an FRF input, as every diagnosed model has
     monkeypatch.chdir(tmp_path)  # not the URDF's folder
-    with pytest.raises(ModelError, match="cube.stl"):  # the text alone: relative to nothing
+    with pytest.raises(ModelError, match=r"cube\.stl"):  # the text alone: relative to nothing
         link_box(UrdfDocument.from_string(doc.to_string()), "arm")
     work, names = with_absolute_meshes(doc)
     assert list(names.values()) == ["../ws/mypkg/meshes/cube.stl"]

@@ -31,7 +31,7 @@ import numpy as np
 from ..consistency.pseudo_inertia import pi_from_urdf
 from ..exceptions import ModelError
 from ..model.document import UrdfDocument
-from ..model.parameters import link_inertial
+from ..model.parameters import carries_mass, link_inertial
 from .channels import channel_gains, io_matrices
 from .channels import model_inputs as model_inputs  # re-exported: the model's channel names
 from .channels import model_outputs as model_outputs
@@ -273,9 +273,7 @@ def build_affine_model(
     B, C, inputs, outs = io_matrices(doc, model, q0, dofs, outputs)
     stiffness, damping = _springs_and_dampers(doc, dofs, where)
     grounded = doc.grounded_links()
-    bodies = [
-        lk.name for lk in doc.robot.links if lk.inertial is not None and lk.name not in grounded
-    ]
+    bodies = [lk.name for lk in doc.robot.links if carries_mass(lk) and lk.name not in grounded]
     placements = _link_placements(model, bodies, where)
     pi = np.array([pi_from_urdf(*link_inertial(doc, b)) for b in bodies]).reshape(-1, 10)
     M_basis, G_basis, M_rest, G_rest = _inertia_bases(model, q0, placements, bodies, pi)

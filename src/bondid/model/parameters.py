@@ -34,6 +34,7 @@ from __future__ import annotations
 import fnmatch
 from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -75,12 +76,25 @@ def _joint_units(kind: str) -> tuple[str, str]:
     return "N*m/rad", "N*m*s/rad"
 
 
+def carries_mass(link: Any) -> bool:
+    """Does a (yourdfpy) link carry inertial parameters? Not without ``<inertial>``, nor with
+    one of mass 0 and a zero inertia tensor: ROS URDFs write their frames that way (UR5's
+    ``ee_link``, ``base``), and such a link is massless. Any other ``<inertial>`` does (the
+    model check rejects a mass 0 with a non-zero inertia)."""
+    i = link.inertial
+    if i is None:
+        return False
+    if float(i.mass or 0.0) != 0.0:
+        return True
+    return i.inertia is not None and bool(np.any(np.asarray(i.inertia, float) != 0.0))
+
+
 def parameter_infos(doc: UrdfDocument) -> list[ParameterInfo]:
     """Every parameter of the document, links first (file order), then joints."""
     out: list[ParameterInfo] = []
     grounded = doc.grounded_links()
     for lk in doc.robot.links:
-        if lk.inertial is None or lk.name in grounded:
+        if not carries_mass(lk) or lk.name in grounded:
             continue
         n = lk.name
         out.append(ParameterInfo(f"{n}.mass", "mass", n, None, "kg"))

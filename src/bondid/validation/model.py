@@ -25,6 +25,7 @@ import numpy as np
 
 from ..exceptions import BondidError, ModelError
 from ..model.document import MOVABLE_TYPES, UrdfDocument, rotation_and_translation
+from ..model.parameters import carries_mass
 
 #: relative tolerance of the triangle inequality (of the trace of the inertia)
 TRIANGLE_TOL = 1e-9
@@ -153,7 +154,7 @@ def _check_bodies(doc: UrdfDocument, where: str) -> None:
     grounded = doc.grounded_links()
     for lk in doc.robot.links:
         inertial = lk.inertial
-        if inertial is None:
+        if inertial is None or not carries_mass(lk):  # a frame written with mass 0: massless
             continue
         m = float(inertial.mass if inertial.mass is not None else 0.0)
         if not math.isfinite(m) or m < 0 or (m == 0 and lk.name not in grounded):
@@ -202,10 +203,10 @@ def _check_moved_mass(doc: UrdfDocument, where: str) -> None:
 
 
 def _com_warnings(doc: UrdfDocument, where: str) -> list[str]:
-    from ..consistency.hull import link_hull, make_resolver
+    from ..consistency.hull import link_hull
+    from ..model.packages import mesh_resolver
 
-    base = os.path.dirname(os.path.abspath(doc.source)) if doc.source else os.getcwd()
-    resolve = make_resolver(base, {})
+    resolve = mesh_resolver(doc)  # meshes found as every command finds them
     out: list[str] = []
     for lk in doc.robot.links:
         if lk.inertial is None or not (lk.inertial.mass or 0.0) > 0:
