@@ -175,3 +175,40 @@ def test_the_final_fit_runs_every_fallback_when_the_heldout_score_is_above_its_n
     assert not final_job(below, at_level, 300).fallbacks_always
     assert not final_job(above, replace(job, heldout_noise_db=float("nan")), 300).fallbacks_always
     assert not job.fallbacks_always  # a search job: the rescue's own ratio test
+
+
+#: the nominal restart's nominal stiffness within this relative error of the truth's
+RESTART_TOL = 0.05
+
+
+def test_nominal_restart_brings_a_displaced_nominal_spring_back(case):  # type: ignore[no-untyped-def]
+    """Known answer (bondid.diagnose.final_restart): the true candidate's refit with a nominal
+    spring moved to a fifth (its mode far from the measured one) and the effect's parameters
+    right, as a search step can leave it; restarted from the nominal model's values (the
+    parameter refit's stand-in: the truth's nominal parameters) with the effect held, the
+    spring is back at the truth's and the objective lower: kept. It does not run without the
+    trigger, the parameter refit's text or an accepted effect."""
+    from bondid.diagnose.final_fit import final_job
+    from bondid.diagnose.final_restart import nominal_restart
+    from bondid.diagnose.runner import _setup, run_job
+
+    job, _k = case
+    ref = run_job(replace(job, all_iter=200, new_iter=10))
+    doc = UrdfDocument.from_string(ref.urdf, source="refit")
+    spring = "x_guide_ry.stiffness"
+    k_true = get_parameter(UrdfDocument.from_string(job.urdf), spring)
+    at = list(ref.names).index(spring)
+    low = float(job.nominal.lower[list(job.nominal.names).index(spring)])
+    set_parameter(doc, spring, low)  # at its lower bound, its mode far from the data's
+    final = final_job(replace(ref, urdf=doc.to_string()), replace(job, restart_urdf=job.urdf), 300)
+    refit = _setup(final.urdf, final).refit
+    stuck = replace(ref, urdf=final.urdf, objective=refit.cost(refit.state0))  # a fit ended here
+    out, note = nominal_restart(replace(final, fallbacks_always=True), stuck)
+    assert note.startswith("nominal restart from the parameter refit") and note.endswith("kept")
+    assert out.objective < stuck.objective and not out.error
+    assert abs(out.values[at] / k_true - 1.0) < RESTART_TOL, (out.values[at], k_true)
+    assert len(out.chain) == 1 and out.chain[0].label == ref.chain[0].label
+    for j in (replace(final, fallbacks_always=False), replace(final, restart_urdf=None)):
+        assert nominal_restart(j, stuck) == (stuck, "")
+    assert nominal_restart(replace(final, fallbacks_always=True), replace(stuck, chain=())) == (
+        replace(stuck, chain=()), "")  # fmt: skip

@@ -60,6 +60,8 @@ class FinalFit:
             none ran), kept or not.
         pivot: what the pivot search of :mod:`.final_pivot` did ("" when it did not run),
             kept or not.
+        restart: what the nominal restart of :mod:`.final_restart` did ("" when it did not
+            run), kept or not.
     """
 
     source: JobResult
@@ -68,6 +70,7 @@ class FinalFit:
     note: str
     rescue: str = ""
     pivot: str = ""
+    restart: str = ""
 
 
 def final_job(source: JobResult, base: Job, max_iter: int) -> Job:
@@ -97,18 +100,18 @@ def judged(source: JobResult, job: Job, result: JobResult) -> FinalFit:
     )
     rescue = str(result.extra.get("rescue", ""))
     pivot = str(result.extra.get("pivot search", ""))
+    restart = str(result.extra.get("nominal restart", ""))
     if not keep:
-        return FinalFit(source, source, False, note, rescue, pivot)
+        return FinalFit(source, source, False, note, rescue, pivot, restart)
     extra = {**source.extra, "final fit": note}
-    if rescue:
-        extra["final fit rescue"] = rescue
-    if pivot:
-        extra["final fit pivot"] = pivot
+    for key, said in (("rescue", rescue), ("pivot", pivot), ("nominal restart", restart)):
+        if said:
+            extra[f"final fit {key}"] = said
     model = replace(
         result, label=source.label, effect=source.effect, location=source.location,
         candidate=source.candidate, n_own=source.n_own, extra=extra,
     )  # fmt: skip
-    return FinalFit(source, model, True, note, rescue, pivot)
+    return FinalFit(source, model, True, note, rescue, pivot, restart)
 
 
 @dataclass

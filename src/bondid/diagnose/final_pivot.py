@@ -120,13 +120,18 @@ def refined_pivots(job: Job, result: JobResult) -> tuple[JobResult, str]:
 
 
 def run_final(job: Job) -> JobResult:
-    """The final job (:func:`.runner.run_job`), then, when its trigger is set, the pivot
-    search of the module docstring; its note in ``extra["pivot search"]``."""
+    """The final job (:func:`.runner.run_job`), then, when its trigger is set, the nominal
+    restart (:mod:`.final_restart`; its note in ``extra["nominal restart"]``) and the pivot
+    search of the module docstring (``extra["pivot search"]``)."""
+    from .final_restart import nominal_restart
     from .runner import run_job
 
     result = run_job(job)
     if not job.fallbacks_always:
         return result
+    result, restart = nominal_restart(job, result)
+    if restart:
+        result.extra["nominal restart"] = restart
     out, note = refined_pivots(job, result)
     if note:
         out.extra["pivot search"] = note

@@ -97,6 +97,9 @@ class Job:
     ipopt: tuple[tuple[str, float], ...] = ()
     #: the rescue runs every fallback whatever the noise ratio (:func:`.rescue.rescue`)
     fallbacks_always: bool = False
+    #: the final fit's nominal restart starts the nominal parameters from this model text
+    #: (the parameter refit's; :mod:`.final_restart`); None: no restart
+    restart_urdf: str | None = None
 
 
 @dataclass

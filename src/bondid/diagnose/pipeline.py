@@ -317,7 +317,7 @@ def diagnose(
         def final_of(source: JobResult) -> PendingFinal:
             data = Job(
                 source.urdf, p.space, p.train, p.held, p.full, None, p.options,
-                heldout_noise_db=level,
+                heldout_noise_db=level, restart_urdf=baseline.urdf,
             )  # fmt: skip
             return start_final(source, data, s.ipopt_iter, pool)
 

@@ -284,6 +284,7 @@ def _final_section(diag: Diagnosis) -> dict[str, Any] | None:
     return {
         "effects": [{"effect": c.effect, "location": c.location} for c in f.source.chain],
         "kept": f.kept, "note": f.note, "rescue": f.rescue, "pivot": f.pivot,
+        "nominal_restart": f.restart,
         "db_rms_before": f.source.db_rms, "db_rms": m.db_rms,
         "db_rms_unweighted": m.db_rms_unweighted, "file": "final.urdf",
         "parameters": _parameter_rows(m),

@@ -75,6 +75,8 @@ def summary(diag: Diagnosis, content: dict[str, Any]) -> str:
     ff = content.get("final_fit")
     if ff:
         lines.append(f"final model refitted on all data (final.urdf): {ff['note']}")
+        if ff.get("nominal_restart"):
+            lines.append(f"  {ff['nominal_restart']}")
         if ff.get("pivot"):
             lines.append(f"  pivot searched again on all data: {ff['pivot']}")
     lines.append(f"time {diag.wall_s:.1f} s")
