@@ -67,9 +67,9 @@ def nominal_restart(job: Job, result: JobResult) -> tuple[JobResult, str]:
     again = finish(sub, aug, state, res, {}, t0)
     if again.error or not again.objective < result.objective:
         return result, f"nominal restart: {again.error or 'no lower objective'}, not kept"
+    rescued = again.extra.get("rescue")
     note = (
         f"nominal restart from the parameter refit: objective {result.objective:.4g} ->"
-        f" {again.objective:.4g} ({said}), kept"
+        f" {again.objective:.4g} ({said}), kept" + (f"; then {rescued}" if rescued else "")
     )
-    again.extra.update({k: v for k, v in result.extra.items() if k not in again.extra})
-    return again, note
+    return replace(again, extra=dict(result.extra)), note
