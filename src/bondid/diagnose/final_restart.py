@@ -31,6 +31,8 @@ from __future__ import annotations
 import time
 from dataclasses import replace
 
+import numpy as np
+
 from ..exceptions import BondidError
 from .job import Job, JobResult
 
@@ -41,8 +43,6 @@ def nominal_restart(job: Job, result: JobResult) -> tuple[JobResult, str]:
     parameter refit) with the effects' parameters at ``result``'s values (module
     docstring). Returns the result kept (the restart's when its objective is lower) and a
     note; ``(result, "")`` when it does not apply."""
-    import numpy as np
-
     from .modal_start import alternation
     from .rescue import noise_ratio_at
     from .runner import _setup, finish
