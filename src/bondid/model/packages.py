@@ -126,8 +126,7 @@ def _resolved_text(
     those changed; ``strict``: raise on a mesh not found (else it is left as written)."""
     import xml.etree.ElementTree as ET
 
-    text = doc.to_string()
-    root = ET.fromstring(text)
+    root = ET.fromstring(doc.to_string())
     resolve = mesh_resolver(doc, extra)
     names: dict[str, str] = {}
     for mesh in root.iter("mesh"):
