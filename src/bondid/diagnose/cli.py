@@ -40,6 +40,11 @@ def build_parser() -> argparse.ArgumentParser:
     )  # fmt: skip
     p.add_argument("--points", type=int, default=500, help="frequencies per data set for refits")
     p.add_argument("--workers", type=int, default=2, help="worker processes (1 = in-process)")
+    p.add_argument(
+        "--scheduler", default=None, metavar="ADDRESS",
+        help="run the screenings and refits on the workers of a Dask cluster "
+        "(tcp://HOST:PORT; needs pip install 'bondid[fleet]'); default: local processes",
+    )  # fmt: skip
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     cli.add_weighting_arg(p, "auto")
     cli.add_drop_nan_arg(p)
@@ -102,13 +107,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             channels=cli.split_names([args.channels]) if args.channels else None,
             n_points=args.points,
             workers=args.workers,
+            scheduler=args.scheduler,
             weighting=args.weighting,
         )
         prog = cli.Progress("diagnose", quiet=args.quiet)
 
-        def on_progress(done: int, total: int, label: str) -> None:
-            prog.total = total
-            prog.count = done - 1
+        def on_progress(label: str) -> None:
             prog.update(1, label)
 
         # the plots are drawn while a worker runs the final fit (they do not depend on it)

@@ -318,3 +318,30 @@ def missing_mode_hints(
         if not out or f > out[-1] * (1.0 + tol):
             out.append(f)
     return tuple(out)
+
+
+def worst_matched_modes(
+    by_dataset: list[list[dict[str, Any]]], n: int = 3, tol: float = 0.02
+) -> tuple[float, ...]:
+    """Frequencies [Hz] of the measured modes the refitted model pairs worst (largest
+    ``(1 − MAC) + |df_rel|/0.2``, the pairing's own cost), over all data sets, merged within
+    a relative ``tol``, worst first, at most ``n``: where a spring the model lacks may have
+    bent a paired mode away from the measured one."""
+    rows = [
+        r for rows in by_dataset for r in rows
+        if r.get("status") == "paired" and r.get("f_measured_hz")
+    ]  # fmt: skip
+
+    def cost(r: dict[str, Any]) -> float:
+        mac = r.get("mac")
+        df = r.get("df_rel")
+        return (1.0 - float(mac if mac is not None else 0.0)) + abs(float(df or 0.0)) / 0.2
+
+    out: list[float] = []
+    for r in sorted(rows, key=cost, reverse=True):
+        f = float(r["f_measured_hz"])
+        if all(abs(f / g - 1.0) > tol for g in out):
+            out.append(f)
+        if len(out) == n:
+            break
+    return tuple(out)

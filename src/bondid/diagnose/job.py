@@ -1,60 +1,53 @@
-"""What a refit job carries in (:class:`Job`) and out (:class:`JobResult`), and the solve
-schedules its steps use (:func:`direct`, :func:`short`); the job itself: :mod:`.runner`.
+"""What a diagnosis task carries to a worker (:class:`Task`) and back (:class:`JobResult`).
 
-Everything a job needs travels in :class:`Job` (URDF text, data, plain values), so it pickles
-to a worker process.
+Everything a task needs travels in :class:`Task` (model text, data, plain values), so it
+pickles to a worker process or a Dask worker. The same task serves the screening of a
+candidate (:func:`.screen.screen`), its refit (:func:`.refit_job.run_refit`), the parameter
+refit (no candidate) and the refits of the backward elimination and the final fit.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
-from typing import Any
+import math
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..cost.problem import CostOptions
 from ..data.measurement import FrfData
-from ..optim.search import PRESOLVE_KIND, Step
 from .effects import Candidate
 from .refit import Nominal
+from .starts import Places, StartSpec
 
-
-def direct(max_iter: int, presolve: int = 0) -> list[Step]:
-    """One solve over everything (``presolve``: the core's presolve of a log cost)."""
-    return [Step("all", max_iter=max_iter, presolve=presolve)]
-
-
-def short(n: int) -> list[Step]:
-    """``n`` iterations on the normalised complex error (kept if lower), then ``n`` on the
-    log error: the short start of the second origin."""
-    return [
-        Step("presolve", kind=PRESOLVE_KIND, norm="l2", max_iter=n, keep_if_lower=True),
-        Step("all", max_iter=n),
-    ]
-
-
-def with_option(job: Job, option: Candidate) -> Job:
-    """``job`` refitting ``option`` (one of its candidate's variants; variants cleared). The
-    screening's start for the new parameters (``Job.start_new``) goes with it only when
-    ``option`` has the same new parameters (a flexible base's chain of another length has
-    other node masses: it then gets its own scans)."""
-    cand = job.candidate
-    same = cand is not None and [p.name for p in option.parameters] == [
-        p.name for p in cand.parameters
-    ]
-    return replace(
-        job, candidate=replace(option, variants=()), start_new=job.start_new if same else ()
-    )
+#: IPOPT iterations of a refit's last step (a start's whole-problem solve)
+REFIT_ITER = 150
+#: a refit's loop may spend this many starts' worth of iterations
+REFIT_BUDGET_STARTS = 4
 
 
 @dataclass
-class Job:
-    """Inputs of one refit job (see the module docstring).
+class Task:
+    """Inputs of one screening or refit (module docstring).
 
-    IPOPT iteration limits: ``new_iter`` a solve of the new parameters alone, ``all_iter``
-    the full refit from the first origin, ``alt_iter`` the one from the second origin (and
-    the rescue's continuation), ``presolve_iter`` its normalised-complex presolve,
-    ``screen_iter`` each short solve of the second origin's start options.
+    Attributes:
+        urdf: the model the task starts from (the step's base: the parameter refit, or the
+            model with the effects accepted so far), as URDF text.
+        nominal: the nominal parameters (names, bounds, prior).
+        train, heldout, full: the training, held-out and whole data sets (receptance; their
+            ``coherence`` holds the information weights).
+        options: the cost options (channels, weighting).
+        accepted: the effects accepted before (parameters at their fitted values).
+        candidate: the effect tried now, or None (a refit of the model as it is).
+        places: where the candidate's starts are placed (:class:`.starts.Places`).
+        starts: the screening's starts; empty: the refit finds its own.
+        max_iter: IPOPT iterations of a start's last step.
+        budget_starts: the loop's budget in starts' worth of iterations.
+        fallbacks: also try the band continuation and the staged schedule (the parameter
+            refit, which has no candidate starts; the final fit).
+        warm: the refit starts where the model is (no held step: the elimination's and the
+            final fit's warm refits).
+        token: the cancellation token of the work this task belongs to (0: never
+            cancelled; :mod:`.pool`).
     """
 
     urdf: str
@@ -62,63 +55,60 @@ class Job:
     train: list[FrfData]
     heldout: list[FrfData]
     full: list[FrfData]
-    candidate: Candidate | None = None
     options: CostOptions = field(default_factory=CostOptions)
-    new_iter: int = 10
-    n_starts: int = 3
-    all_iter: int = 30
-    alt_urdf: str | None = None
-    alt_iter: int = 150
-    presolve_iter: int = 30
-    hints_hz: tuple[float, ...] = ()
-    screen_iter: int = 10
     accepted: tuple[Candidate, ...] = ()
-    #: the candidate's new parameters (SI) from its screening: when given, the refit starts
-    #: there (no scan) from both origins
-    start_new: tuple[float, ...] = ()
-    #: run the wider search (:func:`.alternatives.wider_search`) inside the job; the
-    #: diagnosis's search runs it in a second round instead (:mod:`.widen`)
-    wider: bool = True
-    #: the held-out data's noise level [dB] (:class:`.scoring.NoiseReference`): a refit at
-    #: the training noise level whose held-out figure is above :data:`.rescue.RESCUE_RATIO`
-    #: times it is stuck too (:func:`.alternatives.stuck`; NaN: the training test alone)
-    heldout_noise_db: float = float("nan")
-    #: the base's held-out score is above the held-out noise level (:mod:`.search`): the
-    #: screening runs the joint profile whatever the one-step figure (:func:`.screen.needs_profile`)
-    profile_always: bool = False
-    #: a stuck refit of a structural candidate may get the modal step (:mod:`.modal_start`);
-    #: the diagnosis's search allows it only to the candidates its screening ranks best
-    #: (:data:`.search.MODAL_TOP`, and the placed alternation's picks)
-    modal: bool = True
-    #: the modes identified in each of ``full`` (tuples of :class:`.modal_id.IdentifiedMode`),
-    #: for the starts of :mod:`.modal_start`; empty: identified there when needed
-    measured: tuple = ()
-    #: IPOPT options of the job's solves over the refit's own (``(name, value)`` pairs)
-    ipopt: tuple[tuple[str, float], ...] = ()
-    #: the rescue runs every fallback whatever the noise ratio (:func:`.rescue.rescue`)
-    fallbacks_always: bool = False
-    #: the final fit's nominal restart starts the nominal parameters from this model text
-    #: (the parameter refit's; :mod:`.final_restart`); None: no restart
-    restart_urdf: str | None = None
+    candidate: Candidate | None = None
+    places: Places = field(default_factory=Places)
+    starts: tuple[StartSpec, ...] = ()
+    max_iter: int = REFIT_ITER
+    budget_starts: int = REFIT_BUDGET_STARTS
+    fallbacks: bool = False
+    warm: bool = False
+    token: int = 0
+
+
+@dataclass(frozen=True)
+class AttemptNote:
+    """One start a refit tried: its label, the training db_rms over the noise level it
+    ended at (NaN unknown), its IPOPT iterations and why it failed ("" if it did not)."""
+
+    label: str
+    ratio: float
+    iterations: int
+    error: str = ""
+
+    def text(self) -> str:
+        if self.error:
+            return f"{self.label}: failed ({self.error})"
+        r = f"{self.ratio:.2f}×" if math.isfinite(self.ratio) else "?"
+        return f"{self.label}: {r} ({self.iterations} it.)"
 
 
 @dataclass
 class JobResult:
-    """Outputs of one job.
+    """Outputs of one refit.
 
     Attributes:
-        label: ``effect@location`` or ``"refit"`` for the baseline.
-        names, values, std: refit variables (nominal first, then new), SI.
-        n_new: number of new parameters.
-        train_rms, heldout_rms: weighted complex-log RMS [dB] (the data's coherence, which
-            the diagnosis fills with the information weights).
+        label: ``effect@location``, or ``"refit"`` for a model without a candidate.
+        effect, location: the candidate's (None without one).
+        names, values, std: refit variables (nominal first, then every new one), SI.
+        n_new: number of new parameters (the accepted effects' and the candidate's).
+        train_rms, heldout_rms: weighted complex-log RMS [dB] on training / held-out data.
         n_train: number of training residuals.
-        heldout_db_rms, db_rms: the weighted ``db_rms`` ``sqrt(Σ w e² / Σ w)`` on held-out /
-            all data [dB], over the used channels.
-        db_rms_unweighted: the plain RMS over the points with weight ≥ 0.5 [dB].
-        full_H: model FRF per full data set (for the gap report and plots).
+        heldout_db_rms, db_rms: the weighted ``db_rms`` on held-out / all data [dB], over
+            the used channels; ``db_rms_unweighted`` over the points of weight ≥ 0.5.
+        full_H: the model FRF per full data set, each ``(n_out, n_in, n_freq)``.
         urdf: the refitted (augmented) model as URDF text.
-        error: why the job failed ("" when it did not).
+        wall_s: time spent [s].
+        status: IPOPT's status of the kept search.
+        error: why the refit failed ("" when it did not).
+        chain: the model's effects in the order added, at their fitted values.
+        n_own: the candidate's own parameters (the last ``n_own`` of ``values``).
+        candidate: the candidate as refitted (the variant kept).
+        objective: the training objective (data and prior) at the result.
+        noise_ratio: the training db_rms over the predicted noise level (None unknown).
+        attempts: the starts tried, in order; ``stopped``: why the loop stopped.
+        variant: the variant kept, in words ("" for the candidate itself).
     """
 
     label: str
@@ -138,16 +128,29 @@ class JobResult:
     wall_s: float
     status: str = ""
     error: str = ""
-    extra: dict[str, Any] = field(default_factory=dict)
-    db_rms_unweighted: float = float("nan")
-    #: the effects of this model, in the order added, starting at their fitted values (the
-    #: accepted effects the job carried, then its candidate with the variant it kept)
+    db_rms_unweighted: float = math.nan
     chain: tuple[Candidate, ...] = ()
-    #: number of this job's own candidate parameters (the last ``n_own`` of ``values``)
     n_own: int = 0
-    #: the candidate as refitted (the variant or pivot the job kept; start values unfitted)
     candidate: Candidate | None = None
-    #: the training objective (data and prior) and the noise ratio (training db_rms over the
-    #: predicted noise level, :func:`.rescue.noise_ratio_at`) at the result
-    objective: float = float("inf")
+    objective: float = math.inf
     noise_ratio: float | None = None
+    attempts: tuple[AttemptNote, ...] = ()
+    stopped: str = ""
+    variant: str = ""
+
+    @classmethod
+    def failed(cls, task: Task, error: str, wall_s: float) -> JobResult:
+        """The result of a task that failed numerically (``error`` says how)."""
+        c = task.candidate
+        return cls(
+            "refit" if c is None else c.label, None if c is None else c.effect,
+            None if c is None else c.location, [], np.zeros(0), np.zeros(0),
+            0 if c is None else len(c.parameters), math.inf, math.inf, 0, math.inf,
+            math.inf, [], "", wall_s, error=error,
+        )  # fmt: skip
+
+    def notes(self) -> str:
+        """The starts tried and why the loop stopped, one line ("" for one start)."""
+        if len(self.attempts) <= 1:
+            return ""
+        return "; ".join(a.text() for a in self.attempts) + f"; stopped: {self.stopped}"

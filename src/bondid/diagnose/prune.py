@@ -2,22 +2,18 @@
 
 The search (:mod:`.search`) adds effects forward: each is tested against the model with the
 effects accepted before it. An effect accepted early may only have stood in for one found
-later, and then keeps parameters the data no longer ask for. Measured on bonder_b/fb+jct/acc
-of the blind benchmark (stop 33): a rotational compliance at carriage_y→slide_x was accepted
-first (held-out 3.17 → 2.54 dB), the true translational compliance at the same joint second
-(→ 1.12 dB), the flexible base third (→ 0.81 dB); the rotation was a third, wrong claim.
+later (a rotational compliance at an interface where the translational one is the real
+cause), and then keeps parameters the data no longer ask for.
 
 Once two or more effects are accepted, each is tested again against the model with all the
 others: that model is refitted (every nominal parameter and the other effects' free, warm
-from the full model's values; the refit of :mod:`.runner` without a candidate, with its
-rescue) and the verdict rule of :func:`.scoring.tests` — the same rule at every step — asks
-whether the effect still earns its parameters on held-out data. Of the effects that fail it,
-the one whose removal leaves the best held-out score is dropped, and the test repeats on the
-effects left (every one of them, the last included) until each passes or one is left. A
-refit without an effect that ends stuck above the full model keeps the effect, and so does
-one that fails: the elimination only ever drops what the data show to be redundant. When a
-model of the kept effects cannot be refitted at the end, the drops are not applied (the
-search's accepted effects stand, ``Pruning.note`` says why).
+from the full model's values, :mod:`.refit_job`) and the rule of :func:`.scoring.tests` — the
+same rule at every step — asks whether the effect still earns its parameters on held-out
+data. Of the effects that fail it, the one whose removal leaves the best held-out score is
+dropped, and the test repeats on the effects left until each passes or one is left. A refit
+without an effect that fails keeps the effect: the elimination only ever drops what the data
+show to be redundant. When a model of the kept effects cannot be refitted at the end, the
+drops are not applied (the search's accepted effects stand, ``Pruning.note`` says why).
 
 The models of the kept effects in order (the first alone, the first two, ...) give the
 figures of ``effects`` in ``diagnosis.json``; those the search or the elimination did not
@@ -35,13 +31,10 @@ from typing import Any
 from ..model.parameters import set_parameters
 from . import scoring
 from .effects import Candidate
-from .job import Job, JobResult
-from .runner import run_job
+from .job import JobResult, Task
+from .pool import Pool
+from .refit_job import run_refit
 from .search import Context, Step
-
-#: IPOPT iterations of the direct solve of a refit without an effect (a warm start: the
-#: full model's values; as many as the second origin of a candidate's refit)
-PRUNE_ITER = 150
 
 Key = frozenset[str]
 
@@ -112,19 +105,16 @@ def _key(chain: Sequence[Candidate]) -> Key:
     return frozenset(c.label for c in chain)
 
 
-def reduced_job(ctx: Context, source: JobResult, chain: Sequence[Candidate]) -> Job:
-    """The refit of the model with the effects ``chain`` only (parameters at their values in
-    ``source``), the nominal parameters at ``source``'s values, on the search's data: no
-    candidate, one origin, the rescue of every refit (module docstring)."""
-    assert ctx.space is not None
+def reduced_task(ctx: Context, source: JobResult, chain: Sequence[Candidate]) -> Task:
+    """The warm refit of the model with the effects ``chain`` only (parameters at their
+    values in ``source``), the nominal parameters at ``source``'s values, on the search's
+    data (module docstring)."""
     doc = ctx.nominal.copy()
     n = len(ctx.space.names)
     set_parameters(doc, dict(zip(source.names[:n], map(float, source.values[:n]), strict=True)))
-    level = ctx.noise.level_db if ctx.noise is not None else math.nan
-    return Job(
-        doc.to_string(), ctx.space, ctx.train, ctx.heldout, ctx.full, None, ctx.options,
-        all_iter=PRUNE_ITER, accepted=tuple(chain), wider=False, modal=False,
-        heldout_noise_db=level, measured=ctx.measured,
+    return Task(
+        doc.to_string(), ctx.space, ctx.train, ctx.heldout, ctx.full, ctx.options,
+        tuple(chain), None, warm=True,
     )  # fmt: skip
 
 
@@ -138,7 +128,7 @@ class _Models:
     """The refits known so far, by the set of their effects' labels: the parameter refit,
     the search's winners, then every refit the elimination runs (in ``pool``)."""
 
-    def __init__(self, ctx: Context, pool: Any, steps: Sequence[Step], baseline: JobResult):
+    def __init__(self, ctx: Context, pool: Pool, steps: Sequence[Step], baseline: JobResult):
         self.ctx, self.pool, self.n_refits = ctx, pool, 0
         self.known: dict[Key, tuple[JobResult, float]] = {
             frozenset(): (baseline, steps[0].base_score if steps else _score(baseline))
@@ -150,7 +140,7 @@ class _Models:
     def ensure(self, source: JobResult, chains: Sequence[Sequence[Candidate]]) -> None:
         """Refit (in parallel) every chain of ``chains`` not known yet, warm from ``source``."""
         todo = {_key(c): c for c in chains if _key(c) not in self.known}
-        futures = {k: self.pool.submit(run_job, reduced_job(self.ctx, source, c))
+        futures = {k: self.pool.submit(run_refit, reduced_task(self.ctx, source, c))
                    for k, c in todo.items()}  # fmt: skip
         for k, f in futures.items():
             r = f.result()
@@ -173,7 +163,7 @@ def _without(chain: Sequence[Candidate], i: int) -> list[Candidate]:
 
 
 def prune(
-    ctx: Context, pool: Any, steps: Sequence[Step], baseline: JobResult,
+    ctx: Context, pool: Pool, steps: Sequence[Step], baseline: JobResult,
     progress: Callable[[str], None] | None = None,
 ) -> Pruning:  # fmt: skip
     """Backward elimination of the search's accepted effects (module docstring). ``pool``:

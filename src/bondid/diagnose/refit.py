@@ -319,7 +319,7 @@ class Refit:
         from ..optim.search import run_search
 
         sub = self.at(state)
-        res = run_search(sub, steps, max_iter=max_iter, ipopt_options=self._ipopt_options())
+        res = run_search(sub, steps, max_iter=max_iter, ipopt_options=self.ipopt_options())
         out = State(res.result.fitted.copy(), self.state_theta(res.result))
         return out, self.cost(out), res
 
@@ -334,13 +334,13 @@ class Refit:
             return state, self.cost(state)
         th = state.theta if state.theta.size else None
         sub = self.problem.restrict(names, start=state.x, theta=th)
-        sol = solve(sub, max_iter=max_iter, ipopt_options=self._ipopt_options())
+        sol = solve(sub, max_iter=max_iter, ipopt_options=self.ipopt_options())
         out = state.copy()
         out.x[[self.problem.names.index(n) for n in names]] = sub.values(sol.z)
         out.theta = sub.theta(sol.z)
         return out, self.cost(out)
 
-    def _ipopt_options(self) -> dict | None:
+    def ipopt_options(self) -> dict | None:
         """IPOPT's options of every solve (those ``bondid.fit`` uses with the prior, then
         :attr:`ipopt`)."""
         from ..fit.prior import with_prior_ipopt

@@ -115,41 +115,27 @@ def _refit_entry(r: Any, sc: float, before: float) -> dict[str, Any]:
         "train_weighted_rms": r.train_rms,
         "n_parameters": r.n_own,
         "strength_z": scoring.strength_z(r) if not r.error else None,
-        "detail": r.extra.get("variant"),
-        "notes": {k: str(v) for k, v in r.extra.items() if k != "variant"} or None,
+        "detail": r.variant or None,
+        "starts": [
+            {
+                "label": a.label,
+                "noise_ratio": a.ratio,
+                "iterations": a.iterations,
+                "error": a.error or None,
+            }
+            for a in r.attempts
+        ],
+        "stopped": r.stopped or None,
         "wall_s": r.wall_s,
         "error": r.error or None,
     }
 
 
-def _sqrt_or_none(cost: float) -> float | None:
-    """``sqrt(cost)`` [dB] of a finite cost, else None."""
-    return math.sqrt(cost) if math.isfinite(cost) and cost >= 0 else None
-
-
-def _refitted_by(step: Any, s: Any) -> str | None:
-    """Why the screening ``s`` of ``step`` was refitted fully: ``"joint profile"`` when the
-    joint profile picked it (from its start), ``"placed alternation"`` when that picked it
-    (from its end), ``"figure"`` when the one-step figure alone did, None when it was not
-    refitted."""
-    i = step.screenings.index(s)
-    if i in step.by_profile:
-        return "joint profile"
-    if i in step.by_placed:
-        return "placed alternation"
-    return "figure" if i in step.refitted else None
-
-
 def candidate_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
     """``candidates`` of diagnosis.json: per search step (``step``, 1 = the verdict's), the
-    refitted candidates by held-out score, then the others by screening figure; each with
-    its screening figures (``screening_db``: the predicted training RMS [dB];
-    ``screening_new_only_db``: after its new parameters alone; ``screening_by_origin_db``:
-    the figure from the step's base and from the nominal model, null where not taken;
-    ``screening_profile_db``: the joint profile's, :mod:`.joint_profile`;
-    ``screening_placed_db``: the placed alternation's of a joint compliance, null where not
-    run), ``refitted`` and ``refitted_by`` (``"figure"``, ``"joint profile"`` (from its
-    start), ``"placed alternation"`` (from its end) or null)."""
+    refitted candidates by held-out score, then the others by screening figure; each with its
+    screening figure (``screening_db``: the predicted training RMS [dB] of its best start),
+    its screened starts (``screening_starts``: label and figure [dB]) and ``refitted``."""
     out: list[dict[str, Any]] = []
     for step in diag.steps:
         by_label = {r.label: (r, sc) for r, sc in zip(step.results, step.scores, strict=True)}
@@ -159,14 +145,13 @@ def candidate_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
         for s in refitted + [s for s in screened if s.label not in by_label]:
             entry: dict[str, Any] = {
                 "effect": s.effect, "location": s.location, "step": step.index + 1,
-                "screening_db": math.sqrt(s.cost) if math.isfinite(s.cost) else None,
-                "screening_new_only_db": math.sqrt(s.cost_new_only)
-                if math.isfinite(s.cost_new_only) else None,
-                "screening_by_origin_db": [_sqrt_or_none(c) for c in s.by_origin],
-                "screening_profile_db": _sqrt_or_none(s.profile_cost),
-                "screening_placed_db": _sqrt_or_none(s.placed_cost),
+                "screening_db": s.db,
+                "screening_starts": [
+                    {"label": st.label,
+                     "figure_db": math.sqrt(st.figure) if math.isfinite(st.figure) else None}
+                    for st in s.starts
+                ],
                 "screening_wall_s": s.wall_s, "refitted": s.label in by_label,
-                "refitted_by": _refitted_by(step, s),
             }  # fmt: skip
             if s.label in by_label:
                 entry.update(_refit_entry(*by_label[s.label], before))
@@ -217,7 +202,17 @@ def _refit_section(diag: Diagnosis) -> dict[str, Any]:
     return {
         "parameters": _parameter_rows(b),
         "free": diag.names,
-        "ipopt_stage": diag.fit_info,
+        "status": b.status,
+        "starts": [
+            {
+                "label": a.label,
+                "noise_ratio": a.ratio,
+                "iterations": a.iterations,
+                "error": a.error or None,
+            }
+            for a in b.attempts
+        ],
+        "stopped": b.stopped or None,
         "heldout_weighted_rms": b.heldout_rms,
         "train_weighted_rms": b.train_rms,
         "score": diag.baseline_score,
@@ -234,7 +229,10 @@ def _scoring_section(diag: Diagnosis) -> dict[str, Any]:
         "min_excess_share": scoring.MIN_EXCESS_SHARE,
         "rel_margin": REL_MARGIN,
         "abs_margin_db": ABS_MARGIN_DB,
-        "steps": [{"step": st.index + 1, **st.test} for st in diag.steps],
+        "steps": [
+            {"step": st.index + 1, **st.test, "refits_stopped": st.stopped or None}
+            for st in diag.steps
+        ],
         "elimination": ELIMINATION,
         "elimination_note": diag.pruning.note if diag.pruning is not None else "",
         "gap_closed": "1 - db_rms_after / gap.db_rms (gap after the parameter refit; "
@@ -283,8 +281,7 @@ def _final_section(diag: Diagnosis) -> dict[str, Any] | None:
     m = f.model
     return {
         "effects": [{"effect": c.effect, "location": c.location} for c in f.source.chain],
-        "kept": f.kept, "note": f.note, "rescue": f.rescue, "pivot": f.pivot,
-        "nominal_restart": f.restart,
+        "kept": f.kept, "note": f.note, "starts": f.starts or None,
         "db_rms_before": f.source.db_rms, "db_rms": m.db_rms,
         "db_rms_unweighted": m.db_rms_unweighted, "file": "final.urdf",
         "parameters": _parameter_rows(m),

@@ -16,7 +16,9 @@ def summary(diag: Diagnosis, content: dict[str, Any]) -> str:
     """A short human summary: gap, where, verdict, how far it shrinks."""
     st = content["stages"]
     g = content["gap"]
-    lines = [
+    v = content["verdict"]
+    lines = [f"answer: {v['outcome_text']}"] if v.get("outcome_text") else []
+    lines += [
         f"gap (db_rms over {len(diag.channels)} channels): nominal {st['nominal']['db_rms']:.2f}"
         f" dB -> after parameter refit {g['db_rms']:.2f} dB",
     ]
@@ -56,14 +58,15 @@ def summary(diag: Diagnosis, content: dict[str, Any]) -> str:
         # a refit whose strength the data leave open is not the verdict's to take (scoring)
         why = f"  (strength undetermined: z = {z:.2g} < {Z:g})" if z is not None and z < Z else ""
         lines.append(f"  {lab:42s} {sc if sc is not None else float('nan'):8.3f}{why}")
-    v = content["verdict"]
     if v["effect"] == "none":
         lines.append(f"verdict: none — {v['reason']}")
     else:
         pars = ", ".join(f"{n} = {p['value']:.4g}" for n, p in v["parameters"].items())
+        tentative = " (tentative: it leaves most of the excess in place)" if v.get(
+            "grade") == "tentative" else ""  # fmt: skip
         lines.append(
             f"verdict: {v['effect']} at {v['location']} ({pars}); gap {g['db_rms']:.2f} ->"
-            f" {st['effect']['db_rms']:.2f} dB, gap_closed {v['gap_closed']:.2f}"
+            f" {st['effect']['db_rms']:.2f} dB, gap_closed {v['gap_closed']:.2f}{tentative}"
         )
         ties = [f"{_label(t)} ({t['score']:.3f} dB)" for t in v["indistinguishable_from"]]
         if ties:
@@ -75,10 +78,6 @@ def summary(diag: Diagnosis, content: dict[str, Any]) -> str:
     ff = content.get("final_fit")
     if ff:
         lines.append(f"final model refitted on all data (final.urdf): {ff['note']}")
-        if ff.get("nominal_restart"):
-            lines.append(f"  {ff['nominal_restart']}")
-        if ff.get("pivot"):
-            lines.append(f"  pivot searched again on all data: {ff['pivot']}")
     lines.append(f"time {diag.wall_s:.1f} s")
     return "\n".join(lines)
 

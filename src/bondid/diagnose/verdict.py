@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 from . import scoring
 from .job import JobResult
+from .outcome import grade
 from .prune import Kept
 from .scoring import gap_closed
 
@@ -60,7 +61,7 @@ def tied(step: Any) -> list[dict[str, Any]]:
 def _detail(k: Kept, j: int) -> Any:
     """The variant of the ``j``-th effect of a kept model (e.g. a pivot): the search step's
     note for its own winner, else the effect's description as refitted."""
-    return k.model.extra.get("variant") if k.forward else k.model.chain[j].description
+    return (k.model.variant or None) if k.forward else k.model.chain[j].description
 
 
 def _params(k: Kept, j: int) -> dict[str, Any]:
@@ -85,6 +86,7 @@ def effect_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
             "gap_closed": gap_closed(before, k.model.db_rms), "score": k.score,
             "score_before": k.score_before, "test": k.test,
             "refitted_without_dropped": not k.forward,
+            "grade": grade(k.test),
             "indistinguishable_from": tied(step),
         })  # fmt: skip
     return out
@@ -113,6 +115,7 @@ def verdict_entry(
     ``nominal``: the weighted gaps [dB] of the parameter refit and the nominal model;
     ``where``: the gap (by channel and band) of the model with the verdict's effect."""
     kept = kept_effects(diag)
+    answer = diag.outcome.as_dict() if diag.outcome is not None else {}
     if kept:
         k = kept[0]
         c = k.model.chain[0]
@@ -127,6 +130,8 @@ def verdict_entry(
             + " (against the parameter refit)",
             "where": where,
             "indistinguishable_from": tied(diag.steps[k.step]),
+            "grade": grade(k.test),
+            **answer,
         }
         if not k.forward:
             verdict["reason"] += (
@@ -139,6 +144,7 @@ def verdict_entry(
         "effect": "none",
         "location": None,
         "gap_closed": 0.0,
+        **answer,
         "reason": "no candidate passes the verdict rule against the parameter refit: "
         + (
             scoring.reason(diag.steps[0].test, best, diag.baseline_score)

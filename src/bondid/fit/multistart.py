@@ -28,7 +28,6 @@ from ..data.measurement import FrfData
 from ..exceptions import ComputationError, ConfigError, SolverError
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameters
-from ..optim.fallback import ratio_to_level
 from ..optim.schedules import Strategy
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -37,13 +36,6 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 
 #: Called as each run finishes: (runs done, runs total, the finished run).
 RunProgress = Callable[[int, int, "RunOutcome"], None]
-
-#: the fallback starts of :func:`run_multistart` run when a single-start fit ends above this
-#: multiple of the predicted noise level (db_rms). The prediction itself is off by up to
-#: 30 %: on the 24 fits of ``tools/refit_benchmark.py`` (stop 23) the truth model scored
-#: 0.95–1.30× it, so a fit above 1.3× is above what an exact model would score, not a low
-#: prediction.
-STARTS_RATIO = 1.3
 
 
 def lhs_starts(
@@ -151,6 +143,8 @@ class _Job:
     problem_args: tuple[UrdfDocument, list[FrfData], list[str], CostOptions, np.ndarray, np.ndarray]
     start: np.ndarray
     strategy: Strategy
+    #: random starts the job's loop may try after its own schedules (the fit's last tier)
+    n_random: int = 0
 
 
 def _problem(job: _Job, base: FitProblem | None = None) -> FitProblem:
@@ -177,15 +171,15 @@ def _run_job(
     A failed computation (singular matrix, a solver that raised) becomes a failed run; bad
     input (:class:`ConfigError`, :class:`ParameterError`, ...) propagates.
     """
-    from ..optim.fallback import run_to_noise
+    from .solver import search_to_noise
 
     t0 = time.perf_counter()
     try:
         problem = _problem(job, base)
-        st = run_to_noise(
-            problem, job.strategy.steps(problem), max_iter=job.strategy.max_iter,
-            progress=progress, ipopt_options=job.strategy.ipopt_options(),
-            fallback_bands=job.strategy.fallback_bands, staged_fallback=not job.strategy.staged,
+        st = search_to_noise(
+            problem, job.strategy, n_random=job.n_random, seed=job.index,
+            start_label=f"start {job.index}", progress=progress,
+            ipopt_options=job.strategy.ipopt_options(),
         )  # fmt: skip
         return RunOutcome(
             job.index, job.start, st.result, stages=st.stages, wall_s=time.perf_counter() - t0
@@ -262,12 +256,10 @@ def run_multistart(
         on_run: called in this process as each run finishes.
         on_iteration: per-iteration progress ``(iteration, cost)``, only for runs done in
             this process (``workers == 1`` or a single start).
-        fallback_starts: the fit's last tier, for a single start (``n_starts == 1``): when
-            its search (fallbacks included, :func:`bondid.optim.fallback.run_to_noise`) still
-            ends above :data:`STARTS_RATIO` times the predicted noise level, starts 1 to
-            ``fallback_starts - 1`` of a ``fallback_starts``-start multistart run too (in
-            ``workers`` processes; ``on_run`` is called for each) and the best of all is kept,
-            its ``notes`` saying so. 0 or 1 = off.
+        fallback_starts: the fit's last tier, for a single start (``n_starts == 1``):
+            ``fallback_starts - 1`` random starts the fit's loop may try after its
+            schedules (:func:`.solver.search_to_noise`: only while it is above the noise
+            level and a restart still improves); 0 or 1 = none.
 
     Returns:
         :class:`MultistartResult`; ``.best`` is the best :class:`FitResult` (a run whose
@@ -281,11 +273,10 @@ def run_multistart(
     args = (doc, list(datasets), list(names), options or CostOptions(),
             np.asarray(lower, dtype=float), np.asarray(upper, dtype=float))  # fmt: skip
     jobs = _jobs(args, n_starts, seed, strategy)
-    done = _run(jobs, workers, on_run, on_iteration)
-    ms = MultistartResult(done, _best_index(done), time.perf_counter() - t0)
     if n_starts == 1 and fallback_starts >= 2:
-        ms = _with_fallback_starts(ms, args, fallback_starts, seed, workers, strategy, on_run)
-    return ms
+        jobs[0] = replace(jobs[0], n_random=fallback_starts - 1)
+    done = _run(jobs, workers, on_run, on_iteration)
+    return MultistartResult(done, _best_index(done), time.perf_counter() - t0)
 
 
 def _jobs(args: tuple, n_starts: int, seed: int, strategy: Strategy | None) -> list[_Job]:
@@ -316,45 +307,3 @@ def _best_index(done: list[RunOutcome]) -> int:
         )
     best = min(ok, key=lambda r: (r.result is None or r.result.status == "failed", r.cost, r.index))
     return best.index
-
-
-def _with_fallback_starts(
-    ms: MultistartResult, args: tuple, n_starts: int, seed: int, workers: int,
-    strategy: Strategy | None, on_run: RunProgress | None,
-) -> MultistartResult:  # fmt: skip
-    """``ms`` (one start) with the fallback starts of :func:`run_multistart` when its search
-    ended above :data:`STARTS_RATIO` times the predicted noise level; ``ms`` itself when
-    nothing more ran."""
-    best = ms.best
-    if not any(n.startswith("fallback:") for n in best.notes):
-        return ms  # at the noise level from the first search (run_to_noise ran nothing more)
-    c_noise = _noise_cost(args)
-    ratio = ratio_to_level(best.cost_final, c_noise)
-    if ratio is None or ratio <= STARTS_RATIO:
-        return ms
-    t0 = time.perf_counter()
-    jobs = _jobs(args, n_starts, seed, strategy)[1:]  # start 0 is the search done
-    done = [*ms.runs, *_run(jobs, workers, on_run)]
-    pick = _best_index(done)
-    kept = done[pick].result
-    assert kept is not None
-    note = (
-        f"fallback starts: the fit ended at {ratio:.2f}× the predicted noise level (db_rms);"
-        f" {len(jobs)} Latin-hypercube start(s) more (seed {seed}); kept start {pick}"
-        f" at {ratio_to_level(kept.cost_final, c_noise) or math.nan:.2f}×"
-    )
-    # the start-0 search's fallback note too (what ran before the tier)
-    before = [n for n in best.notes if n.startswith("fallback:") and n not in kept.notes]
-    done[pick] = replace(done[pick], result=replace(kept, notes=[*kept.notes, *before, note]))
-    return MultistartResult(done, pick, ms.wall_s + time.perf_counter() - t0)
-
-
-def _noise_cost(args: tuple) -> float | None:
-    """The predicted noise-level cost of the data of ``args`` (:attr:`_Job.problem_args`;
-    :func:`bondid.cost.noise_level.noise_level_cost`, as the fit's fallback takes it)."""
-    from ..cost.noise_level import noise_level_cost
-    from ..optim.problem import FitProblem
-
-    doc, datasets, names, options, lo, hi = args
-    problem = FitProblem(doc, datasets, names, options=options, lower=lo, upper=hi)
-    return noise_level_cost(problem.frf)

@@ -41,8 +41,9 @@ numbers, which are constants here); a name that asks for one raises
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -52,6 +53,9 @@ from ..model.document import UrdfDocument
 from ..optim.ipopt import SOFT_STATUSES, SUCCESS_STATUSES
 from ..optim.search import LOG_KINDS, PRESOLVE_ITER, WALL_SHARE
 from .result import FitResult
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from ..optim.search import SearchResult
 
 __all__ = [
     "LOG_KINDS", "PRESOLVE_ITER", "SOFT_STATUSES", "SUCCESS_STATUSES", "WALL_SHARE", "fit",
@@ -76,6 +80,7 @@ def fit(
     presolve_iter: int = PRESOLVE_ITER,
     prior_width: float = 0.0,
     fallback_bands: int = 0,
+    fallback_starts: int = 0,
 ) -> FitResult:
     """Fit the named parameters of ``doc`` to measured FRFs (see the module docstring).
 
@@ -97,8 +102,10 @@ def fit(
             the data's noise (:mod:`bondid.fit.prior`; log costs with the l2 norm, so not the
             normalised-complex presolve); 0 = none. The reported costs are the data's alone.
         fallback_bands: when the direct fit ends above the predicted noise level, the band
-            continuation with this many bands from the same start, the better kept
-            (:mod:`bondid.optim.fallback`; ``python -m bondid.fit``'s default is 8); 0 = none.
+            continuation with this many bands and the staged schedule from the same start
+            (:meth:`bondid.optim.schedules.Strategy.starts`; ``python -m bondid.fit``'s
+            default is 8); 0 = none.
+        fallback_starts: random starts tried after those, in the box the prior trusts.
 
     Returns:
         :class:`FitResult`. IPOPT's iteration/time limits and similar stops that leave a usable
@@ -110,21 +117,64 @@ def fit(
         ConfigError: a repeated name, a kinematic placement, bad bounds or start.
         SolverError: IPOPT failed without reaching a feasible point (``status`` keeps IPOPT's).
     """
-    from ..optim.fallback import run_to_noise
     from ..optim.problem import FitProblem
-    from ..optim.schedules import direct
+    from ..optim.schedules import Strategy
     from .prior import prior_rows, with_prior_ipopt
 
     problem = FitProblem(
         doc, datasets, names, options=options, lower=lower, upper=upper, start=start,
         use_hull=use_hull, extra_rows=prior_rows(doc, prior_width),
     )  # fmt: skip
-    search = run_to_noise(
-        problem, direct(presolve_iter), max_iter=max_iter, tol=tol, progress=progress,
-        ipopt_options=with_prior_ipopt(prior_width, ipopt_options),
-        constraint_hessian=constraint_hessian, fallback_bands=fallback_bands,
+    strategy = Strategy(
+        presolve_iter=presolve_iter, max_iter=max_iter, prior_width=prior_width,
+        fallback=fallback_bands,
     )  # fmt: skip
+    return search_to_noise(
+        problem,
+        strategy,
+        n_random=fallback_starts,
+        tol=tol,
+        progress=progress,
+        ipopt_options=with_prior_ipopt(prior_width, ipopt_options),
+        constraint_hessian=constraint_hessian,
+    ).result
+
+
+def search_to_noise(
+    problem: Any, strategy: Any, *, n_random: int = 0, seed: int = 0, start_label: str = "",
+    **search_kw: Any,
+) -> SearchResult:  # fmt: skip
+    """The fit's search: :func:`bondid.optim.multistart.keep_best` over the strategy's starts
+    (:meth:`bondid.optim.schedules.Strategy.starts`: the model's values, the fallback
+    schedules, ``n_random`` random starts), stopped at the noise level, when a restart cannot
+    improve or when the strategy's budget is spent. The kept search, its result's notes
+    saying what ran, its iterations and time those of the whole loop (``start_label``: the
+    first start's label, e.g. ``"start 2"``).
+
+    Raises:
+        SolverError: every start failed (keeps the first failure's status).
+    """
+    from ..cost.noise_level import noise_level_cost
+    from ..optim.multistart import Budget, keep_best, search_runner
+    from ..optim.noise import NoisePolicy
+
+    starts = strategy.starts(problem, n_random=n_random, seed=seed)
+    if start_label:
+        starts[0] = dataclasses.replace(starts[0], label=start_label)
+    outcome = keep_best(
+        starts, search_runner(problem, strategy.steps, **search_kw),
+        noise=NoisePolicy(noise_level_cost(problem.frf)), budget=Budget(strategy.budget()),
+        max_iter=strategy.max_iter,
+    )  # fmt: skip
+    search = outcome.result
     sol = search.solution
-    if sol is not None and sol.failed and sol.kept == "start":
+    if len(outcome.attempts) == 1 and sol is not None and sol.failed and sol.kept == "start":
         raise sol.error()
-    return search.result
+    result = search.result
+    note = outcome.note()
+    result = dataclasses.replace(
+        result, iterations=outcome.iterations,
+        wall_s=sum(a.wall_s for a in outcome.attempts),
+        notes=[*result.notes, note] if note else list(result.notes),
+    )  # fmt: skip
+    return dataclasses.replace(search, result=result)

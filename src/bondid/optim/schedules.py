@@ -46,7 +46,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -56,6 +56,9 @@ from ..model.document import UrdfDocument
 from ..modes.bands import Span, clip_spans, resonances, stage_bands
 from .problem import FitProblem
 from .search import PRESOLVE_ITER, PRESOLVE_KIND, Step
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from .multistart import Start
 
 #: A band stage is a rough pre-fit: it gets a quarter of ``max_iter`` (at least this many).
 STAGE_MIN_ITER = 20
@@ -73,6 +76,10 @@ FIRST_BAND_SHARE = 0.4
 #: A band step caps a parameter with no upper bound at this multiple of its current value: a
 #: spring whose mode lies above the band is not seen by it and would otherwise run off.
 BAND_CAP = 4.0
+#: relative width of the random starts of a fit without a prior (the prior's default width)
+RANDOM_WIDTH = 0.25
+#: the fit's loop over its starts may spend this many full searches' iterations in all
+BUDGET = 6
 
 
 def direct(presolve_iter: int = PRESOLVE_ITER) -> list[Step]:
@@ -184,9 +191,9 @@ class Strategy:
         max_iter: IPOPT iterations of the last step (band stages: see :func:`staged`).
         prior_width: relative width of the prior toward the model's values
             (:mod:`bondid.fit.prior`) in every step of every schedule; 0 = none.
-        fallback: bands of the band continuation that :mod:`.fallback` runs when a direct
-            or staged search ends above the predicted noise level (0 = never; a
-            continuation strategy has none).
+        fallback: bands of the band continuation the fit's loop tries when a direct or
+            staged search ends above the noise level (:meth:`starts`; 0 = no fallback
+            schedule; a continuation strategy has none).
     """
 
     staged: bool = False
@@ -214,6 +221,32 @@ class Strategy:
         from ..fit.prior import with_prior_ipopt
 
         return with_prior_ipopt(self.prior_width, options)
+
+    def starts(self, problem: FitProblem, n_random: int = 0, seed: int = 0) -> list[Start]:
+        """The fit's starts in the order :func:`.multistart.keep_best` tries them: the
+        model's values under this strategy's schedule; then, when the strategy has a
+        fallback, the same values under the band continuation (its growing bands cross
+        basins a direct fit cannot) and under the staged schedule (each kind of parameter
+        in the bands where it acts); then ``n_random`` random starts in the box the prior
+        trusts (:func:`.multistart.random_starts`, width: the prior's, else
+        :data:`RANDOM_WIDTH`)."""
+        from .multistart import Start, random_starts
+
+        starts = [Start("model values", steps=self.steps)]
+        if self.fallback_bands >= 2:
+            bands, pre, it = self.fallback_bands, self.presolve_iter, self.max_iter
+            starts.append(Start(f"band continuation ({bands} bands)", steps=lambda p: (
+                continuation(p, bands, presolve_iter=pre))))  # fmt: skip
+            if not self.staged:
+                starts.append(Start("staged schedule", steps=lambda p: (
+                    staged(p, max_iter=it, presolve_iter=pre))))  # fmt: skip
+        width = self.prior_width if self.prior_width > 0 else RANDOM_WIDTH
+        return starts + random_starts(problem, n_random, width=width, seed=seed)
+
+    def budget(self, n_starts: int = 1) -> int:
+        """IPOPT iterations the fit's loop may spend over all its starts: :data:`BUDGET`
+        times ``max_iter`` (at least one full search per start the user asked for)."""
+        return max(BUDGET, n_starts) * (self.max_iter + self.presolve_iter)
 
     def steps(self, problem: FitProblem) -> list[Step]:
         """The schedule for ``problem``."""

@@ -1,0 +1,247 @@
+"""One refit of a diagnosis (:func:`run_refit`, runs in a worker): a model, optionally with a
+candidate effect, refitted on the training data through the optimisation core's one loop
+(:func:`bondid.optim.multistart.keep_best`), then read on the held-out and the whole data.
+
+The starts and their order:
+
+* a candidate: the screening's starts (:mod:`.starts`: the scale scan, the mode placed at
+  measured modes, the nominal origin; over the candidate and its variants, best figure
+  first), each run with the held schedule (:func:`.starts.held_schedule`); then the best of
+  them under the staged schedule, which frees each kind of parameter in the bands where it
+  acts (when the nominal stiffnesses, dampings and inertias are bent around a new mode, a
+  joint solve stays there);
+* no candidate (the parameter refit): the model's values under the direct schedule, then
+  the band continuation and the staged schedule (as ``bondid.fit``);
+* a warm refit (the elimination's and the final fit's): the model's values, direct; then the
+  nominal origin the task names (e.g. the parameter refit's values with the effects held),
+  and the staged schedule.
+
+The loop stops at the training noise level, when a restart cannot improve, or when the
+task's budget is spent (:mod:`bondid.optim.multistart`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+
+from ..exceptions import ComputationError
+from ..optim.multistart import Attempt, Budget, Outcome, Start, keep_best
+from ..optim.noise import NoisePolicy
+from ..optim.search import PRESOLVE_ITER, Step
+from .augmented import Augmented, build, chain_of
+from .effects import Candidate
+from .job import AttemptNote, JobResult, Task
+from .pool import cancelled
+from .refit import Refit, State
+from .starts import FAILURES, HELD_ITER, Places, StartSpec, candidate_starts, held_schedule
+
+
+def options_of(cand: Candidate | None) -> list[Candidate | None]:
+    """The candidate and its variants (variants cleared), or ``[None]``."""
+    from dataclasses import replace
+
+    if cand is None:
+        return [None]
+    return [replace(cand, variants=()), *(replace(v, variants=()) for v in cand.variants)]
+
+
+class Models:
+    """The augmented models of a task, one per option of its candidate, built when first
+    asked for (building one linearises the model at every operating point)."""
+
+    def __init__(self, task: Task):
+        self.task = task
+        self.options = options_of(task.candidate)
+        self._built: dict[int, Augmented] = {}
+
+    def __getitem__(self, k: int) -> Augmented:
+        if k not in self._built:
+            from ..optim.ipopt import WARM_START
+
+            t = self.task
+            # a warm refit starts near its optimum: IPOPT's small initial barrier keeps it
+            # there instead of first pushing every variable to the middle of its bounds
+            ipopt = dict(WARM_START) if t.warm else None
+            self._built[k] = build(t.urdf, t.nominal, t.train, t.options, t.accepted,
+                                   self.options[k], ipopt)  # fmt: skip
+        return self._built[k]
+
+
+def screening_starts(models: Models, places: Places) -> list[StartSpec]:
+    """Every option's starts (:func:`.starts.candidate_starts`), the candidate's own first
+    then by figure: the best start of each option, then the rest."""
+    per: list[list[StartSpec]] = []
+    for k, option in enumerate(models.options):
+        if option is None:
+            continue
+        try:
+            per.append(candidate_starts(models[k].refit, option, places, k))
+        except FAILURES:
+            continue
+    per = [p for p in per if p]
+    firsts = sorted((p[0] for p in per), key=lambda s: s.figure)
+    rest = sorted((s for p in per for s in p[1:]),
+                  key=lambda s: (not math.isfinite(s.figure), s.figure))  # fmt: skip
+    # the nominal origin of the best option stays second in line (see .starts)
+    best = next((p for p in per if firsts and p[0] is firsts[0]), [])
+    second = [s for s in best[1:2] if not math.isfinite(s.figure)]
+    return [*firsts[:1], *second, *firsts[1:], *(s for s in rest if s not in second)]
+
+
+def _starts(task: Task, models: Models) -> Iterator[Start]:
+    """The loop's starts (module docstring), built when reached."""
+    from ..optim.schedules import continuation, direct, staged
+
+    if task.candidate is None:
+        refit = models[0].refit
+        yield Start("model values", steps=[Step("all")] if task.warm else direct(PRESOLVE_ITER),
+                    payload=0)  # fmt: skip
+        if task.places.nominal is not None:
+            x = refit.state0.x.copy()
+            x[: refit.n_nominal] = task.places.nominal
+            yield Start("nominal origin", x, refit.state0.theta.copy(), direct(0), payload=0)
+        if task.fallbacks:
+            if not task.warm:
+                yield Start("band continuation", steps=lambda p: continuation(p, 8), payload=0)
+            yield Start("staged schedule", steps=lambda p: staged(p, max_iter=task.max_iter),
+                        payload=0)  # fmt: skip
+        return
+    specs = list(task.starts) or screening_starts(models, task.places)
+    for s in specs:
+        refit = models[s.variant].refit
+        yield Start(s.label, s.x, s.theta, held_schedule(refit), s.figure, payload=s.variant)
+    if specs:
+        s = specs[0]
+        yield Start(f"{s.label}, staged schedule", s.x, s.theta,
+                    lambda p: staged(p, max_iter=task.max_iter), payload=s.variant)  # fmt: skip
+
+
+class Cancelled(ComputationError):
+    """The work a refit belongs to no longer needs it (:func:`.pool.cancelled`)."""
+
+
+def _watch(token: int) -> Any:
+    """A per-iteration callback that ends the solve once ``token`` is cancelled (raised out
+    of IPOPT, which then returns its best point as failed)."""
+
+    def progress(_iteration: int, _cost: float) -> None:
+        if cancelled(token):
+            raise Cancelled("cancelled: the step no longer needs this refit")
+
+    return progress if token else None
+
+
+def _attempt(models: Models, start: Start, max_iter: int) -> Attempt:
+    """Run one start on its option's refit (a numerical failure becomes a failed attempt)."""
+    from ..optim.search import run_search
+
+    t0 = time.perf_counter()
+    refit = models[int(start.payload)].refit
+    try:
+        s0 = refit.state0
+        x = s0.x if start.x is None else np.asarray(start.x, float)
+        theta = s0.theta if start.theta is None else np.asarray(start.theta, float)
+        state = State(x, theta)
+        sub = refit.at(state)
+        steps = start.steps if start.steps is not None else [Step("all")]
+        schedule = list(steps(sub) if callable(steps) else steps)
+        res = run_search(sub, schedule, max_iter=max_iter, ipopt_options=refit.ipopt_options(),
+                         progress=_watch(models.task.token))  # fmt: skip
+        end = State(res.result.fitted.copy(), refit.state_theta(res.result))
+        obj, data = refit.cost(end), refit.data_cost(end)
+        return Attempt(start, res, obj, data if math.isfinite(data) else math.inf,
+                       res.result.iterations, time.perf_counter() - t0, x_end=end.x,
+                       theta_end=end.theta)  # fmt: skip
+    except FAILURES as exc:
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        return Attempt(start, None, math.inf, math.inf, 0, time.perf_counter() - t0, msg)
+
+
+def refit_loop(task: Task, models: Models) -> Outcome:
+    """The loop of ``task`` (module docstring)."""
+    noise = NoisePolicy(models[0].refit.noise_cost)
+    per_start = task.max_iter + (0 if task.candidate is None else HELD_ITER)
+    return keep_best(
+        _starts(task, models), lambda s, n: _attempt(models, s, n), noise=noise,
+        budget=Budget(task.budget_starts * per_start), max_iter=task.max_iter,
+        stop=lambda: cancelled(task.token),
+    )  # fmt: skip
+
+
+def run_refit(task: Task) -> JobResult:
+    """Refit ``task``'s model (module docstring); never raises for a numerical failure of the
+    model or the solver (``error`` set)."""
+    t0 = time.perf_counter()
+    try:
+        models = Models(task)
+        outcome = refit_loop(task, models)
+        if outcome.stopped == "cancelled":
+            return JobResult.failed(task, "cancelled", time.perf_counter() - t0)
+        return finish(task, models, outcome, t0)
+    except FAILURES as exc:
+        msg = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
+        return JobResult.failed(task, msg, time.perf_counter() - t0)
+
+
+def finish(task: Task, models: Models, outcome: Outcome, t0: float) -> JobResult:
+    """The kept attempt's figures on held-out and all data, as a :class:`JobResult`."""
+    from .evaluate import figures
+
+    best = outcome.best
+    k = int(best.start.payload)
+    aug = models[k]
+    refit: Refit = aug.refit
+    option = models.options[k]
+    assert best.search is not None and best.x_end is not None and best.theta_end is not None
+    state = State(best.x_end, best.theta_end)
+    fit, std_theta = refit.result(best.search)
+    theta = refit.state_theta(fit)
+    train = refit.at(state)
+    r = train.residual(train.z0)[: train.n_residuals]
+    held = figures(refit, fit, theta, task.heldout, task.options) if task.heldout else None
+    full = figures(refit, fit, theta, task.full, task.options)
+    new_vals = refit.new_values(state, own=False)
+    noise = outcome.noise
+    notes = tuple(AttemptNote(a.start.label + (" (resumed)" if a.resumed else ""),
+                              noise.ratio_of(a.data_cost) or math.nan, a.iterations, a.error)
+                  for a in outcome.attempts)  # fmt: skip
+    variant = "" if k == 0 or option is None else option.description
+    return JobResult(
+        label="refit" if option is None else option.label,
+        effect=None if option is None else option.effect,
+        location=None if option is None else option.location,
+        names=aug.names,
+        values=np.r_[fit.fitted[: aug.n_nominal], new_vals],
+        std=np.r_[fit.std[: aug.n_nominal], refit.new_std(fit, std_theta)],
+        n_new=len(refit.new),
+        train_rms=float(np.sqrt(r @ r)),
+        heldout_rms=math.nan if held is None else float(np.sqrt(held.cost)),
+        n_train=int(r.size),
+        heldout_db_rms=math.nan if held is None else held.db_rms,
+        db_rms=full.db_rms,
+        full_H=full.H,
+        urdf=fit.document.to_string(),
+        wall_s=time.perf_counter() - t0,
+        status=fit.status,
+        db_rms_unweighted=full.db_rms_unweighted,
+        chain=chain_of(task.accepted, option, new_vals),
+        n_own=0 if option is None else len(option.parameters),
+        candidate=option,
+        objective=best.objective,
+        noise_ratio=noise.ratio_of(best.data_cost),
+        attempts=notes,
+        stopped=outcome.stopped,
+        variant=variant,
+    )  # fmt: skip
+
+
+def task_with(task: Task, **changes: Any) -> Task:
+    """A copy of ``task`` with ``changes``."""
+    from dataclasses import replace
+
+    return replace(task, **changes)

@@ -1,0 +1,208 @@
+"""Where a candidate's refit may start, each start with a cheap figure (:func:`candidate_starts`).
+
+A candidate adds parameters the model has never had (a stiffness, a delay), and a local fit
+from one guess of them lands wherever that guess leads. Where the answer may lie is known
+from the physics and the data, so the starts come from there:
+
+* **the scale scan** — the candidate's parameters scaled together over its range (a mode
+  swept through the band, a delay from microseconds to milliseconds), the lowest local
+  minima of the training cost kept (:data:`N_SCAN`);
+* **the mode placed at a measured one** — for a candidate with springs, the scale that puts
+  its mode at each measured mode the model lacks, then at the measured modes it matches
+  worst (:data:`N_PLACED`): a missing mode is where a missing spring shows;
+* **the nominal origin** — the best of those with the nominal parameters back at the
+  nominal model's values: the parameter refit that every candidate starts from may have
+  bent nominal parameters to mimic what the candidate does, and from there the candidate
+  first makes the fit worse; from the nominal values they can unbend.
+
+Each start's new parameters are first fitted alone for a few iterations (the nominal ones
+held), then given their **figure**: the training objective after one Levenberg–Marquardt
+step over every parameter on the linearised residual (:func:`predicted_cost`), i.e. the
+score-test idea taken where the new parameters are no longer "absent" (a compliance at
+infinite stiffness has no gradient), plus the first-order gain of letting the nominal
+parameters follow. The figure ranks the starts of a candidate and, through its best start,
+the candidates of a step; it is a training figure, so nothing here looks at the held-out
+data that decide the verdict.
+
+A refit runs each start with the **held schedule**: the nominal parameters alone with the
+new ones held at the start, then everything. A missing spring's basin is narrow: from the
+right spring and the bent nominal parameters, a joint solve goes elsewhere, while the
+nominal parameters first relaxing around the held spring lead into it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..exceptions import BondidError
+from ..optim.search import Step
+from .effects import Candidate
+from .refit import Refit, State
+from .scan_grid import hint_scales, scan_grid
+
+#: local minima of the scale scan kept as starts
+N_SCAN = 2
+#: measured modes a candidate's springs are placed at (missing ones first)
+N_PLACED = 3
+#: IPOPT iterations of the new-only solve that settles each start
+NEW_ITER = 10
+#: Levenberg–Marquardt damping of the figure (relative to diag(JᵀJ))
+LM_DAMPING = 1e-3
+#: IPOPT iterations of a refit start's first step (the nominal parameters, new ones held)
+HELD_ITER = 20
+#: two starts whose new parameters differ by less than this factor are one
+SAME_START = 1.05
+
+#: the numerical failures that lose one start, not the candidate
+FAILURES = (BondidError, np.linalg.LinAlgError, ValueError, FloatingPointError)
+
+
+@dataclass(frozen=True)
+class StartSpec:
+    """A start as a worker hands it on (plain values only).
+
+    Attributes:
+        label: where it comes from (``"scan ×0.31"``, ``"mode at 412 Hz"``, ``"… from the
+            nominal model"``).
+        x: the refit problem's named values ``(n,)`` (nominal parameters, then the new
+            ones' leaders), SI.
+        theta: the FRF modifier's parameters ``(n_θ,)`` (empty without one).
+        figure: the predicted training objective (:func:`predicted_cost`).
+        variant: which of the candidate's options (0: the candidate, k: its k-th variant).
+    """
+
+    label: str
+    x: np.ndarray
+    theta: np.ndarray
+    figure: float
+    variant: int = 0
+
+
+@dataclass(frozen=True)
+class Places:
+    """What the starts are placed from: the frequencies [Hz] of the measured modes the
+    model lacks (``missing``) and of the others the model matches worst, worst first
+    (``worst``), and the nominal model's values of the nominal parameters (``nominal``,
+    ``(n_nominal,)``; None: no nominal origin)."""
+
+    missing: tuple[float, ...] = ()
+    worst: tuple[float, ...] = ()
+    nominal: np.ndarray | None = None
+
+
+def predicted_cost(refit: Refit, state: State, damping: float = LM_DAMPING) -> float:
+    """Training objective after one Levenberg–Marquardt step over every variable from
+    ``state`` on the linearised residual; never above the objective at ``state`` (inf where
+    the model fails)."""
+    try:
+        p = refit.at(state)
+        r, J = p.residual_and_jacobian(p.z0)
+    except FAILURES:
+        return math.inf
+    if not np.all(np.isfinite(r)) or not np.all(np.isfinite(J)):
+        return math.inf
+    c0 = float(r @ r)
+    JtJ = J.T @ J
+    d = np.maximum(np.diag(JtJ), 1e-12 * max(float(np.max(np.diag(JtJ), initial=0.0)), 1e-300))
+    try:
+        step = -np.linalg.solve(JtJ + damping * np.diag(d), J.T @ r)
+    except np.linalg.LinAlgError:
+        return c0
+    res = r + J @ step
+    return min(c0, float(res @ res))
+
+
+def held_schedule(refit: Refit, presolve: int = 0) -> list[Step]:
+    """The schedule of a refit start: the nominal parameters alone with the new ones held
+    (:data:`HELD_ITER` iterations), then everything (module docstring)."""
+    nominal = tuple(refit.problem.names[: refit.n_nominal])
+    first = [Step("nominal parameters, new ones held", nominal, max_iter=HELD_ITER)]
+    if not refit.own or len(nominal) == len(refit.problem.names):
+        first = []  # nothing is held (no candidate, or a modifier with nothing else new)
+    return [*first, Step("all", presolve=presolve)]
+
+
+def _scales(refit: Refit, cand: Candidate, places: Places) -> list[tuple[str, float]]:
+    """(label, scale of the ``scan = 1`` parameters) of the scan's minima and the placed
+    modes, scan first."""
+    out: list[tuple[str, float]] = []
+    if not cand.scan_grid:
+        return [("start values", 1.0)]
+    exps = np.array([p.scan for p in cand.parameters], float)
+    grid, _ = scan_grid(cand, places.missing)
+    g = np.asarray(grid, float)
+    states = refit.profile(refit.state0, exps, g)
+    costs = refit.costs(refit.state0, states)
+    left, right = np.r_[np.inf, costs[:-1]], np.r_[costs[1:], np.inf]
+    minima = np.flatnonzero((costs <= left) & (costs <= right) & np.isfinite(costs))
+    for i in sorted(minima, key=lambda i: costs[i]):
+        if len(out) == N_SCAN:
+            break
+        if all(abs(math.log(g[i] / s)) >= math.log(1.5) for _, s in out):
+            out.append((f"scan ×{g[i]:.3g}", float(g[i])))
+    if cand.ref_hz and any(p.scan == 1.0 for p in cand.parameters):
+        lo, hi = min(cand.scan_grid), max(cand.scan_grid)
+        placed = 0
+        freqs = [*places.missing, *places.worst]
+        for f, s in zip(freqs, hint_scales(cand, freqs), strict=True):
+            if placed == N_PLACED or not lo <= s <= hi:
+                continue
+            placed += 1
+            out.append((f"mode at {f:.4g} Hz", float(s)))
+    return out or [("start values", 1.0)]
+
+
+def candidate_starts(
+    refit: Refit, cand: Candidate, places: Places, variant: int = 0
+) -> list[StartSpec]:
+    """The starts of ``cand`` on ``refit`` (its model augmented with ``cand``), best figure
+    first, the nominal origin of the best second (module docstring). A start whose model
+    fails is left out; an empty list means every one failed."""
+    exps = np.array([p.scan for p in cand.parameters], float)
+    v0 = refit.new_values(refit.state0)
+    out: list[StartSpec] = []
+    seen: list[np.ndarray] = []
+    for label, s in _scales(refit, cand, places):
+        state = refit.with_new(refit.state0, v0 * s**exps)
+        try:
+            state, _ = refit.solve_new(state, NEW_ITER)
+        except FAILURES:
+            continue
+        new = refit.new_values(state)
+        if any(np.all(np.abs(np.log(np.maximum(new, 1e-300) / np.maximum(o, 1e-300)))
+                      < math.log(SAME_START)) for o in seen):  # fmt: skip
+            continue
+        seen.append(new)
+        out.append(_spec(refit, label, state, variant))
+    out = [s for s in out if math.isfinite(s.figure)]
+    out.sort(key=lambda s: s.figure)
+    if places.nominal is not None and out:
+        # second in line whatever its figure: one LM step from the nominal model, far from
+        # the data, predicts nothing useful, and the start is there for the case where the
+        # base's own basin is the wrong one
+        best = out[0]
+        x = best.x.copy()
+        x[: refit.n_nominal] = places.nominal
+        label = f"{best.label} from the nominal model"
+        out.insert(1, StartSpec(label, x, best.theta.copy(), math.nan, variant))
+    return out
+
+
+def _spec(refit: Refit, label: str, state: State, variant: int) -> StartSpec:
+    """The start of ``state`` with its figure."""
+    return StartSpec(label, state.x.copy(), state.theta.copy(), predicted_cost(refit, state),
+                     variant)  # fmt: skip
+
+
+def spring_count(cand: Candidate) -> int:
+    """How many of ``cand``'s parameters follow the scan in proportion (its springs)."""
+    return sum(1 for p in cand.parameters if p.scan == 1.0)
+
+
+def best_figure(starts: Sequence[StartSpec]) -> float:
+    """The lowest finite figure of ``starts`` (inf when none)."""
+    return min((s.figure for s in starts if math.isfinite(s.figure)), default=math.inf)
