@@ -92,7 +92,7 @@ def test_joint_compliance_candidates_cover_missing_axes(doc):
 def _settings(**kw):
     from bondid.diagnose.pipeline import Settings
 
-    base = dict(n_points=150, workers=1, use_ipopt=False, modes=False, n_starts=2)
+    base = dict(n_points=150, workers=1, modes=False)
     base.update(kw)
     return Settings(**base)
 
@@ -106,7 +106,7 @@ def compliance_case(doc):
     c = next(c for c in e.candidates(doc) if c.location == "y_stage->z_stage:tz")
     truth = _with_values(e, doc, c, scale=5.0)
     data = _data(truth)
-    s = _settings(effects=["joint_compliance", "sensor_delay"], free=FEW, use_ipopt=True)
+    s = _settings(effects=["joint_compliance", "sensor_delay"], free=FEW)
     return diagnose(doc, data, s)
 
 
@@ -116,15 +116,19 @@ def test_withheld_joint_compliance_is_found_first(compliance_case):
     assert diag.results[0].location == "y_stage->z_stage:tz"
     assert diag.winner is diag.results[0]
     assert diag.results[0].heldout_rms < 0.7 * diag.baseline.heldout_rms
+    assert diag.outcome is not None and diag.outcome.kind == "explained"
+    assert diag.outcome.grades == ["confirmed"]
 
 
 def test_none_case_gives_verdict_none(doc):
     from bondid.diagnose import diagnose
 
     data = _data(doc, seed=5)
-    s = _settings(effects=["joint_compliance", "actuator_lag"], free=FEW, use_ipopt=True)
+    s = _settings(effects=["joint_compliance", "actuator_lag"], free=FEW)
     diag = diagnose(doc, data, s)
     assert diag.winner is None and len(diag.steps) == 1
+    # nothing missing: explained by the parameters alone, not "something I cannot name"
+    assert diag.outcome is not None and diag.outcome.kind == "explained"
 
 
 def test_diagnosis_json_has_the_spec_keys(compliance_case, tmp_path):
@@ -214,13 +218,15 @@ def test_rotational_candidates_carry_pivot_variants(doc):
 
 def test_screening_picks_the_pivot_that_made_the_data(doc):
     """Known answer: data from the nominal model plus a y-guide pitch DOF pivoting at one of
-    the variants' pivots; the screening (from the nominal model) keeps that variant."""
+    the variants' pivots; the screening leads with that variant's start, and every other
+    pivot's start figures at least 20 % worse."""
     from dataclasses import replace
 
     from bondid.cost.problem import CostOptions
     from bondid.diagnose.effects import get_effect
+    from bondid.diagnose.job import Task
     from bondid.diagnose.refit import nominal_space
-    from bondid.diagnose.runner import Job, _screen_variants
+    from bondid.diagnose.screen import screen
 
     e = get_effect("joint_compliance")
     c = next(c for c in e.candidates(doc) if c.location == "x_stage->y_stage:ry")
@@ -228,16 +234,16 @@ def test_screening_picks_the_pivot_that_made_the_data(doc):
     truth = _with_values(e, doc, replace(target, variants=()), scale=2.0)
     data = _data(truth, n=150)
     nom = nominal_space(doc, ["x_stage.mass", "y_stage.mass", "z_stage.mass"], 4000.0)
-    text = doc.to_string()
-    job = Job(text, nom, data, data, data, c, CostOptions(), alt_urdf=text)
-    picked, cost = _screen_variants(job)
-    assert picked.candidate is not None and picked.candidate.variants == ()
-    assert picked.candidate.spec["pivot"] == target.spec["pivot"], picked.candidate.description
-    # a clear pick: every other pivot screens at least 20 % worse
-    for v in (c, *c.variants):
-        if v.spec["pivot"] != target.spec["pivot"]:
-            other = _screen_variants(replace(job, candidate=replace(v, variants=())))[1]
-            assert other > 1.2 * cost, (v.description, other, cost)
+    s = screen(Task(doc.to_string(), nom, data, data, data, CostOptions(), candidate=c))
+    assert not s.error and s.variant is not None and s.variant.variants == ()
+    assert s.variant.spec["pivot"] == target.spec["pivot"], s.variant.description
+    options = [c, *c.variants]
+    lead = s.starts[0]
+    assert options[lead.variant].spec["pivot"] == target.spec["pivot"]
+    # a clear pick: every other pivot's start figures at least 20 % worse
+    for st in s.starts:
+        if options[st.variant].spec["pivot"] != target.spec["pivot"] and np.isfinite(st.figure):
+            assert st.figure > 1.2 * lead.figure, (st.label, st.figure, lead.figure)
 
 
 def _lagged(data: list, cand, T: float, T2: float = 0.0) -> list:  # type: ignore[no-untyped-def]
@@ -262,7 +268,7 @@ def test_a_two_pole_lag_is_refitted_to_its_poles(doc):
     from bondid.diagnose.augmented import build
     from bondid.diagnose.effects import get_effect
     from bondid.diagnose.refit import nominal_space
-    from bondid.diagnose.runner import direct
+    from bondid.optim.schedules import direct
 
     e = get_effect("actuator_lag")
     lag = next(k for k in e.candidates(doc) if k.location == "y")
@@ -276,7 +282,7 @@ def test_a_two_pole_lag_is_refitted_to_its_poles(doc):
     data = _lagged(_data(doc, n=150), lag, T, T2)
     refit = build(doc.to_string(), nominal_space(doc, FEW, 4000.0), data, CostOptions(), (),
                   lag).refit  # fmt: skip
-    state, _, _ = refit.solve(refit.state0, direct(150, 30))
+    state, _, _ = refit.solve(refit.state0, direct(30), max_iter=150)
     got_T, got_T2 = refit.new_values(state)
     REL_LAG = 0.02  # 0.5 % noise on 2 × 150 frequencies: both times within 2 %
     assert got_T == pytest.approx(T, rel=REL_LAG)
@@ -309,14 +315,16 @@ def test_composed_modifier_derivatives_match_finite_differences(doc):
 FEW = ["x_stage.mass", "y_stage.mass", "z_stage.mass", "x_guide_ry.stiffness"]
 
 
-def test_screening_keeps_the_withheld_effect(doc):
-    """Known answer: every candidate screened from the nominal model on data of the nominal
-    model plus one joint compliance; the true one is among the candidates refitted."""
+def test_screening_ranks_the_withheld_effect_first(doc):
+    """Known answer: every candidate screened on data of the nominal model plus one joint
+    compliance; the true one has the best figure, and a figure (one joint Gauss–Newton step)
+    is never above the objective of the start it is taken at."""
     from bondid.cost.problem import CostOptions
     from bondid.diagnose.effects import get_effect, get_effects
-    from bondid.diagnose.refit import nominal_space
-    from bondid.diagnose.runner import Job
-    from bondid.diagnose.screen import screen, select
+    from bondid.diagnose.job import Task
+    from bondid.diagnose.refit import State, nominal_space
+    from bondid.diagnose.refit_job import Models
+    from bondid.diagnose.screen import screen
 
     e = get_effect("joint_compliance")
     c = next(c for c in e.candidates(doc) if c.location == "x_stage->y_stage:tz")
@@ -326,12 +334,15 @@ def test_screening_keeps_the_withheld_effect(doc):
     cands = [
         c for e in get_effects(["joint_compliance", "actuator_lag"]) for c in e.candidates(doc)
     ]
-    jobs = [Job(text, nom, data, data, data, k, CostOptions()) for k in cands]
-    screens = [screen(j) for j in jobs]
-    kept = [screens[i].label for i in select(screens, 4)]
-    assert c.label in kept, sorted((s.cost, s.label) for s in screens)
-    # the figure predicts a joint step: never above the new-only cost it starts from
-    assert all(np.isfinite(s.cost) and s.cost <= s.cost_new_only + 1e-12 for s in screens)
+    tasks = [Task(text, nom, data, data, data, CostOptions(), candidate=k) for k in cands]
+    screens = [screen(t) for t in tasks]
+    best = min(screens, key=lambda s: s.cost)
+    assert best.label == c.label, sorted((s.cost, s.label) for s in screens)
+    models = Models(tasks[cands.index(c)])
+    for st in best.starts:
+        if np.isfinite(st.figure):
+            refit = models[st.variant].refit
+            assert st.figure <= refit.cost(State(st.x, st.theta)) + 1e-12
 
 
 def test_two_withheld_effects_are_found_in_order(doc, tmp_path):
@@ -346,7 +357,7 @@ def test_two_withheld_effects_are_found_in_order(doc, tmp_path):
     c = next(c for c in e.candidates(doc) if c.location == "y_stage->z_stage:tz")
     al = next(k for k in get_effect("actuator_lag").candidates(doc) if k.location == "y")
     data = _lagged(_data(_with_values(e, doc, c, scale=3.0), n=150), al, 2e-4)
-    s = _settings(effects=["joint_compliance", "actuator_lag"], free=FEW, use_ipopt=True)
+    s = _settings(effects=["joint_compliance", "actuator_lag"], free=FEW)
     diag = diagnose(doc, data, s)
     content = to_json_dict(diag, gaps(diag))
     got = [(x["effect"], x["location"]) for x in content["effects"]]
@@ -429,8 +440,8 @@ def test_tied_and_modifier_parameters_refitted_through_the_core(doc):
     from bondid.diagnose.effects import get_effect
     from bondid.diagnose.effects.flexible_base import FlexibleBase
     from bondid.diagnose.refit import nominal_space
-    from bondid.diagnose.runner import direct
     from bondid.model import get_parameter
+    from bondid.optim.schedules import direct
 
     # four nodes: this answer is about ties and the modifier; the default chain's six masses
     # are less determined by these 150 lines (its own known answer: test_diagnose_structural)
@@ -449,7 +460,7 @@ def test_tied_and_modifier_parameters_refitted_through_the_core(doc):
     # member per segment (a stiffness, the compression damper), two (the shear damper)
     assert all(len(v.ties) in (0, 2, 5) for v in refit.new if v.leader)
     assert [len(v.ties) for v in refit.new if v.name.endswith("mass")] == [0] * 4
-    state, _, res = refit.solve(refit.state0, direct(150, 30))
+    state, _, res = refit.solve(refit.state0, direct(30), max_iter=150)
     got = dict(zip(["T", "T2", *(p.name for p in c.parameters)],
                    refit.new_values(state, own=False), strict=True))  # fmt: skip
     # the lag was first order: its second-order term stays below 1 % of the first's square
@@ -511,22 +522,23 @@ def test_the_plots_are_drawn_while_the_final_fit_runs(doc, tmp_path, monkeypatch
     """``during_final`` sees the diagnosis before its final fit (``final`` None, the plots'
     inputs all there) while a worker runs it; the returned diagnosis has the final fit and a
     finite wall time; the plots drawn then are the residual map and a Bode PNG per data set.
-    When no effect can be accepted, the final fit is the one queued behind the first step's
-    refits (of the parameter refit, started once), and it equals the same fit run here."""
+    The final fit run in a worker equals the same task run here."""
     import math
 
-    from bondid.diagnose import diagnose, pipeline, scoring
-    from bondid.diagnose.final_fit import judged
-    from bondid.diagnose.final_pivot import run_final
+    from bondid.diagnose import diagnose, pipeline
+    from bondid.diagnose.final_fit import final_task, judged
+    from bondid.diagnose.refit_job import run_refit
     from bondid.diagnose.report import write_plots
 
-    # no effect can be accepted (these data's base sits just above the level's tolerance)
-    monkeypatch.setattr(scoring, "may_accept", lambda score, noise: False)
-    sources, pending = _spy_start_final(monkeypatch)
-    real_prune, pruned_after = pipeline.prune, []
-    monkeypatch.setattr(
-        pipeline, "prune", lambda *a: pruned_after.append(len(sources)) or real_prune(*a)
-    )
+    sources, tasks = [], []
+    real = pipeline.start_final
+
+    def spy(source, base, restart, pool):
+        sources.append(source)
+        tasks.append(final_task(source, base, restart))
+        return real(source, base, restart, pool)
+
+    monkeypatch.setattr(pipeline, "start_final", spy)
     seen = []
 
     def draw(d):
@@ -540,53 +552,14 @@ def test_the_plots_are_drawn_while_the_final_fit_runs(doc, tmp_path, monkeypatch
     names = {"residual_map.png", *(f"bode_{k + 1}.png" for k in range(len(data)))}
     assert {p.name for p in seen[1:]} == names
     assert all(p.stat().st_size > 0 for p in seen[1:])
-    # started once, before the search was over (the pruning follows the search)
-    assert diag.winner is None and sources == [diag.baseline] and pruned_after == [1]
-    assert diag.final.source is diag.baseline
-    job = pending[0].job  # the same job run here
-    here = judged(diag.baseline, job, run_final(job))
+    assert len(sources) == 1 and diag.final.source is sources[0]
+    here = judged(sources[0], run_refit(tasks[0]))
     assert here.kept == diag.final.kept
     assert here.model.db_rms == pytest.approx(diag.final.model.db_rms, rel=SAME_FIT)
 
 
 #: relative agreement of one final fit run in a worker and here
 SAME_FIT = 1e-6
-
-
-def test_the_final_fit_is_queued_ahead_only_when_no_effect_can_be_accepted(doc, monkeypatch):
-    """With the base above the noise level (an effect may be accepted) nothing is queued
-    ahead: one final fit, of the pruning's model. With the base at the level the parameter
-    refit's final fit is queued behind the first step's refits; should the pruning still end
-    at another model, the final fit is started again from that one."""
-    from dataclasses import replace
-    from types import SimpleNamespace
-
-    from bondid.diagnose import diagnose, pipeline, scoring
-
-    sources, _ = _spy_start_final(monkeypatch)
-    seen: dict = {}
-
-    def fake_search(ctx, pool, baseline, say, submitted):
-        submitted(0, "screening")
-        assert sources == []  # not ahead of the screening
-        submitted(0, "refits")
-        seen["baseline"] = baseline
-        return [SimpleNamespace(results=[], scores=[], base_score=0.0)]
-
-    def fake_prune(ctx, pool, steps, baseline, say):
-        seen["final"] = replace(baseline, label="with an effect")
-        return SimpleNamespace(final=seen["final"], kept=[])
-
-    monkeypatch.setattr(pipeline, "search", fake_search)
-    monkeypatch.setattr(pipeline, "prune", fake_prune)
-    s = _settings(effects=["sensor_delay"], free=FEW[:1], n_points=60, workers=2)
-    data = _data(doc, n=60)
-    for may, queued in ((True, False), (False, True)):
-        sources.clear()
-        monkeypatch.setattr(scoring, "may_accept", lambda score, noise, may=may: may)
-        diag = diagnose(doc, data, s)
-        assert sources == [seen["baseline"]] * queued + [seen["final"]]
-        assert diag.final is not None and diag.final.source is seen["final"]
 
 
 def test_the_summary_says_why_a_candidate_or_the_modes_are_missing():

@@ -92,8 +92,10 @@ def test_unequal_mounts_below_the_com_are_refitted_to_the_truth(doc):
     from bondid.cost.problem import CostOptions
     from bondid.diagnose.augmented import build, with_values
     from bondid.diagnose.effects import get_effect
+    from bondid.diagnose.job import Task
     from bondid.diagnose.refit import nominal_space
-    from bondid.diagnose.runner import Job, _screen_variants, direct
+    from bondid.diagnose.screen import screen
+    from bondid.optim.schedules import direct
 
     e = get_effect("soft_mounts")
     (c,) = e.candidates(doc)
@@ -102,14 +104,13 @@ def test_unequal_mounts_below_the_com_are_refitted_to_the_truth(doc):
     data = _data(e.augment(doc, with_values(target, truth)))
     space = nominal_space(doc, FEW, 4000.0)
     text = doc.to_string()
-    job = Job(text, space, data, data, data, c, CostOptions(), alt_urdf=text)
-    picked, _ = _screen_variants(job)
-    assert picked.candidate is not None
-    assert picked.candidate.spec["centre"] == target.spec["centre"], picked.candidate.description
+    picked = screen(Task(text, space, data, data, data, CostOptions(), candidate=c)).variant
+    assert picked is not None
+    assert picked.spec["centre"] == target.spec["centre"], picked.description
 
     def refit(cand, values):  # type: ignore[no-untyped-def]
         r = build(text, space, data, CostOptions(), (), with_values(cand, values)).refit
-        state, cost, _ = r.solve(r.state0, direct(150, 30))
+        state, cost, _ = r.solve(r.state0, direct(30), max_iter=150)
         return r.new_values(state), cost
 
     at_truth = build(text, space, data, CostOptions(), (), with_values(target, truth)).refit
@@ -138,7 +139,7 @@ def test_a_chassis_heavier_at_the_bottom_is_refitted_to_the_truth(doc):
     from bondid.diagnose.augmented import build, with_values
     from bondid.diagnose.effects import get_effect
     from bondid.diagnose.refit import nominal_space
-    from bondid.diagnose.runner import direct
+    from bondid.optim.schedules import direct
 
     fb = get_effect("flexible_base")
     (c,) = fb.candidates(doc)
@@ -162,7 +163,7 @@ def test_a_chassis_heavier_at_the_bottom_is_refitted_to_the_truth(doc):
     ]
     want_costs = [r.cost(s) for s in states]
     assert r.costs(r.state0, states) == pytest.approx(want_costs, rel=SCAN_COST_RTOL)
-    state, _, _ = r.solve(r.state0, direct(150, 30))
+    state, _, _ = r.solve(r.state0, direct(30), max_iter=150)
     got = dict(zip(names, r.new_values(state), strict=True))
     for name, want in zip(names, truth, strict=True):
         if name.endswith(("mass", "stiffness")):
@@ -170,85 +171,12 @@ def test_a_chassis_heavier_at_the_bottom_is_refitted_to_the_truth(doc):
             assert got[name] == pytest.approx(want, rel=tol), (name, got[name], want)
 
 
-def test_a_pivot_off_the_bearing_centre_in_both_directions_is_found(doc):
-    """Known answer: data from the nominal model plus a roll DOF under the x stage at 450 Hz
-    whose pivot lies 20 mm and 15 mm off the bearing centre across the axis (no variant has
-    it: they move one direction at a time); the pivot refinement from the bearing centre ends
-    near it, and the refit there reaches a cost near the exact pivot's."""
-    from bondid.cost.problem import CostOptions
-    from bondid.diagnose.alternatives import refine_job_pivot
-    from bondid.diagnose.augmented import build, with_values
-    from bondid.diagnose.effects import get_effect
-    from bondid.diagnose.pivot import with_pivot
-    from bondid.diagnose.refit import nominal_space
-    from bondid.diagnose.runner import Job, direct
-
-    e = get_effect("joint_compliance")
-    c = next(c for c in e.candidates(doc) if c.location == "base->x_stage:rx")
-    centre = np.array(c.spec["pivot"])
-    true_pivot = centre + np.array([0.0, 0.02, 0.015])
-    stiff = np.array([p.initial * 1.5 ** (2 * p.scan) for p in c.parameters])  # 450 Hz
-    exact = with_pivot(c, true_pivot)
-    data = _data(e.augment(doc, with_values(exact, stiff)))
-    space = nominal_space(doc, FEW, 4000.0)
-    text = doc.to_string()
-    job = Job(text, space, data, data, data, replace(c, variants=()), CostOptions(),
-              alt_urdf=text, start_new=tuple(stiff * 1.3))  # fmt: skip
-    refined, _, _ = refine_job_pivot(job)
-    assert refined.candidate is not None
-    got = np.array(refined.candidate.spec["pivot"])
-    assert np.all(np.abs(got - true_pivot) < PIVOT_TOL_M), (got - centre, true_pivot - centre)
-
-    def refit(cand):  # type: ignore[no-untyped-def]
-        r = build(text, space, data, CostOptions(), (), with_values(cand, stiff * 1.3)).refit
-        return r.solve(r.state0, direct(150, 30))[1]
-
-    c_exact, c_got, c_centre = refit(exact), refit(refined.candidate), refit(c)
-    figures = (c_exact, c_got, c_centre)
-    assert c_got - c_exact < PIVOT_EXCESS_SHARE * (c_centre - c_exact), figures
-    assert c_centre > CENTRE_COST_FACTOR * c_got, figures
-
-
-def test_the_warm_pivot_search_finds_a_pivot_far_off_the_centre(doc):
-    """Known answer: a roll DOF under the x stage whose pivot lies 40 mm and 30 mm off the
-    bearing centre; from a refit at the bearing centre (its spring at the mode), the warm
-    search (each pivot's spring scaled to keep its frequency, the new parameters solved
-    alone) ends near the true pivot, with the state it found there."""
-    from bondid.cost.problem import CostOptions
-    from bondid.diagnose.alternatives import refine_job_pivot
-    from bondid.diagnose.augmented import build, with_values
-    from bondid.diagnose.effects import get_effect
-    from bondid.diagnose.refit import nominal_space
-    from bondid.diagnose.runner import Job, direct
-
-    e = get_effect("joint_compliance")
-    c = replace(next(c for c in e.candidates(doc) if c.location == "base->x_stage:rx"),
-                variants=())  # fmt: skip
-    centre = np.array(c.spec["pivot"])
-    true_pivot = centre + np.array([0.0, 0.04, 0.03])
-    exact = e.at_pivot(doc, c, true_pivot)  # type: ignore[attr-defined]
-    stiff = np.array([p.initial * 1.5 ** (2 * p.scan) for p in exact.parameters])  # 450 Hz
-    data = _data(e.augment(doc, with_values(exact, stiff)))
-    space = nominal_space(doc, FEW, 4000.0)
-    text = doc.to_string()
-    aug = build(text, space, data, CostOptions(), (), c)
-    start = aug.refit.with_new(aug.refit.state0, stiff)
-    state = aug.refit.solve(start, direct(150, 30))[0]
-    job = Job(text, space, data, data, data, c, CostOptions(), alt_urdf=text)
-    refined, note, found = refine_job_pivot(job, (aug, state))
-    assert refined.candidate is not None and found is not None, note
-    got = np.array(refined.candidate.spec["pivot"])
-    assert np.all(np.abs(got - true_pivot) < 2 * PIVOT_TOL_M), (got - centre, note)
-    assert "warm figure" in note
-
-
 def test_a_candidate_about_another_pivot_keeps_its_start_frequency(doc):
     """at_pivot rebuilds the start about the new pivot: the stiffness over the effective
     inertia about that pivot still puts the spring-alone mode at the reference frequency,
-    and the damper keeps its ratio; with_pivot keeps the old numbers."""
+    and the damper keeps its ratio."""
     from bondid.diagnose.effects import get_effect
     from bondid.diagnose.effects.topology import effective_inertia
-    from bondid.diagnose.pivot import with_pivot
 
     e = get_effect("joint_compliance")
     c = next(c for c in e.candidates(doc) if c.location == "base->x_stage:rx")
@@ -261,108 +189,28 @@ def test_a_candidate_about_another_pivot_keeps_its_start_frequency(doc):
     k0, d0 = (p.initial for p in c.parameters)
     assert abs(k / k0 - 1) > 0.01  # the inertia about the new pivot differs
     assert d / d0 == pytest.approx(k / k0)  # both follow the inertia: the same ratio
-    kept = with_pivot(c, pivot)
-    assert [p.initial for p in kept.parameters] == [k0, d0]
 
 
-def test_the_pivot_search_stays_inside_the_box():
-    """A cost whose minimum lies outside the box: the search ends on the box's edge."""
-    from bondid.diagnose.effects.base import Candidate
-    from bondid.diagnose.pivot import refine_pivot
-
-    spec = {"axis": [0.0, 1.0, 0.0], "pivot": [0.0, 0.0, 0.0], "kind": "revolute"}
-    c = Candidate("joint_compliance", "a->b:ry", (), spec, (), "a DOF pivot [0] mm")
-    target = np.array([0.5, 0.0, -0.2])
-    box = (np.array([-0.1, -0.1, -0.1]), np.array([0.1, 0.1, 0.1]))
-
-    seen = []
-
-    def cost(k):  # type: ignore[no-untyped-def]
-        p = np.array(k.spec["pivot"])
-        seen.append(p)
-        return float(np.sum((p - target) ** 2))
-
-    best, _, _ = refine_pivot(c, cost, np.array([0.2, 0.2, 0.2]), box=box)
-    inside = [bool(np.all(p >= box[0]) and np.all(p <= box[1])) for p in seen]
-    assert all(inside), seen
-    got = np.array(best.spec["pivot"])
-    assert got[0] == pytest.approx(0.1) and got[2] == pytest.approx(-0.1), got
-    best_free, _, _ = refine_pivot(c, cost, np.array([0.2, 0.2, 0.2]))
-    assert np.array(best_free.spec["pivot"])[0] > 0.1  # without the box it leaves it
-
-
-def test_the_grid_finds_a_narrow_basin_the_compass_search_misses():
-    """Known answer: a cost with a broad local minimum at the start and a narrow, deeper
-    basin across the box (the final fit's landscape on bonder/jcr+al/coh). The compass
-    search alone stays in the first; started from the grid's best point it reaches the
-    second within 5 mm."""
-    from bondid.diagnose.effects.base import Candidate
-    from bondid.diagnose.pivot import refine_pivot
-
-    spec = {"axis": [0.0, 1.0, 0.0], "pivot": [0.0, 0.0, 0.03], "kind": "revolute"}
-    c = Candidate("joint_compliance", "a->b:ry", (), spec, (), "a DOF pivot [0] mm")
-    deep = np.array([0.02, 0.0, -0.015])
-    box = (np.array([-0.08, -0.1, -0.025]), np.array([0.08, 0.1, 0.05]))
-
-    def cost(k):  # type: ignore[no-untyped-def]
-        p = np.array(k.spec["pivot"])
-        local = 10.0 - 3.0 * np.exp(-np.sum((p - [0.0, 0.0, 0.03]) ** 2) / 0.02**2)
-        basin = 9.7 * np.exp(-np.sum((p - deep) ** 2) / 0.025**2)
-        return float(local - basin)
-
-    extent = box[1] - box[0]
-    alone, _, _ = refine_pivot(c, cost, extent, box=box, max_evals=24)
-    assert np.linalg.norm(np.array(alone.spec["pivot"]) - deep) > 0.02
-    best, _, n = refine_pivot(c, cost, extent, box=box, max_evals=24, grid=5)
-    assert np.linalg.norm(np.array(best.spec["pivot"]) - deep) < 0.005
-    assert n <= 1 + 25 + 23  # the start, the grid, then the compass search's budget
-
-
-def test_the_pivot_box_takes_in_the_bearing_centre(doc):
-    """The reference bonder's x_stage->y_stage:ry: the bearing centre lies below the y
-    stage's hull; the box the pivot is searched in is the hull's box grown to take it in,
-    for the candidate and for each of its variants."""
-    from bondid.diagnose.effects import get_effect
-    from bondid.diagnose.effects.topology import link_box
-    from bondid.diagnose.pivot import pivot_box
-
-    cands = get_effect("joint_compliance").candidates(doc)
-    c = next(k for k in cands if k.location == "x_stage->y_stage:ry")
-    hull = link_box(doc, "y_stage")
-    assert hull is not None
-    bearing = np.array(c.spec["bearing"])
-    assert np.allclose(bearing, c.spec["pivot"])
-    assert not np.all((hull[0] <= bearing) & (bearing <= hull[1]))  # the case it is for
-    for k in (c, *c.variants):
-        box = pivot_box(k)
-        assert box is not None
-        assert np.all(box[0] <= bearing) and np.all(bearing <= box[1])
-        assert np.all(box[0] <= hull[0]) and np.all(box[1] >= hull[1])
-        assert np.allclose(k.spec["bearing"], bearing)
-
-
-def test_a_refit_above_the_noise_tries_the_other_elastic_centres(doc):
-    """Known answer: unequal mounts about the bottom face's centre; a refit of the CoM
-    variant (as if the screening had kept it) ends above the noise level, and the other
-    variants' full refits replace it by the face centre's, at a lower objective."""
+def test_a_refit_of_the_other_elastic_centres_reaches_below_the_com_one(doc):
+    """Known answer: unequal mounts about the bottom face's centre; the candidate's refit from
+    its screened starts (the CoM family and every variant's start) keeps a bottom-face
+    variant and ends below the best the CoM family alone reaches."""
     from bondid.cost.problem import CostOptions
-    from bondid.diagnose.alternatives import other_variants
     from bondid.diagnose.augmented import with_values
     from bondid.diagnose.effects import get_effect
+    from bondid.diagnose.job import Task
     from bondid.diagnose.refit import nominal_space
-    from bondid.diagnose.rescue import above_noise
-    from bondid.diagnose.runner import Job, _fit
+    from bondid.diagnose.refit_job import run_refit
 
     e = get_effect("soft_mounts")
     (c,) = e.candidates(doc)
     centre = c.variants[-1]  # the bottom face's centre
     truth = np.array([p.initial for p in centre.parameters]) * np.array(MOUNTS)
     data = _data(e.augment(doc, with_values(centre, truth)))
-    text = doc.to_string()
-    job = Job(text, nominal_space(doc, FEW, 4000.0), data, data, data, replace(c, variants=()),
-              CostOptions(), alt_urdf=text, start_new=tuple(truth), all_iter=60)  # fmt: skip
-    aug, state, res = _fit(job)
-    assert above_noise(aug.refit, state)
-    job2, aug2, state2, _ = other_variants(job, aug, state, res)
-    assert job2.candidate is not None and job2.candidate.spec["centre"] == centre.spec["centre"]
-    assert aug2.refit.cost(state2) < VARIANT_COST_SHARE * aug.refit.cost(state)
+    task = Task(doc.to_string(), nominal_space(doc, FEW, 4000.0), data, data, data,
+                CostOptions(), candidate=c, max_iter=60)  # fmt: skip
+    both = run_refit(task)
+    com = run_refit(replace(task, candidate=replace(c, variants=())))
+    assert not both.error and both.candidate is not None
+    assert both.candidate.spec["centre"][2] < c.spec["centre"][2]  # below the CoM
+    assert both.objective < VARIANT_COST_SHARE * com.objective

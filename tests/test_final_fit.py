@@ -1,4 +1,5 @@
-"""Tests of bondid.diagnose.final_fit: the final model refitted on all data."""
+"""Tests of bondid.diagnose.final_fit: the final model refitted on all data through the one
+loop (warm start, then the nominal origin), kept only when its weighted gap is lower."""
 
 from __future__ import annotations
 
@@ -26,15 +27,12 @@ GAP_RTOL = 1e-3
 
 @pytest.fixture(scope="module")
 def case():  # type: ignore[no-untyped-def]
-    return _case()
-
-
-def _case():  # type: ignore[no-untyped-def]
-    """The job of the true candidate (from its initial values) on data of the bonder with a
-    withheld joint compliance, and the withheld stiffness [N/m]."""
+    """The task of the true candidate on data of the bonder with a withheld joint
+    compliance, the withheld stiffness [N/m] and the parameter refit."""
     from bondid.diagnose.effects import get_effect
-    from bondid.diagnose.job import Job
+    from bondid.diagnose.job import Task
     from bondid.diagnose.pipeline import Settings, prepare_data
+    from bondid.diagnose.refit_job import run_refit
 
     doc = UrdfDocument.load(MODEL)
     e = get_effect("joint_compliance")
@@ -54,10 +52,20 @@ def _case():  # type: ignore[no-untyped-def]
         data.append(d)
     s = Settings(n_points=150, workers=1, effects=["joint_compliance"], free=FREE, modes=False)
     prep = prepare_data(doc, data, s)
-    job = Job(doc.to_string(), prep.space, prep.train, prep.held, prep.full, cand, prep.options,
-              start_new=tuple(p.initial for p in cand.parameters), wider=False,
-              modal=False)  # fmt: skip
-    return job, k_true
+    base = Task(doc.to_string(), prep.space, prep.train, prep.held, prep.full, prep.options)
+    refit = run_refit(base)
+    return base, cand, k_true, refit
+
+
+class _Now:
+    """A pool that runs each task at once."""
+
+    def submit(self, fn, *args):  # type: ignore[no-untyped-def]
+        from concurrent.futures import Future
+
+        fut: Future = Future()
+        fut.set_result(fn(*args))
+        return fut
 
 
 def test_final_fit_recovers_a_displaced_model(case):  # type: ignore[no-untyped-def]
@@ -65,11 +73,11 @@ def test_final_fit_recovers_a_displaced_model(case):  # type: ignore[no-untyped-
     halved), refitted on all data: back at the known stiffness, its weighted gap on all data
     no worse than the training refit's; label, effect and chain stay the source's."""
     from bondid.diagnose.augmented import with_values
-    from bondid.diagnose.final_fit import final_fit
-    from bondid.diagnose.runner import run_job
+    from bondid.diagnose.final_fit import start_final
+    from bondid.diagnose.refit_job import run_refit
 
-    job, k_true = case
-    ref = run_job(replace(job, all_iter=200, new_iter=10))  # the training refit
+    base, cand0, k_true, refit = case
+    ref = run_refit(replace(base, urdf=refit.urdf, candidate=cand0))  # the training refit
     assert not ref.error, ref.error
     (cand,) = ref.chain  # the refitted variant; its stiffness is values[at]
     at = _strength_index(cand)
@@ -80,11 +88,11 @@ def test_final_fit_recovers_a_displaced_model(case):  # type: ignore[no-untyped-
     new = np.array([p.initial for p in cand.parameters])
     new[len(new) + at] *= 0.5
     source = replace(ref, urdf=doc.to_string(), chain=(with_values(cand, new),), db_rms=np.inf)
-    out = final_fit(source, job, max_iter=200)
+    out = start_final(source, base, refit, _Now())()
     assert out.kept and out.note.endswith("kept"), out.note
     m = out.model
     assert (m.label, m.effect, m.location) == (ref.label, ref.effect, ref.location)
-    assert m.names == ref.names and len(m.chain) == 1 and m.extra["final fit"] == out.note
+    assert m.names == ref.names and len(m.chain) == 1
     assert m.db_rms <= ref.db_rms * (1.0 + GAP_RTOL), (m.db_rms, ref.db_rms)
     k = float(m.values[at])
     assert abs(k / k_true - 1.0) < STIFFNESS_TOL, (k, k_true)
@@ -102,7 +110,7 @@ def _strength_index(cand) -> int:  # type: ignore[no-untyped-def]
     return k - len(cand.parameters)
 
 
-def _result(job, **kw):  # type: ignore[no-untyped-def]
+def _result(**kw):  # type: ignore[no-untyped-def]
     from bondid.diagnose.job import JobResult
 
     base = dict(
@@ -115,100 +123,71 @@ def _result(job, **kw):  # type: ignore[no-untyped-def]
     return JobResult(**base)
 
 
-def test_final_fit_kept_only_when_it_lowers_the_gap(case):  # type: ignore[no-untyped-def]
+def test_final_fit_kept_only_when_it_lowers_the_gap():
     """Kept when the weighted gap on all data is lower; a failed or differently
     parameterised fit is not kept, with the reason in the note."""
     from bondid.diagnose.final_fit import judged
 
-    job, _k = case
-    source = _result(job)
-    better = _result(job, label="refit", effect=None, location=None, values=np.array([1.5, 3.0]),
+    source = _result()
+    better = _result(label="refit", effect=None, location=None, values=np.array([1.5, 3.0]),
                      db_rms=0.8)  # fmt: skip
-    out = judged(source, job, better)
+    out = judged(source, better)
     assert out.kept and out.model.label == "c" and out.model.effect == "joint_compliance"
     assert out.model.db_rms == 0.8 and np.allclose(out.model.values, [1.5, 3.0])
     assert out.source is source and "1.000 -> 0.800 dB, kept" in out.note
-    worse = judged(source, job, replace(better, db_rms=1.2))
+    worse = judged(source, replace(better, db_rms=1.2))
     assert not worse.kept and worse.model is source and worse.note.endswith("not kept")
-    failed = judged(source, job, replace(better, error="SolverError: boom"))
+    failed = judged(source, replace(better, error="SolverError: boom"))
     assert not failed.kept and "boom" in failed.note
-    other = judged(source, job, replace(better, names=["m", "k", "d"]))
+    other = judged(source, replace(better, names=["m", "k", "d"]))
     assert not other.kept and other.model is source
-    # the rescue's note is kept either way: in the model's notes only when the fit is kept
-    told = replace(better, extra={"rescue": "staged schedule to 0.70x, kept"})
-    assert judged(source, job, told).rescue == "staged schedule to 0.70x, kept"
-    assert judged(source, job, told).model.extra["final fit rescue"] == told.extra["rescue"]
-    refused = judged(source, job, replace(told, db_rms=1.2))
-    assert refused.rescue == told.extra["rescue"] and "final fit rescue" not in refused.model.extra
-    assert judged(source, job, better).rescue == ""
 
 
-def test_the_final_fit_solves_as_a_warm_start(case):  # type: ignore[no-untyped-def]
-    """The final job's refit hands IPOPT the warm-start options over the prior's; a job of
-    the search keeps IPOPT's default barrier."""
-    from bondid.diagnose.final_fit import final_job
-    from bondid.diagnose.runner import _setup
+def test_the_final_task_is_a_warm_refit_on_all_data(case):  # type: ignore[no-untyped-def]
+    """The final task fits all data (no held-out points), warm (IPOPT's warm-start options
+    over the prior's), with the parameter refit's nominal values as its second start; a
+    search task keeps IPOPT's default barrier."""
+    from bondid.diagnose.final_fit import final_task
+    from bondid.diagnose.refit_job import Models
     from bondid.fit.prior import PRIOR_IPOPT
     from bondid.optim.ipopt import WARM_START
 
-    job, _k = case
-    source = _result(job, urdf=job.urdf, chain=(job.candidate,))
-    warm = _setup(job.urdf, final_job(source, job, 300)).refit._ipopt_options() or {}
+    base, cand, _k, refit = case
+    source = replace(refit, label="with an effect")
+    task = final_task(source, base, refit)
+    assert task.train == base.full and task.heldout == [] and task.warm and task.fallbacks
+    n = len(base.nominal.names)
+    np.testing.assert_array_equal(task.places.nominal, refit.values[:n])
+    assert final_task(refit, base, refit).places.nominal is None  # the refit itself: no restart
+    warm = Models(task)[0].refit.ipopt_options() or {}
     assert {**PRIOR_IPOPT, **WARM_START}.items() <= warm.items()
-    search = _setup(job.urdf, job).refit._ipopt_options() or {}
+    search = Models(replace(base, candidate=cand))[0].refit.ipopt_options() or {}
     assert "mu_init" not in search
-
-
-def test_the_final_fit_runs_every_fallback_when_the_heldout_score_is_above_its_noise(case):  # type: ignore[no-untyped-def]
-    """The final job runs every fallback of the rescue when the source's held-out score is
-    above RESCUE_RATIO times the held-out noise level, not when it is below or without a
-    level."""
-    from bondid.diagnose.final_fit import final_job
-    from bondid.diagnose.rescue import RESCUE_RATIO
-
-    job, _k = case
-    source = _result(job, heldout_rms=1.0)
-    above = replace(source, heldout_rms=1.01 * RESCUE_RATIO)
-    below = replace(source, heldout_rms=0.99 * RESCUE_RATIO)
-    at_level = replace(job, heldout_noise_db=1.0)
-    assert final_job(above, at_level, 300).fallbacks_always
-    assert not final_job(below, at_level, 300).fallbacks_always
-    assert not final_job(above, replace(job, heldout_noise_db=float("nan")), 300).fallbacks_always
-    assert not job.fallbacks_always  # a search job: the rescue's own ratio test
 
 
 #: the nominal restart's nominal stiffness within this relative error of the truth's
 RESTART_TOL = 0.05
 
 
-def test_nominal_restart_brings_a_displaced_nominal_spring_back(case):  # type: ignore[no-untyped-def]
-    """Known answer (bondid.diagnose.final_restart): the true candidate's refit with a nominal
-    spring moved to a fifth (its mode far from the measured one) and the effect's parameters
-    right, as a search step can leave it; restarted from the nominal model's values (the
-    parameter refit's stand-in: the truth's nominal parameters) with the effect held, the
-    spring is back at the truth's and the objective lower: kept. It does not run without the
-    trigger, the parameter refit's text or an accepted effect."""
-    from bondid.diagnose.final_fit import final_job
-    from bondid.diagnose.final_restart import nominal_restart
-    from bondid.diagnose.runner import _setup, run_job
+def test_the_nominal_origin_brings_a_displaced_nominal_spring_back(case):  # type: ignore[no-untyped-def]
+    """Known answer: the true candidate's refit with a nominal spring moved to its lower
+    bound (its mode far from the measured one) and the effect's parameters right, as a search
+    step can leave it; the final fit's loop, whose second start puts the nominal parameters
+    back at the parameter refit's values with the effect held, brings the spring back to the
+    truth's."""
+    from bondid.diagnose.final_fit import start_final
+    from bondid.diagnose.refit_job import run_refit
 
-    job, _k = case
-    ref = run_job(replace(job, all_iter=200, new_iter=10))
+    base, cand, _k, refit = case
+    ref = run_refit(replace(base, urdf=refit.urdf, candidate=cand))
     doc = UrdfDocument.from_string(ref.urdf, source="refit")
     spring = "x_guide_ry.stiffness"
-    k_true = get_parameter(UrdfDocument.from_string(job.urdf), spring)
+    k_true = get_parameter(UrdfDocument.from_string(base.urdf), spring)
     at = list(ref.names).index(spring)
-    low = float(job.nominal.lower[list(job.nominal.names).index(spring)])
+    low = float(base.nominal.lower[list(base.nominal.names).index(spring)])
     set_parameter(doc, spring, low)  # at its lower bound, its mode far from the data's
-    final = final_job(replace(ref, urdf=doc.to_string()), replace(job, restart_urdf=job.urdf), 300)
-    refit = _setup(final.urdf, final).refit
-    stuck = replace(ref, urdf=final.urdf, objective=refit.cost(refit.state0))  # a fit ended here
-    out, note = nominal_restart(replace(final, fallbacks_always=True), stuck)
-    assert note.startswith("nominal restart from the parameter refit") and note.endswith("kept")
-    assert out.objective < stuck.objective and not out.error
-    assert abs(out.values[at] / k_true - 1.0) < RESTART_TOL, (out.values[at], k_true)
-    assert len(out.chain) == 1 and out.chain[0].label == ref.chain[0].label
-    for j in (replace(final, fallbacks_always=False), replace(final, restart_urdf=None)):
-        assert nominal_restart(j, stuck) == (stuck, "")
-    assert nominal_restart(replace(final, fallbacks_always=True), replace(stuck, chain=())) == (
-        replace(stuck, chain=()), "")  # fmt: skip
+    stuck = replace(ref, urdf=doc.to_string(), db_rms=np.inf)
+    out = start_final(stuck, base, refit, _Now())()
+    assert out.kept and not out.model.error
+    assert abs(out.model.values[at] / k_true - 1.0) < RESTART_TOL, (out.model.values[at], k_true)
+    assert len(out.model.chain) == 1 and out.model.chain[0].label == ref.chain[0].label

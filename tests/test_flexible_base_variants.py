@@ -48,32 +48,17 @@ def test_the_chain_carries_a_shorter_variant(doc):
         assert len(added) == 3 * n, (n, added)
 
 
-def test_a_variant_with_other_parameters_gets_its_own_scans(doc):
-    """:func:`with_option` keeps the screening's start for a variant with the same new
-    parameters and drops it for one with others (it would not fit their number)."""
+def test_a_chain_of_the_other_length_leads_when_the_data_are_its_own(doc):
+    """Known answer: data from a four-node chain (stiffnesses off the start); the screening
+    gives the four-node variant (other parameters: its own scans) a start of its own, which
+    leads the candidate's starts, and the refit keeps that variant, below the six-node
+    chain's best start."""
     from bondid.cost.problem import CostOptions
-    from bondid.diagnose.job import Job, with_option
-
-    (c,) = get_effect("flexible_base").candidates(doc)
-    start = tuple(p.initial for p in c.parameters)
-    job = Job(doc.to_string(), None, [], [], [], replace(c, variants=()), CostOptions(),  # type: ignore[arg-type]
-              start_new=start)  # fmt: skip
-    same = with_option(job, c)
-    assert same.start_new == start and same.candidate is not None
-    assert same.candidate.variants == ()
-    other = with_option(job, c.variants[0])
-    assert other.start_new == () and other.candidate is not None
-    assert _nodes(other.candidate) == 4
-
-
-def test_a_stuck_chain_is_replaced_by_the_other_length(doc):
-    """Known answer: data from a four-node chain (stiffnesses off the start); the six-node
-    candidate's refit (as if the screening had kept it, with its start) is replaced by the
-    four-node variant's full refit from its own scans, at a lower objective."""
-    from bondid.diagnose.alternatives import other_variants
     from bondid.diagnose.augmented import with_values
+    from bondid.diagnose.job import Task
     from bondid.diagnose.refit import nominal_space
-    from bondid.diagnose.runner import Job, _fit
+    from bondid.diagnose.refit_job import run_refit
+    from bondid.diagnose.screen import screen
 
     fb = get_effect("flexible_base")
     (c,) = fb.candidates(doc)
@@ -82,16 +67,17 @@ def test_a_stuck_chain_is_replaced_by_the_other_length(doc):
                  TRUTH_STIFFNESS, strict=True))  # fmt: skip
     truth = np.array([p.initial * k.get(p.name, 1.0) for p in four.parameters])
     data = noisy_bonder_data(fb.augment(doc, with_values(four, truth)))
-    text = doc.to_string()
-    from bondid.cost.problem import CostOptions
-
-    job = Job(text, nominal_space(doc, FEW, 4000.0), data, data, data, replace(c, variants=()),
-              CostOptions(), alt_urdf=text, start_new=tuple(p.initial for p in c.parameters),
-              all_iter=60)  # fmt: skip
-    aug, state, res = _fit(job)
-    job2, aug2, state2, _ = other_variants(job, aug, state, res)
-    assert job2.candidate is not None and _nodes(job2.candidate) == 4
-    assert aug2.refit.cost(state2) < VARIANT_COST_SHARE * aug.refit.cost(state)
+    task = Task(doc.to_string(), nominal_space(doc, FEW, 4000.0), data, data, data,
+                CostOptions(), candidate=c, max_iter=60)  # fmt: skip
+    s = screen(task)
+    assert s.variant is not None and _nodes(s.variant) == 4
+    lead = s.starts[0]
+    assert lead.variant == 1
+    six = min(st.figure for st in s.starts if st.variant == 0 and np.isfinite(st.figure))
+    assert lead.figure < VARIANT_COST_SHARE * six
+    r = run_refit(replace(task, starts=s.starts))
+    assert not r.error and r.candidate is not None and _nodes(r.candidate) == 4
+    assert r.variant == four.description
 
 
 @pytest.mark.parametrize("variant_nodes", [(1,), (4, 0), (2.5,), (True,), 4, "4"])

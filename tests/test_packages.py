@@ -73,10 +73,10 @@ def test_the_diagnosis_model_text_finds_its_meshes_in_any_folder(tmp_path, monke
     filenames made absolute (``with_absolute_meshes``) a text read in another folder finds the
     hull boxes its candidates need, and a written model gets the user's names back."""
     import numpy as np
+    from bondid.diagnose.pivot import pivot_box
 
     from bondid.diagnose.effects import get_effect
     from bondid.diagnose.effects.topology import link_box
-    from bondid.diagnose.pivot import pivot_box
     from bondid.model.packages import restore_mesh_names, with_absolute_meshes
 
     doc = UrdfDocument.load(_urdf(tmp_path, "../ws/mypkg/meshes/cube.stl"))

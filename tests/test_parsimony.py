@@ -9,8 +9,8 @@ import numpy as np
 
 from bondid.diagnose import scoring
 from bondid.diagnose.effects import available
+from bondid.diagnose.job import JobResult
 from bondid.diagnose.parsimony import entries, prefer_simpler
-from bondid.diagnose.runner import JobResult
 from bondid.diagnose.search import verdict_order
 
 CHANNELS = ("rot", "ext", "lift")

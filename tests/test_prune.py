@@ -33,8 +33,9 @@ def wrong_then_true(doc):  # type: ignore[no-untyped-def]  # noqa: F811
     """Data with a joint compliance at TRUE_AT; a search's steps as if it had accepted a
     compliance at WRONG_AT (same joint, other DOF) first and the true one second."""
     from bondid.diagnose.effects import get_effect
-    from bondid.diagnose.pipeline import _baseline_task, prepare_data
-    from bondid.diagnose.runner import Job, run_job
+    from bondid.diagnose.job import Task
+    from bondid.diagnose.pipeline import prepare_data
+    from bondid.diagnose.refit_job import run_refit
     from bondid.diagnose.scoring import score, tests
     from bondid.diagnose.search import Context, Step
 
@@ -44,16 +45,10 @@ def wrong_then_true(doc):  # type: ignore[no-untyped-def]  # noqa: F811
     p = prepare_data(doc, data, _settings(effects=["joint_compliance"], free=FEW))
     ctx = Context(doc, p.names, p.train, p.held, p.full, p.options, p.candidates,
                   space=p.space, noise=p.noise)  # fmt: skip
-    base, _ = _baseline_task(doc.to_string(), p.space, p.train, p.held, p.full, p.options,
-                             True, 100, 30)  # fmt: skip
+    base = run_refit(Task(doc.to_string(), p.space, p.train, p.held, p.full, p.options))
     s0 = score(base.heldout_rms, base.n_train, 0)
-
-    def job(urdf, cand, chain=()):  # type: ignore[no-untyped-def]
-        return Job(urdf, p.space, p.train, p.held, p.full, cand, p.options, accepted=chain,
-                   alt_urdf=doc.to_string(), wider=False)  # fmt: skip
-
-    wrong = run_job(job(base.urdf, cands[WRONG_AT]))
-    both = run_job(job(wrong.urdf, cands[TRUE_AT], wrong.chain))
+    wrong = run_refit(ctx.task(base, cands[WRONG_AT]))
+    both = run_refit(ctx.task(wrong, cands[TRUE_AT]))
     sw = score(wrong.heldout_rms, wrong.n_train, wrong.n_new)
     sb = score(both.heldout_rms, both.n_train, both.n_new)
     steps = [
@@ -162,8 +157,8 @@ def test_a_diagnosis_with_a_dropped_effect_writes_the_kept_one(doc, tmp_path, mo
     (the true effect alone) and the final fit all follow the elimination."""
     from bondid.diagnose import diagnose, pipeline, write_outputs
     from bondid.diagnose.effects import get_effect
+    from bondid.diagnose.refit_job import run_refit
     from bondid.diagnose.report import gaps, to_json_dict
-    from bondid.diagnose.runner import Job, run_job
     from bondid.diagnose.scoring import score, tests
     from bondid.diagnose.search import Step
     from bondid.diagnose.summary import summary
@@ -173,14 +168,10 @@ def test_a_diagnosis_with_a_dropped_effect_writes_the_kept_one(doc, tmp_path, mo
     cands = {c.location: c for c in e.candidates(doc)}
     data = _data(_with_values(e, doc, cands[TRUE_AT], scale=3.0))
 
-    def two_steps(ctx, pool, baseline, say, submitted=None):  # type: ignore[no-untyped-def]
-        def job(urdf, cand, chain=()):  # type: ignore[no-untyped-def]
-            return Job(urdf, ctx.space, ctx.train, ctx.heldout, ctx.full, cand, ctx.options,
-                       accepted=chain, alt_urdf=doc.to_string(), wider=False)  # fmt: skip
-
+    def two_steps(ctx, pool, baseline, say):  # type: ignore[no-untyped-def]
         s0 = score(baseline.heldout_rms, baseline.n_train, 0)
-        wrong = run_job(job(baseline.urdf, cands[WRONG_AT]))
-        both = run_job(job(wrong.urdf, cands[TRUE_AT], wrong.chain))
+        wrong = run_refit(ctx.task(baseline, cands[WRONG_AT]))
+        both = run_refit(ctx.task(wrong, cands[TRUE_AT]))
         sw = score(wrong.heldout_rms, wrong.n_train, wrong.n_new)
         sb = score(both.heldout_rms, both.n_train, both.n_new)
         return [
@@ -191,7 +182,7 @@ def test_a_diagnosis_with_a_dropped_effect_writes_the_kept_one(doc, tmp_path, mo
         ]  # fmt: skip
 
     monkeypatch.setattr(pipeline, "search", two_steps)
-    s = _settings(effects=["joint_compliance"], free=FEW, use_ipopt=True)
+    s = _settings(effects=["joint_compliance"], free=FEW)
     diag = diagnose(doc, data, s)
     content = to_json_dict(diag, gaps(diag))
     assert (content["verdict"]["effect"], content["verdict"]["location"]) == (

@@ -1,5 +1,6 @@
-"""Tests of the search's step loop (bondid.diagnose.search.search): a step whose base is
-already at the held-out noise level is recorded, not run."""
+"""Tests of the search's step loop (bondid.diagnose.search): a step whose base is already at
+the held-out noise level is recorded, not run; a step refits its candidates in the order of
+their screening figures and stops as soon as it is decided."""
 
 from __future__ import annotations
 
@@ -9,17 +10,19 @@ from types import SimpleNamespace
 import numpy as np
 
 from bondid.diagnose import scoring, search
-from bondid.diagnose.effects import Candidate
+from bondid.diagnose.effects import Candidate, NewParameter
 from bondid.diagnose.job import JobResult
+from bondid.diagnose.screen import Screening
+from bondid.diagnose.starts import StartSpec
 
 REF = scoring.NoiseReference(level_db=1.0, n_eff=400.0)
 CANDS = [Candidate("sensor_delay", loc, ()) for loc in ("x", "y", "z")]
 
 
-def _result(label: str, heldout: float, chain: tuple = ()) -> JobResult:
+def _result(label: str, heldout: float, chain: tuple = (), cand=None) -> JobResult:
     return JobResult(
         label, None, None, [], np.zeros(0), np.zeros(0), 0, heldout, heldout, 100, heldout,
-        heldout, [], "<robot/>", 0.0, chain=chain,
+        heldout, [], "<robot/>", 0.0, chain=chain, candidate=cand,
     )  # fmt: skip
 
 
@@ -27,13 +30,13 @@ def _run(monkeypatch, scores: list[float], noise=REF) -> tuple[list, list[int]]:
     """The search with fake steps: step k accepts CANDS[k] with held-out score scores[k]."""
     ran: list[int] = []
 
-    def fake_step(ctx, pool, index, base, base_score, say, queued):
+    def fake_step(ctx, pool, index, base, base_score, say):
         ran.append(index)
         win = _result(CANDS[index].label, scores[index], (*base.chain, CANDS[index]))
         return search.Step(index, base, base_score, [], [], results=[win],
                            scores=[scores[index]], winner=win, test={"accepted": True})  # fmt: skip
 
-    monkeypatch.setattr(search, "_step", fake_step)
+    monkeypatch.setattr(search, "run_step", fake_step)
     ctx = SimpleNamespace(max_effects=3, noise=noise, candidates=CANDS)
     steps = search.search(ctx, None, _result("refit", 3.0))  # type: ignore[arg-type]
     return steps, ran
@@ -61,21 +64,6 @@ def test_steps_above_the_noise_level_run_as_before(monkeypatch):
     assert ran == [0, 1, 2]
 
 
-def test_the_first_step_runs_whatever_its_base(monkeypatch):
-    """The first step's screenings and refits are the report's candidates, so it runs even
-    when its base (the parameter refit) is at the level."""
-    ran: list[int] = []
-
-    def fake_step(ctx, pool, index, base, base_score, say, queued):
-        ran.append(index)
-        return search.Step(index, base, base_score, [], [])
-
-    monkeypatch.setattr(search, "_step", fake_step)
-    ctx = SimpleNamespace(max_effects=3, noise=REF, candidates=CANDS)
-    steps = search.search(ctx, None, _result("refit", 0.9))  # type: ignore[arg-type]
-    assert ran == [0] and len(steps) == 1 and math.isclose(steps[0].base_score, 0.9)
-
-
 class _Done:
     """A finished future (the fake pool runs each task at once)."""
 
@@ -86,56 +74,110 @@ class _Done:
         return self.value
 
 
-def _first_step(monkeypatch, base_heldout: float) -> tuple[search.Step, list, list]:
-    """The real first step with fake screenings and refits: each candidate screens at 0.5
-    (training figure); returns the step, the tasks submitted and the ``submitted`` calls."""
-    from bondid.diagnose.screen import Screening
+class _Pool:
+    """Runs each task at submission; ``workers`` lanes; records what was submitted and the
+    cancellations."""
 
-    tasks: list = []
-    calls: list = []
+    def __init__(self, workers: int = 1):
+        self.workers, self.tasks, self.cancelled = workers, [], []
 
-    def fake_screen(job):
-        c = job.candidate
-        return Screening(c.label, c.effect, c.location, 0.3, 0.25, 0.0)
+    def submit(self, fn, task):
+        self.tasks.append((fn.__name__, task.candidate.label if task.candidate else None))
+        return _Done(fn(task))
 
-    def fake_run(job):
-        return _result(job.candidate.label, 0.5, (job.candidate,))
+    def first_done(self, futures):
+        return next(iter(futures))
 
-    class Pool:
-        def submit(self, fn, job):
-            tasks.append(fn.__name__)
-            return _Done(fn(job))
+    def token(self):
+        return 7
+
+    def cancel_level(self, token):
+        self.cancelled.append(token)
+
+
+#: a candidate with a strength parameter (a delay), so the rule can test it
+def _cand(loc: str) -> Candidate:
+    return Candidate("sensor_delay", loc, (NewParameter("tau_s", 1e-5, 1e-7, 1e-3, "s",
+                                                        strength=True),))  # fmt: skip
+
+
+def _step(monkeypatch, base_heldout: float, figures: dict[str, float],
+          heldout: dict[str, float], workers: int = 1, n_min: int = 2, n_max: int = 4):  # fmt: skip
+    """The real step with fake screenings (figure per candidate) and refits (held-out score
+    per candidate, strength determined)."""
+    cands = [_cand(loc) for loc in figures]
+
+    def fake_screen(task):
+        c = task.candidate
+        start = StartSpec("s", np.zeros(1), np.zeros(0), figures[c.location])
+        return Screening(c.label, c.effect, c.location, figures[c.location], (start,), 0.0)
+
+    def fake_refit(task):
+        c = task.candidate
+        r = _result(c.label, heldout[c.location], (c,), cand=c)
+        r.values, r.std, r.n_own, r.n_new = np.array([1e-5]), np.array([1e-7]), 1, 1
+        r.db_rms = heldout[c.location]
+        return r
 
     monkeypatch.setattr(search, "screen", fake_screen)
-    monkeypatch.setattr(search, "run_job", fake_run)
-    monkeypatch.setattr(search, "as_completed", lambda futs: list(futs))
-    monkeypatch.setattr(search, "second_round", lambda pool, used, results, say: results)
+    monkeypatch.setattr(search, "run_refit", fake_refit)
     ctx = SimpleNamespace(
-        max_effects=3, noise=REF, candidates=CANDS, space=object(), nominal=SimpleNamespace(
-            to_string=lambda: "<robot/>"), train=[SimpleNamespace(outputs=("x",), inputs=("x",))],
-        heldout=[], full=[], options=None,
-        refit_iter=30, n_starts=3, hints_hz=(), measured=(), n_refit=(4, 2), n_max=(6, 4),
-        n_profile=(2, 1), n_placed=(1, 1),
+        max_effects=3, noise=REF, candidates=cands, n_min=n_min, n_max=n_max,
+        train=[SimpleNamespace(outputs=("x",), inputs=("x",))],
+        task=lambda base, c, **kw: SimpleNamespace(candidate=c, **kw),
     )  # fmt: skip
     base = _result("refit", base_heldout)
-    step = search._step(ctx, Pool(), 0, base, base_heldout, lambda _l: None,
-                        lambda i, what: calls.append((i, what)))  # fmt: skip
-    return step, tasks, calls
+    base.db_rms = base_heldout
+    pool = _Pool(workers)
+    step = search.run_step(ctx, pool, 0, base, base_heldout, lambda _l: None)  # type: ignore[arg-type]
+    return step, pool
 
 
 def test_a_first_step_at_the_noise_level_screens_and_refits_nothing(monkeypatch):
-    step, tasks, calls = _first_step(monkeypatch, 1.02)
-    assert tasks == ["fake_screen"] * len(CANDS)  # screened, none refitted
-    assert len(step.screenings) == len(CANDS) and step.refitted == [] and not step.results
+    step, pool = _step(monkeypatch, 1.02, {"x": 0.3, "y": 0.4}, {"x": 0.5, "y": 0.5})
+    assert [t[0] for t in pool.tasks] == ["fake_screen"] * 2  # screened, none refitted
+    assert len(step.screenings) == 2 and step.refitted == [] and not step.results
     assert step.winner is None and not step.test["accepted"]
     assert step.test["screened"] is True and step.test["base_over_noise"] == 1.02
     assert "no candidate was refitted" in step.test["why"]
-    # the pipeline queues the final fit when the step's refits are queued: it is told
-    assert calls == [(0, "screening"), (0, "refits")]
     reason = scoring.reason(step.test, math.nan, 1.02)
     assert reason.startswith("held-out score of the base 1.020 dB:") and "nan" not in reason
 
 
-def test_a_first_step_above_the_noise_level_refits_its_best(monkeypatch):
-    step, tasks, _ = _first_step(monkeypatch, 3.0)
-    assert tasks.count("fake_run") == len(CANDS) and len(step.results) == len(CANDS)
+def test_refits_follow_the_screening_order_and_stop_once_explained(monkeypatch):
+    """The best-figured candidate is refitted first; at the held-out noise level it decides
+    the step at once, the others are not refitted."""
+    figs = {"x": 0.9, "y": 0.2, "z": 0.5}
+    step, pool = _step(monkeypatch, 3.0, figs, {"x": 2.9, "y": 1.0, "z": 2.9})
+    refits = [label for name, label in pool.tasks if name == "fake_refit"]
+    assert refits == ["sensor_delay@y"]
+    assert step.winner is not None and step.winner.label == "sensor_delay@y"
+    assert step.stopped.startswith("decided: an accepted refit is at the held-out noise level")
+    assert pool.cancelled == [7]
+
+
+def test_an_accepted_refit_above_the_level_waits_for_n_min_refits(monkeypatch):
+    figs = {"x": 0.2, "y": 0.3, "z": 0.4, "w": 0.5}
+    held = {"x": 2.0, "y": 1.5, "z": 2.9, "w": 2.9}
+    step, pool = _step(monkeypatch, 3.0, figs, held, n_min=3)
+    refits = [label for name, label in pool.tasks if name == "fake_refit"]
+    assert refits == ["sensor_delay@x", "sensor_delay@y", "sensor_delay@z"]
+    # the best held-out score wins, not the best figure
+    assert step.winner is not None and step.winner.label == "sensor_delay@y"
+    assert step.stopped == "decided: an accepted refit after 3 refits"
+
+
+def test_an_undecided_step_refits_at_most_n_max(monkeypatch):
+    figs = {k: 0.1 * (i + 1) for i, k in enumerate("abcdef")}
+    step, pool = _step(monkeypatch, 3.0, figs, dict.fromkeys(figs, 2.99), n_max=4)
+    assert len([t for t in pool.tasks if t[0] == "fake_refit"]) == 4
+    assert step.winner is None and step.stopped == "4 refits, the most of a step"
+
+
+def test_a_pool_with_more_workers_refits_that_many_at_once(monkeypatch):
+    """A cluster refits every candidate at once (n_max grows to the pool's workers)."""
+    figs = {k: 0.1 * (i + 1) for i, k in enumerate("abcdef")}
+    step, pool = _step(monkeypatch, 3.0, figs, dict.fromkeys(figs, 2.99), workers=8,
+                       n_max=4)  # fmt: skip
+    assert len([t for t in pool.tasks if t[0] == "fake_refit"]) == 6
+    assert step.stopped == "every screened candidate refitted"

@@ -11,7 +11,7 @@ import pytest
 
 from bondid.diagnose import scoring
 from bondid.diagnose.effects.base import Candidate, NewParameter
-from bondid.diagnose.runner import JobResult
+from bondid.diagnose.job import JobResult
 from bondid.diagnose.search import verdict_order
 from bondid.fit.result import parameter_statistics
 

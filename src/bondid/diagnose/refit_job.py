@@ -41,6 +41,11 @@ from .refit import Refit, State
 from .starts import FAILURES, HELD_ITER, Places, StartSpec, candidate_starts, held_schedule
 
 
+#: the parameter refit's band continuation: bands and IPOPT iterations per band
+FALLBACK_BANDS = 4
+FALLBACK_BAND_ITER = 30
+
+
 def options_of(cand: Candidate | None) -> list[Candidate | None]:
     """The candidate and its variants (variants cleared), or ``[None]``."""
     from dataclasses import replace
@@ -73,24 +78,51 @@ class Models:
 
 
 def screening_starts(models: Models, places: Places) -> list[StartSpec]:
-    """Every option's starts (:func:`.starts.candidate_starts`), the candidate's own first
-    then by figure: the best start of each option, then the rest."""
-    per: list[list[StartSpec]] = []
-    for k, option in enumerate(models.options):
-        if option is None:
-            continue
+    """The starts of a task's candidate and its variants, in the order a refit tries them.
+
+    The candidate's own starts (:func:`.starts.candidate_starts`) come first in line; each
+    variant (the same effect at the same place, differing in a detail no fit varies, e.g.
+    a pivot) gets one start, from the candidate's best new values when it has the same
+    parameters (else its own best scan start), and takes its place among the others by its
+    figure. The nominal origin of the best start stays second (see :mod:`.starts`).
+    """
+    own_option = models.options[0]
+    if own_option is None:
+        return []
+    own = candidate_starts(models[0].refit, own_option, places, 0)
+    extra: list[StartSpec] = []
+    for k, option in enumerate(models.options[1:], start=1):
+        assert option is not None
         try:
-            per.append(candidate_starts(models[k].refit, option, places, k))
+            extra += _variant_start(models, k, option, own, places)
         except FAILURES:
             continue
-    per = [p for p in per if p]
-    firsts = sorted((p[0] for p in per), key=lambda s: s.figure)
-    rest = sorted((s for p in per for s in p[1:]),
-                  key=lambda s: (not math.isfinite(s.figure), s.figure))  # fmt: skip
-    # the nominal origin of the best option stays second in line (see .starts)
-    best = next((p for p in per if firsts and p[0] is firsts[0]), [])
-    second = [s for s in best[1:2] if not math.isfinite(s.figure)]
-    return [*firsts[:1], *second, *firsts[1:], *(s for s in rest if s not in second)]
+    if not own:
+        return sorted(extra, key=lambda s: s.figure)
+    lead = min([own[0], *extra], key=lambda s: s.figure)
+    second = [s for s in own[1:2] if not math.isfinite(s.figure)] if lead is own[0] else []
+    taken = [lead, *second]
+    rest = [s for s in [*own, *extra] if not any(s is t for t in taken)]
+    rest.sort(key=lambda s: (not math.isfinite(s.figure), s.figure))
+    return [*taken, *rest]
+
+
+def _variant_start(
+    models: Models, k: int, option: Candidate, own: list[StartSpec], places: Places
+) -> list[StartSpec]:
+    """The one start of variant ``k`` (see :func:`screening_starts`)."""
+    from .starts import NEW_ITER, spec_of
+
+    refit = models[k].refit
+    cand = models.options[0]
+    assert cand is not None
+    same = [p.name for p in option.parameters] == [p.name for p in cand.parameters]
+    if not (same and own):
+        return candidate_starts(refit, option, Places(places.missing, places.worst), k)[:1]
+    best = own[0]
+    new = models[0].refit.new_values(State(best.x, best.theta))
+    state, _ = refit.solve_new(refit.with_new(refit.state0, new), NEW_ITER)
+    return [spec_of(refit, f"{best.label}, {option.description}", state, k)]
 
 
 def _starts(task: Task, models: Models) -> Iterator[Start]:
@@ -106,8 +138,10 @@ def _starts(task: Task, models: Models) -> Iterator[Start]:
             x[: refit.n_nominal] = task.places.nominal
             yield Start("nominal origin", x, refit.state0.theta.copy(), direct(0), payload=0)
         if task.fallbacks:
-            if not task.warm:
-                yield Start("band continuation", steps=lambda p: continuation(p, 8), payload=0)
+            if not task.warm:  # a light continuation: a refit above the level usually lacks
+                # an effect, which no schedule supplies; a bad basin needs only a few bands
+                yield Start("band continuation", steps=lambda p: continuation(
+                    p, FALLBACK_BANDS, band_iter=FALLBACK_BAND_ITER), payload=0)  # fmt: skip
             yield Start("staged schedule", steps=lambda p: staged(p, max_iter=task.max_iter),
                         payload=0)  # fmt: skip
         return

@@ -15,8 +15,8 @@ from the physics and the data, so the starts come from there:
   bent nominal parameters to mimic what the candidate does, and from there the candidate
   first makes the fit worse; from the nominal values they can unbend.
 
-Each start's new parameters are first fitted alone for a few iterations (the nominal ones
-held), then given their **figure**: the training objective after one Levenberg–Marquardt
+Each scanned start's new parameters are first fitted alone for a few iterations (the
+nominal ones held; a placed start stays placed), then every start gets its **figure**: the training objective after one Levenberg–Marquardt
 step over every parameter on the linearised residual (:func:`predicted_cost`), i.e. the
 score-test idea taken where the new parameters are no longer "absent" (a compliance at
 infinite stiffness has no gradient), plus the first-order gain of letting the nominal
@@ -168,16 +168,20 @@ def candidate_starts(
     seen: list[np.ndarray] = []
     for label, s in _scales(refit, cand, places):
         state = refit.with_new(refit.state0, v0 * s**exps)
-        try:
-            state, _ = refit.solve_new(state, NEW_ITER)
-        except FAILURES:
-            continue
+        # a placed start stays where it was placed: where the parameter refit has bent the
+        # model around the missing mode, a solve of the new parameters alone runs the spring
+        # out of the band; the held schedule of the refit lets the model relax around it
+        if not label.startswith("mode at"):
+            try:
+                state, _ = refit.solve_new(state, NEW_ITER)
+            except FAILURES:
+                continue
         new = refit.new_values(state)
         if any(np.all(np.abs(np.log(np.maximum(new, 1e-300) / np.maximum(o, 1e-300)))
                       < math.log(SAME_START)) for o in seen):  # fmt: skip
             continue
         seen.append(new)
-        out.append(_spec(refit, label, state, variant))
+        out.append(spec_of(refit, label, state, variant))
     out = [s for s in out if math.isfinite(s.figure)]
     out.sort(key=lambda s: s.figure)
     if places.nominal is not None and out:
@@ -192,7 +196,7 @@ def candidate_starts(
     return out
 
 
-def _spec(refit: Refit, label: str, state: State, variant: int) -> StartSpec:
+def spec_of(refit: Refit, label: str, state: State, variant: int) -> StartSpec:
     """The start of ``state`` with its figure."""
     return StartSpec(label, state.x.copy(), state.theta.copy(), predicted_cost(refit, state),
                      variant)  # fmt: skip

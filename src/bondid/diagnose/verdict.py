@@ -115,7 +115,8 @@ def verdict_entry(
     ``nominal``: the weighted gaps [dB] of the parameter refit and the nominal model;
     ``where``: the gap (by channel and band) of the model with the verdict's effect."""
     kept = kept_effects(diag)
-    answer = diag.outcome.as_dict() if diag.outcome is not None else {}
+    out = getattr(diag, "outcome", None)
+    answer = out.as_dict() if out is not None else {}
     if kept:
         k = kept[0]
         c = k.model.chain[0]

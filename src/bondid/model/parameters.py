@@ -119,6 +119,9 @@ def parameter_names(doc: UrdfDocument) -> list[str]:
 
 
 def _info(doc: UrdfDocument, name: str) -> ParameterInfo:
+    quick = _quick_info(doc, name)
+    if quick is not None:
+        return quick
     for p in parameter_infos(doc):
         if p.name == name:
             return p
@@ -127,6 +130,43 @@ def _info(doc: UrdfDocument, name: str) -> ParameterInfo:
         " LINK.mass, LINK.com.x, LINK.inertia.ixy, JOINT.stiffness, JOINT.damping"
         " (see `bondid.model.parameter_names`)"
     )
+
+
+def _quick_info(doc: UrdfDocument, name: str) -> ParameterInfo | None:
+    """The info of a joint spring or damper named ``name``, read off the joint alone (the
+    parameters a fit reads and writes most; :func:`parameter_infos` rebuilds every info of
+    the document), or None for any other name or a joint that has no such parameter."""
+    owner, _, kind = name.rpartition(".")
+    if kind in COM_AXES or kind in INERTIA_COMPONENTS or kind == "mass":
+        return _quick_link_info(doc, name)
+    if kind not in ("stiffness", "damping") or not owner:
+        return None
+    for j in doc.robot.joints:
+        if j.name == owner:
+            if j.type not in ("revolute", "continuous", "prismatic"):
+                return None
+            if getattr(j, "mimic", None):
+                return None
+            ku, du = _joint_units(j.type)
+            return ParameterInfo(name, kind, owner, None, ku if kind == "stiffness" else du)
+    return None
+
+
+def _quick_link_info(doc: UrdfDocument, name: str) -> ParameterInfo | None:
+    """:func:`_quick_info` of a link's mass, CoM or inertia component."""
+    parts = name.split(".")
+    if len(parts) == 2 and parts[1] == "mass":
+        link, kind, comp, unit = parts[0], "mass", None, "kg"
+    elif len(parts) == 3 and parts[1] == "com" and parts[2] in COM_AXES:
+        link, kind, comp, unit = parts[0], "com", parts[2], "m"
+    elif len(parts) == 3 and parts[1] == "inertia" and parts[2] in INERTIA_COMPONENTS:
+        link, kind, comp, unit = parts[0], "inertia", parts[2], "kg*m^2"
+    else:
+        return None
+    lk = next((x for x in doc.robot.links if x.name == link), None)
+    if lk is None or not carries_mass(lk) or link in doc.grounded_links():
+        return None
+    return ParameterInfo(name, kind, link, comp, unit)
 
 
 def link_inertial(doc: UrdfDocument, link: str) -> tuple[float, np.ndarray, np.ndarray]:
