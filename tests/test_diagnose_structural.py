@@ -86,7 +86,7 @@ def test_soft_mounts_carry_elastic_centre_variants(doc):
 
 def test_unequal_mounts_below_the_com_are_refitted_to_the_truth(doc):
     """Known answer: data from the nominal model on six unequal mounts about the bottom face.
-    The screening of the variants keeps the bottom-face centre; its refit from 30 % off
+    The screening gives the bottom-face centre a start; its refit from 30 % off
     recovers every stiffness; the CoM candidate (the family before the variants) cannot reach
     the same cost."""
     from bondid.cost.problem import CostOptions
@@ -104,9 +104,11 @@ def test_unequal_mounts_below_the_com_are_refitted_to_the_truth(doc):
     data = _data(e.augment(doc, with_values(target, truth)))
     space = nominal_space(doc, FEW, 4000.0)
     text = doc.to_string()
-    picked = screen(Task(text, space, data, data, data, CostOptions(), candidate=c)).variant
-    assert picked is not None
-    assert picked.spec["centre"] == target.spec["centre"], picked.description
+    # the screening gives the bottom-face centre a start of its own (whether its one-step
+    # figure leads is not decided by so little; the candidate's refit decides, see below)
+    scr = screen(Task(text, space, data, data, data, CostOptions(), candidate=c))
+    options = [c, *c.variants]
+    assert any(options[st.variant].spec["centre"] == target.spec["centre"] for st in scr.starts)
 
     def refit(cand, values):  # type: ignore[no-untyped-def]
         r = build(text, space, data, CostOptions(), (), with_values(cand, values)).refit

@@ -174,9 +174,9 @@ def point_noise_to_signal(
       the same points (from ``ds`` itself when they do not map).
     * ``"weights"``: the ``N/S`` the weights themselves hold (``w = 1/(1 + N/S)``; the
       estimate's part with the cautious ``P̄ − 3N̂``): the level comes out 10–20 % high.
-      The diagnosis' rescue and screening thresholds (:mod:`bondid.diagnose.rescue`,
-      :mod:`bondid.diagnose.screen`): there the training data hold only the weights, and
-      their thresholds are heuristics on when more work is worth it, calibrated on this level.
+      The stopping test of a diagnosis refit's loop (:mod:`bondid.diagnose.refit_job`):
+      there the training data hold only the weights; it decides when more starts are
+      worth it, not a statistical claim.
 
     Under ``weighting="coherence"`` the coherence is taken as it is on either basis (it holds
     no estimate to take the prediction's signal from).

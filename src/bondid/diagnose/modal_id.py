@@ -27,13 +27,9 @@ orders, is physical (0 < ζ < ``zeta_max``) and lies in the fitted band less an
 FRF has several complete output rows, each row is also identified alone, and a mode a row
 finds that the whole matrix does not (farther than 2·``tol_f`` from all of its modes, and an
 ``edge_margin`` inside the data's ends) is added: when the channels' noise floors differ, the
-joint fit can lose every mode that only some channels carry. Measured on the blind
-benchmark's data as the diagnosis sees them (bonder, harsh floor −40 dB below each
-channel's median, no coherence): the direct channels are noise above ~300 Hz while the cross
-channels carry the modes at 40–70 dB SNR; the whole matrix gave 1 of the truth's 10 modes,
-output row x alone all 10. Over the 74 benchmark cases (both operating points), the truth's
-modes of prominence ≥ 0.1 found within 3 % went from 1021 to 1372 of 1521, the modes not in
-the truth from 2 to 3. With
+joint fit can lose every mode that only some channels carry (e.g. direct channels in the
+noise above a few hundred hertz while the cross channels carry the modes at 40–70 dB SNR:
+the whole matrix then finds one mode where a single output row finds them all). With
 ``refine`` each band's poles are then polished by nonlinear least squares on the FRF
 itself (variable projection over ``ln ω``, ``ln ζ``; error weighted by
 ``√(γ²/(1−γ²))/|H|``, γ² the coherence, i.e. by the inverse noise level). Residues come
@@ -42,8 +38,8 @@ for the rigid-body mass lines, upper ``1, s``), and modes whose prominence is be
 ``min_prominence`` (computational poles) are dropped. Output rows holding a missing
 channel are left out of the pole estimation; where no output row is complete (e.g. only the
 drive points were measured), each present channel is identified alone and their modes
-merged, as the rows are (stop 51: such files used to get no modes at all, and the diagnosis
-then had no measured modes to start its structural candidates from).
+merged, as the rows are (without it such files would give no modes at all, and the
+diagnosis no measured modes to place its structural candidates at).
 """
 
 from __future__ import annotations

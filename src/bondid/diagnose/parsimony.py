@@ -9,9 +9,8 @@ explains as much: that one is tested and named, the other listed as indistinguis
 The case it is for: a pure delay on every output and a second-order lag on every input are
 both one common factor on the whole FRF matrix. Below its corner a well-damped second-order
 lag (ζ ≈ 0.6–0.9, a Bessel-like loop) has a nearly flat magnitude and a nearly linear phase,
-i.e. it is a delay to within the noise (measured, blind benchmark, withheld delay of 35 µs on
-every output, mobility data: the delay's refit τ = 34.3 µs at 0.867 dB held-out, the lag's
-T = 30.7 µs, T₂ = 25.8 µs at 0.865 dB, Λ = 0.83 against a held-out noise level of 0.881 dB).
+i.e. it is a delay to within the noise: on data with a 35 µs delay on every output, a refitted
+lag (T ≈ 31 µs, T₂ ≈ 26 µs) scores within a fraction of the noise of the refitted delay.
 A lag the data do tell from a delay (a magnitude roll-off in band) is not affected: its
 score then beats the delay's by more than the noise.
 

@@ -1,6 +1,6 @@
 """The starting-point scan grid of a candidate: :func:`scan_grid`.
 
-One rule for the screening (:mod:`.screen`) and the full refit (:mod:`.runner`): the
+The rule of the candidate starts' scale scan (:mod:`.starts`): the
 candidate's own grid of scale factors (:attr:`~.effects.base.Candidate.scan_grid`), plus, for
 a structural candidate, the factors that put its mode at each measured mode the refitted model
 lacks. Scaling the ``scan = 1`` parameters (stiffnesses) by ``s`` moves the candidate's mode

@@ -27,7 +27,7 @@
      ``χ²_p`` when the candidate adds nothing; held-out points with information weights (not
      1/variance) follow no such law, hence the small ``α``. The threshold grows with ``p``
      as the ``χ²_p`` quantile does (``p + O(√p)``, 9.0 for ``p = 1``, 10.7 for 2, 16.7 for
-     7), not in proportion to ``p``: ``z²·p`` (the rule until stop 20) asked a 7-parameter
+     7), not in proportion to ``p``: a threshold of ``z²·p`` would ask a 7-parameter
      flexible base for a statistic 3.8× what pure noise reaches at that rate. **And** the
      candidate removes at least :data:`MIN_EXCESS_SHARE` of the base's excess over the noise,
      ``s₀² − s₁² ≥ MIN_EXCESS_SHARE · (s₀² − L²)`` (a refit that lands in another basin moves
@@ -44,10 +44,9 @@
   ``τ = 0`` (the absent effect); for a stiffness ``k`` the compliance ``1/k`` has the same
   relative std to first order, so it is the Wald test of a zero compliance. A refit that
   lowers the held-out score while its strength stays undetermined trades the new parameter
-  against the nominal ones (another basin, a retuned model) rather than showing the effect.
-  Replayed on 114 kept diagnosis outputs of stops 19–24 (189 steps), every accepted effect
-  at a withheld place had ``z ≥ 19``; the rule changed 6 steps, each a claim at a wrong
-  place (``z`` 0.03–0.69) that it removes, and no other.
+  against the nominal ones (another basin, a retuned model) rather than showing the effect:
+  an effect the data really show is determined many times over (``z`` in the tens), while
+  a refit at a wrong place that lowers the score by trading parameters has ``z`` below 1.
 * **indistinguishable** (:func:`indistinguishable`): a refitted candidate whose score ``sⱼ``
   the best one's does not beat by the significance part of the rule taken with one
   parameter, ``n (sⱼ² − s₁²) / L² ≤ ½ χ²₁⁻¹(1 − α)`` (without a noise reference: not lower
@@ -70,12 +69,14 @@ import numpy as np
 
 from ..cost.problem import CostOptions
 from ..data.measurement import FrfData
+from ..optim.noise import AT_LEVEL
 
 #: fallback rule (no noise reference): relative and absolute margins of the score
 REL_MARGIN = 0.05
 ABS_MARGIN_DB = 0.05
-#: "at the noise level": within this share of the predicted level (as the fit's fallback)
-LEVEL_TOL = 0.10
+#: "at the noise level": within this share of the predicted level (the package's one test,
+#: :data:`bondid.optim.noise.AT_LEVEL`)
+LEVEL_TOL = AT_LEVEL - 1.0
 #: normal quantile of the base-above-noise test (one-sided: 3 ≈ 0.13 % false alarms on pure
 #: noise); the significance test's threshold is ``Z²`` per added parameter (module docstring)
 Z = 3.0

@@ -108,15 +108,14 @@ def build_parser() -> argparse.ArgumentParser:
     )  # fmt: skip
     p.add_argument(
         "--fallback", type=int, metavar="N",
-        help="when a direct or staged fit ends more than 10 %% above the predicted noise level,"
-        " run the band continuation with N bands from the same start and keep the better"
-        " (default 8; 0 = off)",
+        help="when a direct or staged fit ends above the noise level (more than 10 %% above the"
+        " predicted level), try the band continuation with N bands and the staged schedule"
+        " from the same start, keeping the best (default 8; 0 = off)",
     )  # fmt: skip
     p.add_argument(
         "--fallback-starts", type=int, metavar="N",
-        help="when a single-start fit still ends more than 30 %% above the predicted noise"
-        " level after the fallback, run a multistart of N starts (the first is the fit already"
-        " done) and keep the best (default 4; 0 = off)",
+        help="then, while the fit is above the noise level and a restart still improves, up to"
+        " N-1 random starts within the prior's box (default 4; 0 = off)",
     )  # fmt: skip
     add_drop_nan_arg(p)
     p.add_argument("--out", type=Path, default=None, help="folder for the results")

@@ -146,12 +146,13 @@ class StudySettings:
         max_iter: IPOPT iteration limit per fit.
         presolve: IPOPT iterations on the normalised complex error before a log-cost fit
             (:data:`bondid.fit.solver.PRESOLVE_ITER`; 0 = none).
-        fallback: bands of the band continuation run when a direct or staged search ends
-            above the predicted noise level (:mod:`bondid.optim.fallback`); 0 = off.
-        fallback_starts: starts of the multistart run when the search (fallbacks
-            included) still ends above :data:`bondid.fit.multistart.STARTS_RATIO` times the
-            predicted noise level (:func:`bondid.fit.multistart.run_multistart`); 0 or 1 =
-            off. Only for a single-start search with the fallback on.
+        fallback: bands of the band continuation the fit tries (with the staged schedule)
+            when a direct or staged search ends above the noise level
+            (:meth:`bondid.optim.schedules.Strategy.starts`); 0 = off.
+        fallback_starts: after those, up to ``fallback_starts - 1`` random starts while the
+            fit is above the noise level and a restart still improves
+            (:func:`bondid.optim.multistart.keep_best`); 0 or 1 = off. Only for a
+            single-start search.
         source: the study file, or None.
         points, gains: measurement points and transducer gains declared in the study
             (:mod:`bondid.model.points`); points_file: a TOML file with more of them.

@@ -7,8 +7,9 @@
 * :func:`solve` (:mod:`.ipopt`, the only module that talks to CasADi/IPOPT) → :class:`Solution`.
 * :func:`run_search` (:mod:`.search`) over a schedule of :class:`Step` (:mod:`.schedules`:
   ``direct``, ``staged``, ``continuation``) → :class:`SearchResult`;
-  :func:`run_to_noise` (:mod:`.fallback`): the same, plus the band continuation when the
-  search ends above the predicted noise level.
+* :func:`keep_best` (:mod:`.multistart`): the one way out of a bad basin — searches from
+  ranked starts, the best kept, stopped at the noise level (:class:`NoisePolicy`,
+  :mod:`.noise`), when a restart cannot improve, or when one budget is spent.
 
 Names are imported lazily (CasADi and Pinocchio load when a problem is built).
 """
@@ -26,7 +27,10 @@ _LAZY = {
     "Step": "search",
     "StepResult": "search",
     "run_search": "search",
-    "run_to_noise": "fallback",
+    "keep_best": "multistart",
+    "Start": "multistart",
+    "Budget": "multistart",
+    "NoisePolicy": "noise",
     "fit_result": "outcome",
     "TiedParameters": "tied",
 }

@@ -14,19 +14,13 @@ translation and five wave-like elastic modes at frequency ratios 1 : 1.9 : 2.6 :
 URDF that can be written out, and its first modes follow the continuum's.) A real chassis is
 not square, so the two shear directions have their own stiffness.
 
-Why six nodes: a measured band usually holds more of a chassis' wave modes than the first
-two or three, and a chain has ``N − 1`` per direction. Measured on the blind benchmark's
-withheld 5-lump bases (``tools/truth_refit.py``, the true candidate refitted by the
-diagnosis's own steps, training / held-out weighted dB against the truth model's): with
-``N = 4``, polar/fb/acc ended at 0.941 / 0.987 (truth 0.512 / 0.664), also when started from
-the truth's nominal parameters, and gantry/fb/coh at 0.757 / 0.811 (truth 0.562 / 0.602);
-with ``N = 6`` at 0.518 / 0.675 and 0.613 / 0.782. Neither length is best everywhere:
-polar/fb/mob ended at 0.736 / 0.961 with ``N = 4`` but stuck at 1.289 / 1.772 with ``N = 6``
-(truth 0.709 / 0.736). So the candidate carries a four-node chain as its variant
-(:data:`VARIANT_NODES`; ``spec["nodes"]`` tells them apart): the screening keeps the one whose
-start fits best, and a refit that stays above the noise level gets the other's full refit
-from its own scans (:func:`..alternatives.other_variants`; the node masses differ, so the
-screening's start does not carry over: :func:`..job.with_option`).
+Why six nodes, and a four-node variant: a measured band usually holds more of a chassis'
+wave modes than the first two or three, and a chain has ``N − 1`` per direction; but a chain
+whose shape is not the chassis' may stall where a shorter one fits, and neither length fits
+every chassis best. So the candidate carries a four-node chain as its variant
+(:data:`VARIANT_NODES`; ``spec["nodes"]`` tells them apart); the node masses differ, so the
+variant gets starts of its own (:func:`..refit_job.screening_starts`), and a refit tries the
+best-figured starts of both.
 
 Joints: ``flexible_base_{level}_{tx,ty,tz}``, level 0 the free bottom, 1 … N−1 the elastic
 segments; links ``flexible_base_0`` (bottom) … ``flexible_base_{N−2}``. One candidate, located
@@ -39,13 +33,10 @@ the nominal model's FRF, so no fit of it ever tested that mass (it is often a pl
 it is as uncertain as any other mass), and a real chassis is seldom a uniform rod (a heavy bed
 plate puts its mass low, a top plate high; the share that rides with the stages sets how
 strongly the chain's modes show in the drives' FRFs, the distribution the ratios of the
-modes). Measured on the blind benchmark's withheld 5-lump bases, heavier at the bottom, whose
-total mass carries the benchmark's 10–30 % error, with four nodes: the true candidate's refit
-ended at 1.46×, 1.34× and 1.14× the truth model's training figure with the lower nodes held at
-``M`` (its share split as above), at 1.09×, 1.16× and 1.03× with every node free
-(bonder_b/fb/nocoh, bonder_b/fb/acc, bonder/fb/coh; ``tools/truth_refit.py``). Start: first
+modes); held at the rod's shares, the true chain's refit of a chassis heavier at the bottom
+stays well above the truth model's figure. Start: first
 shear modes at 1 kHz (compression 3.5× stiffer, as for ν ≈ 0.3), 2 % damping; the scan moves
-all stiffnesses together from 100 Hz to 12 kHz, then each stiffness alone (:mod:`..runner`).
+all stiffnesses together from 100 Hz to 12 kHz (:mod:`..starts`).
 """
 
 from __future__ import annotations

@@ -23,13 +23,10 @@ Why a damping per direction: the damper is linear in its parameter, so ``ζ`` is
 ratio at the start stiffness only; once the fit moves each stiffness its own way, mounts of
 equal damping ratio (rubber, whose loss factor is much the same in every direction) have
 dampers in the ratio of ``√(k·m)``, which one ratio shared by three directions cannot follow.
-Measured (stop 36), gantry with withheld mounts of 4 % in every direction, accelerance data:
-with the truth's stiffnesses and inertias, two shared ratios leave 0.21 dB RMS, up to 2.2 dB
-in the cross channels at 10.7 Hz, where one per direction leaves none; the true candidate's
-refit (``tools/truth_refit.py --cases gantry/sm/acc``) ended at 0.674 dB held-out (the truth
-model 0.568) where the search's refit with two ratios had ended at 1.60 dB. The price: a
-mount direction the data do not show is not determined (its spring and damper may go
-anywhere at the same cost).
+With mounts of the same 4 % damping in every direction and the true stiffnesses, two shared
+ratios leave errors of up to 2 dB in the cross channels near the rocking modes, where one
+ratio per direction leaves none. The price: a mount direction the data do not show is not
+determined (its spring and damper may go anywhere at the same cost).
 """
 
 from __future__ import annotations
