@@ -14,7 +14,7 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from .exceptions import BondidError, ComputationError
 
@@ -253,6 +253,23 @@ class Progress:
             return
         line = f"{self.label}: done {info} [{time.perf_counter() - self.t0:.1f} s]"
         print(("\r" + line) if self._tty else line, file=sys.stderr, flush=True)
+
+
+class _JoinNames(argparse.Action):
+    """Store the names of one or more values (``a b`` or ``a,b``, repeatable) as one
+    comma-separated string."""
+
+    def __call__(self, parser: Any, namespace: Any, values: Any, option_string: Any = None):
+        before = getattr(namespace, self.dest, None) or ""
+        setattr(namespace, self.dest, ",".join(split_names([before, *values])))
+
+
+def add_channels_arg(p: Any, text: str = "channels OUT.IN to use") -> None:
+    """``--channels`` taking ``x.x y.y`` as well as ``x.x,y.y`` (stored comma-separated)."""
+    p.add_argument(
+        "--channels", nargs="+", action=_JoinNames, default=None, metavar="OUT.IN",
+        help=f"{text}, e.g. x.x y.y or x.x,y.y (OUT.IN = response at OUT to the excitation at IN)",
+    )  # fmt: skip
 
 
 def split_names(values: Sequence[str] | None) -> list[str]:

@@ -27,12 +27,12 @@ from ..cli import (
     warn_lines,
 )
 from ..cost.problem import CostOptions
-from ..cost.selection import informative_only
+from ..cost.selection import channels_by_file, informative_only
 from ..data.measurement import FrfData
 from ..exceptions import ConfigError, DependencyError, SolverError
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameters, parameter_infos, select_parameters
-from .headline import headline_lines
+from .headline import headline_lines, std_footer
 from .options import build_parser, resolve_settings
 from .study import (
     KINDS,
@@ -206,10 +206,18 @@ def summary(result: Any, content: dict[str, Any] | None, extra: dict[str, Any]) 
         lines.append(f"stage {st['name']}: {info}")
     w = max([len("parameter"), *(len(n) for n in result.names)])
     lines.append(f"{'parameter':<{w}}  {'initial':>12}  {'fitted':>12}  {'change':>9}  {'std':>10}")
+    n_bound = 0
     for i, n in enumerate(result.names):
         a, b, sd = float(result.initial[i]), float(result.fitted[i]), float(result.std[i])
         ch = f"{100 * (b - a) / abs(a):+.2f} %" if a != 0 else f"{b - a:+.3g}"
-        lines.append(f"{n:<{w}}  {_fmt(a):>12}  {_fmt(b):>12}  {ch:>9}  {_fmt(sd):>10}")
+        lo, hi = float(result.lower[i]), float(result.upper[i])
+        bound = any(math.isfinite(x) and abs(b - x) <= 1e-6 * max(abs(x), 1e-12) for x in (lo, hi))
+        n_bound += bound
+        mark = "  [bound]" if bound else ""
+        lines.append(f"{n:<{w}}  {_fmt(a):>12}  {_fmt(b):>12}  {ch:>9}  {_fmt(sd):>10}{mark}")
+    footer = std_footer([float(v) for v in result.std], n_bound)
+    if footer:
+        lines.append(footer)
     if result.active_constraints:
         lines.append("active constraints: " + "; ".join(result.active_constraints))
     for note in getattr(result, "notes", []) or []:
@@ -245,7 +253,7 @@ def _load(args: argparse.Namespace, s: StudySettings) -> dict[str, Any]:
     return {
         "inputs": inputs, "res": res, "doc": doc, "warnings": warnings, "datasets": datasets,
         "options": options, "names": names, "lower": lower, "upper": upper,
-        "left_out": left_out,
+        "left_out": left_out, "quantities": [ds.quantity for ds in raw],
     }  # fmt: skip
 
 
@@ -336,8 +344,11 @@ def _body(args: argparse.Namespace) -> int:
         "study_file": None if s.source is None else str(s.source),
         "settings": s.to_json_dict(), "multistart": ms.spread(),
         "stages": [st.to_json_dict() for st in ms.best_run.stages] or None,
-        "warnings": warnings, "channels_left_out": w["left_out"],
+        "warnings": warnings,
     }  # fmt: skip
+    extra["channels_left_out"], extra["channels_by_file"] = channels_by_file(
+        w["datasets"], w["options"], w["left_out"]
+    )
     content = None
     if res is not None:
         histories = [r.result.cost_history if r.result else [] for r in ms.runs]
@@ -345,6 +356,7 @@ def _body(args: argparse.Namespace) -> int:
             res.tmp, result=result, initial_doc=w["doc"], datasets=w["datasets"],
             options=w["options"], inputs=w["inputs"], histories=histories,
             history_labels=[f"start {r.index}" for r in ms.runs], extra=extra,
+            file_quantities=w["quantities"],
         )  # fmt: skip
         res.commit(warnings=warnings, main=FIT_JSON)
     print(summary(result, content, extra))

@@ -8,6 +8,7 @@ import math
 from pathlib import Path
 
 from ..cli import (
+    add_channels_arg,
     add_drop_nan_arg,
     add_floating_base_arg,
     add_package_path_arg,
@@ -67,7 +68,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--band", action="append", type=parse_band, metavar="F_LO:F_HI",
         help="frequency band to fit, Hz; repeatable",
     )  # fmt: skip
-    p.add_argument("--channels", help="channels to fit, e.g. x.x,y.y (default: all in the data)")
+    add_channels_arg(p, "channels to fit (default: those above the noise floor, file by file)")
     p.add_argument(
         "--weight",
         action="append",

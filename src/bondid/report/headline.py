@@ -133,7 +133,8 @@ def fit_headline(fit: Any) -> FitHeadline | None:
         on_bound=[str(p.get("name", "?")) for p in params if at_bound(p)],
         left_out=left_out,
     )
-    h.no_figure = _no_figure(db)
+    listed = db.get("no_figure")
+    h.no_figure = [str(x) for x in listed] if isinstance(listed, list) else _no_figure(db)
     return h
 
 
