@@ -263,22 +263,24 @@ def _search(s: StudySettings, w: dict[str, Any], quiet: bool) -> Any:
     from .multistart import run_multistart
 
     single = s.multistart == 1 or s.workers == 1
+    # one start: a bar over the IPOPT iterations (out of the limit); several in parallel:
+    # a bar over the starts
     prog = Progress(
-        "fit" if s.multistart == 1 else f"fit ({s.multistart} starts)",
-        None if single else s.multistart,
+        "fit (iterations)" if single else f"fit ({s.multistart} starts)",
+        s.max_iter if single else s.multistart,
         quiet=quiet,
     )
 
     def on_iteration(it: int, cost: float) -> None:
-        prog.update(1, f"iteration {it} cost {cost:.4g}")
+        prog.set(it, f"cost {cost:.4g}")
 
     def on_run(done: int, total: int, out: Any) -> None:
         tier = s.multistart == 1 and out.index > 0  # after a single search: fallback starts
-        if tier or not single:
-            info = (
-                f"{out.result.status} cost {out.cost:.4g}" if out.result else f"failed: {out.error}"
-            )
-            prog.update(1, f"{'fallback start' if tier else 'start'} {out.index}: {info}")
+        info = f"{out.result.status} cost {out.cost:.4g}" if out.result else f"failed: {out.error}"
+        if not single:
+            prog.update(1, f"start {out.index}: {info}")
+        elif tier or s.multistart > 1:
+            prog.write(f"fit: {'fallback start' if tier else 'start'} {out.index}: {info}")
 
     strategy = Strategy(
         staged=s.staged, continuation=s.continuation, stage_bands=s.stage_bands or None,
