@@ -231,6 +231,7 @@ def _load(args: argparse.Namespace, s: StudySettings) -> dict[str, Any]:
     from ..results import open_results
     from ..validation import check_inputs, load_model
     from .model_setup import prepare_model, uff_map
+    from .operating_points import given_operating_points
     from .outputs import check_out_dir
 
     assert s.model is not None
@@ -239,6 +240,7 @@ def _load(args: argparse.Namespace, s: StudySettings) -> dict[str, Any]:
     res = None if args.out is None else open_results(args.out, "fit", inputs, patterns=OUT_PATTERNS)
     doc, warnings = load_model(s.model, lambda d: prepare_model(d, s, args))
     raw = load_datasets(doc, s.data, drop_nan=args.drop_nan, channel_map=uff_map(s, args.uff_map))
+    warnings += given_operating_points(doc, raw, s.operating_points)
     warnings += check_inputs(doc, raw, s.data)
     datasets = [ds if ds.quantity == "receptance" else ds.to_quantity("receptance") for ds in raw]
     if args.out is not None:

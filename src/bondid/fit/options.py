@@ -23,6 +23,7 @@ from ..cli import (
 from ..cost.residuals import NORMS, RESIDUAL_KINDS
 from ..exceptions import ConfigError
 from .defaults import add_prior_arg, check_prior
+from .operating_points import add_operating_point_arg, operating_points_of
 from .setting_checks import check_names, parse_bound_option
 from .study import (
     STAGES,
@@ -46,6 +47,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--study", type=Path, help="study TOML file; command-line options override it")
     add_package_path_arg(p)
     add_uff_map_arg(p)
+    add_operating_point_arg(p)
     add_floating_base_arg(p)
     add_points_arg(p)
     p.add_argument(
@@ -138,6 +140,7 @@ def resolve_settings(args: argparse.Namespace) -> StudySettings:
         s.model = args.model
     if args.data:
         s.data = list(args.data)
+    s.operating_points.update(operating_points_of(args))
     if args.free:
         s.free = split_names(args.free)
     if args.fixed:

@@ -49,6 +49,9 @@ def _parser() -> argparse.ArgumentParser:
         "the one-at-a-time sweep of the seed report (Algorithm 1).",
     )
     cli.add_model_args(p)
+    from ..fit.operating_points import add_operating_point_arg
+
+    add_operating_point_arg(p)
     p.add_argument("--free", nargs="+", default=["all"], help="parameters: names, globs, groups")
     p.add_argument("--fixed", nargs="+", default=[], help="parameters to leave out (wins)")
     p.add_argument("--band", action="append", type=cli.parse_band, default=None,
@@ -93,6 +96,9 @@ def _run(args: argparse.Namespace) -> int:
     datasets = load_datasets(
         doc, args.data, drop_nan=args.drop_nan, channel_map=cli.uff_channel_map(args)
     )
+    from ..fit.operating_points import given_operating_points, operating_points_of
+
+    warnings += given_operating_points(doc, datasets, operating_points_of(args))
     warnings += check_inputs(doc, datasets, args.data)
     channels = cli.split_names([args.channels or ""]) or None
     options = CostOptions(kind=args.cost, bands=args.band, channels=channels)
