@@ -34,7 +34,7 @@ def test_operating_point_option_forms():
     assert parse_option("a.uff=x=0.1,y=0.3") == ("a.uff", {"x": 0.1, "y": 0.3})
     assert parse_option("a.uff=x=0.1 y=-2e-3") == ("a.uff", {"x": 0.1, "y": -0.002})
     assert parse_option("a.uff=") == ("a.uff", {})  # stated: the neutral pose
-    with pytest.raises(OperatingPointError, match="--operating-point 'x=0.1'"):
+    with pytest.raises(OperatingPointError, match=r"--operating-point 'x=0\.1'"):
         parse_option("x=0.1")  # no file: "x" is taken as the file, "0.1" is no JOINT=VALUE
     with pytest.raises(ConfigError, match="FILE=JOINT=VALUE"):
         parse_option("a.uff")
