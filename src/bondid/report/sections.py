@@ -81,7 +81,8 @@ def _fit_summary(fit: Mapping[str, Any]) -> list[tuple[str, str]]:
                     f"{fmt(_value(uw, 'initial'))} dB → {fmt(_value(uw, 'final'))} dB",
                 )
             )
-    rows.append(("model", str(fit.get("model_file") or "—")))
+    if fit.get("model_file"):
+        rows.append(("model", str(fit["model_file"])))
     files = fit.get("data_files")
     if isinstance(files, list):
         rows.append(("data", ", ".join(str(f) for f in files)))
