@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from ..jsonsafe import number
@@ -111,13 +112,7 @@ def fit_headline(fit: Any) -> FitHeadline | None:
         return None
     db = mapping(fit.get("db_rms"))
     params = records(fit.get("parameters"))
-    left = fit.get("channels_left_out")
-    left_out = [str(c) for c in left] if isinstance(left, Mapping | list) else []
-    for entry in records(fit.get("channels_by_file")):
-        for c in entry.get("left_out") or {}:
-            label = f"{c} in {entry.get('file', '?')}"
-            if c not in left_out:
-                left_out.append(label)
+    left_out = _left_out(fit)
     conv = fit.get("success")
     iters = fit.get("iterations")
     h = FitHeadline(
@@ -136,6 +131,20 @@ def fit_headline(fit: Any) -> FitHeadline | None:
     listed = db.get("no_figure")
     h.no_figure = [str(x) for x in listed] if isinstance(listed, list) else _no_figure(db)
     return h
+
+
+def _left_out(fit: Mapping[str, Any]) -> list[str]:
+    """The channels left out of the fit: those left out of every data file by name, the
+    others with the files they were left out of (``channels_by_file``)."""
+    files = records(fit.get("channels_by_file"))
+    if not files:
+        left = fit.get("channels_left_out")
+        return [str(c) for c in left] if isinstance(left, Mapping | list) else []
+    where: dict[str, list[str]] = {}
+    for entry in files:
+        for c in mapping(entry.get("left_out")):
+            where.setdefault(str(c), []).append(Path(str(entry.get("file", "?"))).name)
+    return [c if len(w) == len(files) else f"{c} in {', '.join(w)}" for c, w in where.items()]
 
 
 def _no_figure(db: Mapping[str, Any]) -> list[str]:
