@@ -18,7 +18,7 @@ from .html import fmt, percent
 
 BAND_CLASSES = {
     "below": "below the first mode",
-    "resonance": "around resonances (R) or anti-resonances (A)",
+    "resonance": "around resonances or anti-resonances",
     "between": "between modes",
     "above": "above the last mode",
 }

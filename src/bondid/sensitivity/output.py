@@ -232,7 +232,7 @@ def write_plots(
 
 def _rel_std(v: float) -> str:
     """A relative std (a fraction) in %, or "not determined" when it is infinite or NaN."""
-    return f"{100 * v:.3g} %" if np.isfinite(v) else "not determined"
+    return f"{100 * v:.3g}\u00a0%" if np.isfinite(v) else "not\u00a0determined"
 
 
 def summary_lines(
@@ -264,7 +264,7 @@ def summary_lines(
     noise_src = "estimated from the data" if ident.noise_estimated else "given"
     lines.append(
         f"identifiable combinations: {ident.n_identifiable} of {len(ident.names)} "
-        f"(expected relative std ≤ {ident.max_rel_std:g}; noise {ident.noise_residual:.3g} "
+        f"(expected relative std ≤ {_rel_std(ident.max_rel_std)}; noise {ident.noise_residual:.3g} "
         f"{unit_r} per residual part, {noise_src})"
     )
     lines.append(
