@@ -26,6 +26,27 @@ def scheduler_address(option: str | None) -> str | None:
     return option or os.environ.get(SCHEDULER_ENV) or None
 
 
+#: what to install when Dask is missing (it is the optional extra ``bondid[fleet]``)
+INSTALL_HINT = "pip install 'bondid[fleet]'"
+
+
+def require_dask() -> Any:
+    """The ``dask.distributed`` module.
+
+    Raises:
+        DependencyError: Dask is not installed (one line saying what to install).
+    """
+    from ..exceptions import DependencyError
+
+    try:
+        import dask.distributed
+    except ImportError:
+        raise DependencyError(
+            f"bondid.fleet needs Dask (dask[distributed]), which is not installed: {INSTALL_HINT}"
+        ) from None
+    return dask.distributed
+
+
 @contextlib.contextmanager
 def open_client(address: str | None, workers: int) -> Iterator[Any]:
     """A connected ``dask.distributed.Client`` (closed, with any local cluster, on exit).
@@ -37,7 +58,8 @@ def open_client(address: str | None, workers: int) -> Iterator[Any]:
     Raises:
         ConfigError: the scheduler cannot be reached (names the address).
     """
-    from dask.distributed import Client, LocalCluster
+    distributed = require_dask()
+    Client, LocalCluster = distributed.Client, distributed.LocalCluster
 
     if address is not None:
         try:

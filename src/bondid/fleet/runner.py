@@ -55,7 +55,9 @@ def run_jobs(
 
     Progress (done / failed / running, ETA) goes to stderr through :class:`bondid.cli.Progress`.
     """
-    from dask.distributed import as_completed
+    from .cluster import require_dask
+
+    as_completed = require_dask().as_completed
 
     run = uuid.uuid4().hex[:8]
     futures = {
