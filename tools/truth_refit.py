@@ -83,6 +83,8 @@ def run(
     """The figures of one case (module docstring). Experiments: ``from_truth`` starts the
     candidate's first origin at the truth's nominal parameters (its random errors, without
     its effect) instead of the parameter refit; ``iters`` = (all_iter, alt_iter)."""
+    from bondid.diagnose.runner import run_job
+
     from bondid.data.io import read_frf
     from bondid.diagnose.pipeline import (
         Settings,
@@ -90,7 +92,6 @@ def run(
         missing_mode_hints,
         prepare_data,
     )
-    from bondid.diagnose.runner import run_job
     from bondid.diagnose.screen import screen
     from bondid.diagnose.search import Context, _job, _refit_candidate
     from bondid.diagnose.where import where

@@ -40,7 +40,6 @@ from .pool import cancelled
 from .refit import Refit, State
 from .starts import FAILURES, HELD_ITER, Places, StartSpec, candidate_starts, held_schedule
 
-
 #: the parameter refit's band continuation: bands and IPOPT iterations per band
 FALLBACK_BANDS = 4
 FALLBACK_BAND_ITER = 30
