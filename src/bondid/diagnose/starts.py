@@ -20,9 +20,9 @@ nominal ones held; a placed start stays placed), then every start gets its **fig
 training objective after one Levenberg–Marquardt step over every parameter on the
 linearised residual (:func:`predicted_cost`), i.e. the score-test idea taken where the new
 parameters are no longer "absent" (a compliance at infinite stiffness has no gradient),
-plus the first-order gain of letting the nominal parameters follow. The figure ranks the starts of a candidate and, through its best start,
-the candidates of a step; it is a training figure, so nothing here looks at the held-out
-data that decide the verdict.
+plus the first-order gain of letting the nominal parameters follow. The figure ranks the
+starts of a candidate and, through its best start, the candidates of a step; it is a
+training figure, so nothing here looks at the held-out data that decide the verdict.
 
 A refit runs each start with the **held schedule**: the nominal parameters alone with the
 new ones held at the start, then everything. A missing spring's basin is narrow: from the
