@@ -1,19 +1,21 @@
-"""Benchmark: ``bondid.diagnose`` on the bundled reference case, this tree against a baseline
-revision, side by side in one run, and against ``bondid.fit`` on the same files.
+"""Benchmark: how long ``bondid.diagnose`` takes against ``bondid.fit`` on the same files.
 
-Issue 14's reference case: ``python -m bondid.diagnose --model urdf/bonder.urdf --data
-data/bonder_q0.csv data/bonder_q1.csv`` (its goals: at most 60 s on a 2-core machine and at
-most 4× the wall time of ``bondid.fit`` on the same data). The baseline is checked out into a
-temporary git worktree; the two diagnoses run alternately (``--rounds`` pairs, the baseline
-first in odd rounds, this tree first in even ones, so a machine that slows down during the
-run weighs on both), each a fresh process with single-threaded BLAS, then ``bondid.fit`` of
-this tree on the same files. Printed: every wall time, the medians, the ratio this tree /
-baseline of the diagnoses and diagnose / fit of this tree, and each diagnosis's verdict.
-Wall times on a shared machine are noisy: read the ratios, never one time alone.
+For each benchmark case (``tools/benchmark``: a design, a data regime, withheld effects, made
+visible as the blind benchmark makes them) the case's files are written once (``--data``,
+reused when present), then the diagnosis (A) and the fit (B) of the same files run in turn,
+A B A B …, with ``farm-bench`` when it is on the PATH (else the same alternation here), and
+the ratio A/B is taken pair by pair: a machine that slows down during the run weighs on both.
+Each command is a fresh process with single-threaded BLAS; the diagnosis has ``--workers``
+local worker processes. Printed per case: the truth, the verdict and outcome, the fit's and
+the diagnosis's median wall times and the median ratio; then the median and worst ratio.
+
+``--scaling 2,4`` times the diagnosis with the second number of workers (A) against the
+first (B) instead: the speed-up from more local workers.
 
 Usage::
 
-    python tools/bench_diagnose.py --baseline 9bdbf3b [--rounds 3] [--json out.json]
+    python tools/bench_diagnose.py [--cases NAME,...] [--freq 2000] [--workers 2] [--runs 2]
+        [--data DIR] [--json rows.json] [--scaling 2,4]
 """
 
 from __future__ import annotations
@@ -21,83 +23,160 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
+import shutil
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
+
+for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
 
 ROOT = Path(__file__).resolve().parents[1]
-MODEL = ROOT / "urdf" / "bonder.urdf"
-DATA = [ROOT / "data" / "bonder_q0.csv", ROOT / "data" / "bonder_q1.csv"]
+sys.path[:0] = [str(ROOT / "src"), str(ROOT / "tools")]
+
+#: every effect class on every design (four designs), two regimes each, and "none" cases
+CASES = (
+    "bonder/jct/coh", "bonder/sd/coh", "bonder/sm/acc", "bonder/none_a/coh",
+    "bonder_b/jcr/harsh", "bonder_b/fb/nocoh", "bonder_b/al/coh", "bonder_b/sm/coh",
+    "gantry/fb/coh", "gantry/al/nocoh", "gantry/jct/harsh", "gantry/none_b/acc",
+    "polar/sm/mob", "polar/jct2/acc", "polar/sd/nocoh", "bonder/jcr+al/coh",
+)  # fmt: skip
 
 
-def _timed(cmd: list[str], src: Path) -> tuple[float, str]:
-    """Wall time [s] of ``cmd`` run with ``src`` first on the Python path, and its stdout."""
-    env = dict(os.environ, PYTHONPATH=str(src), OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
-    t0 = time.perf_counter()
-    done = subprocess.run(cmd, env=env, capture_output=True, text=True, check=False)
-    wall = time.perf_counter() - t0
-    if done.returncode != 0:
-        tail = (done.stderr or done.stdout).strip().splitlines()[-1:]
-        raise SystemExit(f"{' '.join(cmd[:4])} … failed ({done.returncode}): {tail}")
-    return wall, done.stdout
+def case_files(name: str, folder: Path, freq: int) -> dict[str, Any]:
+    """The files of benchmark case ``name`` in ``folder`` (written when missing) and its
+    description (``model``, ``files``, ``truth``)."""
+    meta = folder / "case.json"
+    if meta.exists():
+        return json.loads(meta.read_text())
+    from benchmark.cases import all_cases
+    from benchmark.designs import design
+    from benchmark.regimes import measure
+    from benchmark.truth import signal_factor, truth_model
+    from benchmark.visibility import frequencies, visible_case
+
+    from bondid.model import UrdfDocument
+
+    case = {c.name: c for c in all_cases()}[name]
+    case, _ = visible_case(case, freq)
+    dz = design(case.design)
+    truth = truth_model(UrdfDocument.load(dz.path), case.effects, case.seed)
+    folder.mkdir(parents=True, exist_ok=True)
+
+    def factor(f, outs, ins):  # type: ignore[no-untyped-def]
+        return signal_factor(case.effects, f, outs, ins)
+
+    paths, _ = measure(truth, dz.operating_points, frequencies(freq), case.regime, factor,
+                       folder, case.seed)  # fmt: skip
+    out = {"case": name, "model": str(dz.path), "files": [p.name for p in paths],
+           "truth": [f"{e.effect}@{e.location}" for e in case.effects] or ["none"]}  # fmt: skip
+    meta.write_text(json.dumps(out, indent=1) + "\n")
+    return out
 
 
-def _diagnose(src: Path, out: Path) -> tuple[float, str]:
-    """Wall time of one diagnosis of the reference case with the package at ``src``, and its
-    verdict (effect@location, or none)."""
-    cmd = [sys.executable, "-m", "bondid.diagnose", "--model", str(MODEL), "--data",
-           *map(str, DATA), "--out", str(out), "--quiet"]  # fmt: skip
-    wall, _ = _timed(cmd, src)
-    v = json.loads((out / "diagnosis.json").read_text())["verdict"]
-    return wall, v["effect"] + (f"@{v['location']}" if v.get("location") else "")
+def commands(meta: dict[str, Any], folder: Path, workers: int) -> tuple[list[str], list[str]]:
+    """(diagnosis, fit) command lines of a case; the diagnosis writes ``folder/diag``."""
+    data = [str(folder / f) for f in meta["files"]]
+    py = sys.executable
+    diag = [py, "-m", "bondid.diagnose", "--model", meta["model"], "--data", *data, "--out",
+            str(folder / "diag"), "--quiet", "--no-plots", "--workers", str(workers)]  # fmt: skip
+    fit = [py, "-m", "bondid.fit", "--model", meta["model"], "--data", *data, "--quiet"]
+    return diag, fit
+
+
+def _farm_bench(a: list[str], b: list[str], runs: int, timeout: int) -> dict[str, float]:
+    """Median wall times of ``a`` and ``b`` and the median pairwise ratio, from farm-bench."""
+    cmd = ["farm-bench", "-n", str(runs), "--warmup", "0", "--timeout", str(timeout),
+           "--vs", " ".join(b), "--", *a]  # fmt: skip
+    out = subprocess.run(cmd, capture_output=True, text=True, check=False).stdout
+
+    def median(label: str) -> float:
+        m = re.search(rf"^{re.escape(label)}\s+\S+\s+(\S+)", out, re.M)
+        return float(m.group(1)) if m else float("nan")
+
+    return {"a_s": median("A wall s"), "b_s": median("B wall s"), "ratio": median("A/B wall")}
+
+
+def _here(a: list[str], b: list[str], runs: int) -> dict[str, float]:
+    """The same alternation as farm-bench, here (when it is not installed)."""
+    ta, tb, ratios = [], [], []
+    for _ in range(runs):
+        pair = []
+        for cmd in (a, b):
+            t0 = time.perf_counter()
+            subprocess.run(cmd, capture_output=True, check=False)
+            pair.append(time.perf_counter() - t0)
+        ta.append(pair[0])
+        tb.append(pair[1])
+        ratios.append(pair[0] / pair[1])
+    return {"a_s": statistics.median(ta), "b_s": statistics.median(tb),
+            "ratio": statistics.median(ratios)}  # fmt: skip
+
+
+def verdict(folder: Path) -> tuple[str, str]:
+    """(kept effects, outcome) of the case's last diagnosis."""
+    try:
+        d = json.loads((folder / "diag" / "diagnosis.json").read_text())
+    except (OSError, ValueError):
+        return "failed", ""
+    effects = [f"{e['effect']}@{e['location']}" for e in d.get("effects") or []]
+    return " + ".join(effects) or "none", str(d["verdict"].get("outcome", ""))
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--baseline", required=True, help="git revision to compare with")
-    ap.add_argument("--rounds", type=int, default=3, help="pairs of diagnoses (default 3)")
-    ap.add_argument("--json", type=Path, help="write the times and ratios here")
-    a = ap.parse_args(argv)
-    if a.rounds < 1:
-        ap.error("--rounds must be >= 1")
-    times: dict[str, list[float]] = {"baseline": [], "this tree": []}
-    verdicts: dict[str, set[str]] = {"baseline": set(), "this tree": set()}
-    with tempfile.TemporaryDirectory(prefix="bondid_bench_diag_") as tmp:
-        tree = Path(tmp) / "baseline"
-        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "-q", str(tree),
-                        a.baseline], check=True)  # fmt: skip
-        try:
-            srcs = {"baseline": tree / "src", "this tree": ROOT / "src"}
-            for k in range(a.rounds):
-                order = ["baseline", "this tree"] if k % 2 == 0 else ["this tree", "baseline"]
-                for who in order:
-                    wall, verdict = _diagnose(srcs[who], Path(tmp) / f"{who}_{k}")
-                    times[who].append(wall)
-                    verdicts[who].add(verdict)
-                    print(f"round {k + 1}: {who:9s} diagnose {wall:6.1f} s  ({verdict})")
-            fit_cmd = [sys.executable, "-m", "bondid.fit", "--model", str(MODEL), "--data",
-                       *map(str, DATA), "--out", str(Path(tmp) / "fit"), "--quiet"]  # fmt: skip
-            fit_s, _ = _timed(fit_cmd, ROOT / "src")
-        finally:
-            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force",
-                            str(tree)], check=False)  # fmt: skip
-    med = {who: statistics.median(t) for who, t in times.items()}
-    ratio = med["this tree"] / med["baseline"]
-    print(f"fit (this tree) {fit_s:.1f} s")
-    new = med["this tree"]
-    print(f"median diagnose: baseline {med['baseline']:.1f} s, this tree {new:.1f} s; this tree"
-          f" / baseline {ratio:.2f}x; diagnose / fit {new / fit_s:.2f}x")  # fmt: skip
-    if a.json:
-        a.json.write_text(json.dumps({
-            "baseline": a.baseline, "times_s": times, "fit_s": fit_s, "median_s": med,
-            "ratio": ratio, "diagnose_over_fit": new / fit_s,
-            "verdicts": {k: sorted(v) for k, v in verdicts.items()},
-        }, indent=2) + "\n")  # fmt: skip
+    ap = argparse.ArgumentParser(description=(__doc__ or "").split("\n\n")[0])
+    ap.add_argument("--cases", default=",".join(CASES), help="comma-separated case names")
+    ap.add_argument("--freq", type=int, default=2000, help="lines per data file")
+    ap.add_argument("--workers", type=int, default=2, help="the diagnosis's --workers")
+    ap.add_argument("--runs", type=int, default=2, help="pairs per case")
+    ap.add_argument("--timeout", type=int, default=3600, help="seconds per case at most")
+    ap.add_argument("--data", type=Path, default=None, help="folder of the case files")
+    ap.add_argument("--json", type=Path, default=None, help="write the rows here")
+    ap.add_argument(
+        "--scaling",
+        default=None,
+        metavar="W1,W2",
+        help="time the diagnosis with W2 workers against W1 instead of the fit",
+    )
+    args = ap.parse_args(argv)
+    data = args.data or Path(tempfile.mkdtemp(prefix="bondid-bench-"))
+    use_fb = shutil.which("farm-bench") is not None
+    rows = []
+    print(
+        f"| case | truth | verdict | outcome | {'B' if args.scaling else 'fit'} s | "
+        f"{'A' if args.scaling else 'diagnose'} s | ratio |\n|---|---|---|---|---|---|---|"
+    )
+    for name in [c.strip() for c in args.cases.split(",") if c.strip()]:
+        folder = data / name.replace("/", "__")
+        meta = case_files(name, folder, args.freq)
+        diag, fit = commands(meta, folder, args.workers)
+        if args.scaling:
+            w1, w2 = (int(x) for x in args.scaling.split(","))
+            diag = commands(meta, folder, w2)[0]
+            fit = commands(meta, folder, w1)[0]
+        t = (_farm_bench(diag, fit, args.runs, args.timeout) if use_fb
+             else _here(diag, fit, args.runs))  # fmt: skip
+        got, outcome = verdict(folder)
+        row = {"case": name, "truth": " + ".join(meta["truth"]), "verdict": got,
+               "outcome": outcome, "workers": args.workers, **t}  # fmt: skip
+        rows.append(row)
+        print(f"| {name} | {row['truth']} | {got} | {outcome} | {t['b_s']:.1f} | "
+              f"{t['a_s']:.1f} | {t['ratio']:.2f} |", flush=True)  # fmt: skip
+        if args.json:
+            args.json.write_text(json.dumps(rows, indent=1) + "\n")
+    ratios = [r["ratio"] for r in rows if r["ratio"] == r["ratio"]]
+    if ratios:
+        print(
+            f"\nmedian ratio {statistics.median(ratios):.2f}, worst {max(ratios):.2f}, "
+            f"{len(ratios)} cases, {'farm-bench' if use_fb else 'alternated here'}"
+        )
     return 0
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    sys.exit(main())

@@ -16,11 +16,10 @@ strengthens its effects by a fixed rule (:func:`stronger`: structural effects' f
 :data:`MAX_TRIES` times; the case keeps its name, design, regime and seeds. The rule looks at
 the truth and the files only, never at a diagnosis.
 
-Why 1.2: on the benchmark rows of stop 43 (74 cases, the diagnosis's own refit, not the
-oracle), the "none" cases' refits end at 1.00–1.07× the truth's gap, two effect cases at
-1.04× and 1.06× (bonder/fb/harsh, gantry/fb/harsh: flexible bases whose modes sit under the
-harsh floor), every other effect case at ≥ 1.50×. 1.2 lies in that empty interval, above what
-parameter errors alone leave and below every effect that shows.
+Why 1.2: over the benchmark's cases, the "none" cases' parameter refits end at 1.00–1.07× the
+truth's gap, effects whose modes sit under a harsh noise floor at about 1.05×, every other
+effect case at ≥ 1.50×. 1.2 lies in that empty interval, above what parameter errors alone
+leave and below every effect that shows.
 """
 
 from __future__ import annotations
@@ -74,15 +73,16 @@ def oracle(case: Case, paths: list[Path], points: int = POINTS) -> dict[str, Any
     """The oracle refit of ``case`` on its files ``paths`` (module docstring): ``oracle_db``
     (its weighted gap on all data [dB]), ``truth_model_db`` (the truth's), ``ratio``."""
     from bondid.data.io import read_frf
-    from bondid.diagnose.pipeline import Settings, _baseline_task, prepare_data
+    from bondid.diagnose.job import Task
+    from bondid.diagnose.pipeline import Settings, prepare_data
+    from bondid.diagnose.refit_job import run_refit
     from bondid.model import UrdfDocument
 
     nominal = UrdfDocument.load(design(case.design).path)
     s = Settings(n_points=points)
     p = prepare_data(nominal, [read_frf(x) for x in paths], s)
     start = truth_model(nominal, (), case.seed)  # the truth's parameters, no effect
-    base, _ = _baseline_task(start.to_string(), p.space, p.train, p.held, p.full, p.options,
-                             True, s.ipopt_iter, s.refit_iter)  # fmt: skip
+    base = run_refit(Task(start.to_string(), p.space, p.train, p.held, p.full, p.options))
     t = truth_model_db(case, p.full, p.channels)
     return {"oracle_db": float(base.db_rms), "truth_model_db": t, "ratio": float(base.db_rms) / t}
 

@@ -10,6 +10,7 @@ from pathlib import Path
 
 def build_parser() -> argparse.ArgumentParser:
     from .. import cli
+    from ..fit.operating_points import add_operating_point_arg
     from .effects import available
 
     effects = available()
@@ -34,10 +35,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--band", action="append", type=cli.parse_band, default=None,
         help="F_LO:F_HI in Hz (repeatable): frequencies to use",
     )  # fmt: skip
-    p.add_argument(
-        "--channels", default=None,
-        help="OUT.IN channels to use, comma-separated (default: those above the noise floor)",
-    )  # fmt: skip
+    cli.add_channels_arg(p, "channels OUT.IN to use (default: those above the noise floor)")
+    add_operating_point_arg(p)
     p.add_argument("--points", type=int, default=500, help="frequencies per data set for refits")
     p.add_argument("--workers", type=int, default=2, help="worker processes (1 = in-process)")
     p.add_argument(
@@ -96,6 +95,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         data = load_datasets(
             doc, args.data, drop_nan=args.drop_nan, channel_map=cli.uff_channel_map(args)
         )
+        from ..fit.operating_points import given_operating_points, operating_points_of
+
+        warnings += given_operating_points(doc, data, operating_points_of(args))
         warnings += check_inputs(doc, data, args.data)
         if not args.quiet:  # at once, not only after a run of minutes (the summary repeats them)
             for line in cli.warn_lines(warnings):
