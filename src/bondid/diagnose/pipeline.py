@@ -261,9 +261,9 @@ def diagnose(
         if baseline.error:
             raise ComputationError(f"the parameter refit failed: {baseline.error}")
         say("parameter refit")
-        modes, by_ds, anti, bands, _measured = where(doc, p.full, baseline, p.channels, s.modes)
+        modes, by_ds, anti, bands, measured = where(doc, p.full, baseline, p.channels, s.modes)
         places = Places(missing_mode_hints(by_ds), worst_matched_modes(by_ds),
-                        np.asarray(p.space.centre, float))  # fmt: skip
+                        np.asarray(p.space.centre, float), measured)  # fmt: skip
         ctx = Context(
             doc, p.names, p.train, p.held, p.full, p.options, p.candidates, p.space, p.noise,
             places, s.max_effects, s.n_min, s.n_max,

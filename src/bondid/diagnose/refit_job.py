@@ -88,7 +88,7 @@ def screening_starts(models: Models, places: Places) -> list[StartSpec]:
     own_option = models.options[0]
     if own_option is None:
         return []
-    own = candidate_starts(models[0].refit, own_option, places, 0)
+    own = candidate_starts(models[0].refit, own_option, places, 0, models.task.full)
     extra: list[StartSpec] = []
     for k, option in enumerate(models.options[1:], start=1):
         assert option is not None
@@ -117,7 +117,8 @@ def _variant_start(
     assert cand is not None
     same = [p.name for p in option.parameters] == [p.name for p in cand.parameters]
     if not (same and own):
-        return candidate_starts(refit, option, Places(places.missing, places.worst), k)[:1]
+        mine = Places(places.missing, places.worst, None, places.measured)
+        return candidate_starts(refit, option, mine, k, models.task.full)[:1]
     best = own[0]
     new = models[0].refit.new_values(State(best.x, best.theta))
     state, _ = refit.solve_new(refit.with_new(refit.state0, new), NEW_ITER)

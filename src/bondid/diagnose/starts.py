@@ -10,6 +10,9 @@ from the physics and the data, so the starts come from there:
 * **the mode placed at a measured one** — for a candidate with springs, the scale that puts
   its mode at each measured mode the model lacks, then at the measured modes it matches
   worst (:data:`N_PLACED`): a missing mode is where a missing spring shows;
+* **the modes matched** — for a candidate with several springs (a flexible base, soft
+  mounts), each spring set on its own so that the model's modes match the measured ones
+  (:mod:`.matching`): their modes are seldom in the ratios the scan keeps;
 * **the nominal origin** — the best of those with the nominal parameters back at the
   nominal model's values: the parameter refit that every candidate starts from may have
   bent nominal parameters to mimic what the candidate does, and from there the candidate
@@ -35,6 +38,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -86,12 +90,14 @@ class StartSpec:
 class Places:
     """What the starts are placed from: the frequencies [Hz] of the measured modes the
     model lacks (``missing``) and of the others the model matches worst, worst first
-    (``worst``), and the nominal model's values of the nominal parameters (``nominal``,
-    ``(n_nominal,)``; None: no nominal origin)."""
+    (``worst``), the nominal model's values of the nominal parameters (``nominal``,
+    ``(n_nominal,)``; None: no nominal origin), and the modes identified in each whole data
+    set (``measured``, :class:`.modal_id.IdentifiedMode` per set; empty: none)."""
 
     missing: tuple[float, ...] = ()
     worst: tuple[float, ...] = ()
     nominal: np.ndarray | None = None
+    measured: tuple[tuple[Any, ...], ...] = ()
 
 
 def predicted_cost(refit: Refit, state: State, damping: float = LM_DAMPING) -> float:
@@ -157,7 +163,7 @@ def _scales(refit: Refit, cand: Candidate, places: Places) -> list[tuple[str, fl
 
 
 def candidate_starts(
-    refit: Refit, cand: Candidate, places: Places, variant: int = 0
+    refit: Refit, cand: Candidate, places: Places, variant: int = 0, full: Sequence[Any] = ()
 ) -> list[StartSpec]:
     """The starts of ``cand`` on ``refit`` (its model augmented with ``cand``), best figure
     first, the nominal origin of the best second (module docstring). A start whose model
@@ -182,6 +188,8 @@ def candidate_starts(
             continue
         seen.append(new)
         out.append(spec_of(refit, label, state, variant))
+    matched = _matched(refit, cand, places, full, variant)
+    out += matched
     out = [s for s in out if math.isfinite(s.figure)]
     out.sort(key=lambda s: s.figure)
     if places.nominal is not None and out:
@@ -194,6 +202,27 @@ def candidate_starts(
         label = f"{best.label} from the nominal model"
         out.insert(1, StartSpec(label, x, best.theta.copy(), math.nan, variant))
     return out
+
+
+def _matched(
+    refit: Refit, cand: Candidate, places: Places, full: Sequence[Any], variant: int
+) -> list[StartSpec]:
+    """The modes-matched start of a candidate with several springs (:mod:`.matching`), from
+    the scale that puts its first mode at the first missing mode (else its start)."""
+    from .matching import matched_start
+
+    if not places.measured or len(places.measured) != len(full):
+        return []
+    scales = hint_scales(cand, places.missing[:1]) or [1.0]
+    lo, hi = (min(cand.scan_grid), max(cand.scan_grid)) if cand.scan_grid else (1.0, 1.0)
+    try:
+        new = matched_start(refit, cand, float(np.clip(scales[0], lo, hi)), places.measured,
+                            full)  # fmt: skip
+    except FAILURES:
+        return []
+    if new is None:
+        return []
+    return [spec_of(refit, "modes matched", refit.with_new(refit.state0, new), variant)]
 
 
 def spec_of(refit: Refit, label: str, state: State, variant: int) -> StartSpec:
