@@ -8,7 +8,9 @@ A page writes a marker where generated text goes:
 * ``<!-- bondid:schema NAME -->`` — every key of ``NAME.json`` from the JSON Schema shipped
   in the package (``bondid/schemas/NAME.schema.json``), the file the tests validate real
   outputs against;
-* ``<!-- bondid:exceptions -->`` — the exception tree of :mod:`bondid.exceptions`.
+* ``<!-- bondid:exceptions -->`` — the exception tree of :mod:`bondid.exceptions`;
+* ``<!-- bondid:study-example -->`` — the annotated study file of :mod:`bondid.fit.study`'s
+  docstring (every key, with the option it stands for).
 
 An unknown name or a command whose parser cannot be read stops the build (an error, not a
 warning, so ``mkdocs build --strict`` and CI catch it). The functions are plain Python, used
@@ -46,7 +48,9 @@ SCHEMAS: dict[str, str] = {
     "fleet": "bondid.fleet",
 }
 
-_MARKER = re.compile(r"<!--\s*bondid:(cli|schema|exceptions)\s*([A-Za-z0-9_.-]*)\s*-->")
+_MARKER = re.compile(
+    r"<!--\s*bondid:(cli|schema|exceptions|study-example)\s*([A-Za-z0-9_.-]*)\s*-->"
+)
 
 
 class _Captured(BaseException):
@@ -140,7 +144,8 @@ def _help(action: argparse.Action, prog: str) -> str:
     extra = []
     if action.required and action.option_strings:
         extra.append("**required**")
-    if isinstance(action, argparse._AppendAction | argparse._ExtendAction):
+    repeatable = isinstance(action, argparse._AppendAction | argparse._ExtendAction)
+    if repeatable and "repeatable" not in text:
         extra.append("repeatable")
     return _cell(" ".join([text, *(f"({e})" for e in extra)]))
 
@@ -257,14 +262,30 @@ def exceptions_markdown() -> str:
 
     def visit(cls: type, depth: int) -> None:
         builtins = [b.__name__ for b in cls.__bases__ if b.__module__ == "builtins"]
-        also = f" (also a `{'`, `'.join(builtins)}`)" if builtins and cls is not root else ""
-        doc = " ".join((cls.__doc__ or "").split())
+        also = f" (also `{'`, `'.join(builtins)}`)" if builtins and cls is not root else ""
+        doc = " ".join((cls.__doc__ or "").split()).replace("``", "`")
         lines.append(f"{'    ' * depth}- `{cls.__name__}`{also}: {doc}")
         for sub in sorted((c for c in classes if cls in c.__bases__), key=lambda c: c.__name__):
             visit(sub, depth + 1)
 
     visit(root, 0)
     return "\n".join(lines) + "\n"
+
+
+def study_example() -> str:
+    """The annotated TOML example of :mod:`bondid.fit.study`'s docstring, as a code block."""
+    from bondid.fit import study
+
+    doc = study.__doc__ or ""
+    head, sep, rest = doc.partition("::\n")
+    if not sep:
+        raise RuntimeError("bondid.fit.study: its docstring has no example block")
+    lines = []
+    for line in rest.splitlines():
+        if line.strip() and not line.startswith("    "):
+            break
+        lines.append(line[4:])
+    return "```toml\n" + "\n".join(lines).strip("\n") + "\n```\n"
 
 
 def render(markdown: str) -> str:
@@ -276,6 +297,8 @@ def render(markdown: str) -> str:
             return cli_markdown(name)
         if kind == "schema":
             return schema_markdown(name)
+        if kind == "study-example":
+            return study_example()
         return exceptions_markdown()
 
     return _MARKER.sub(one, markdown)
