@@ -153,7 +153,8 @@ def test_fleet_json(tmp_path):
         spread=0.05, freq=(1.0, 4000.0, 120), noise=0.02, seed=3,
     )  # fmt: skip
     run("bondid.fleet", "--model", str(MODEL), "--machines", "machines", "--out", "out",
-        "--workers", "1", "--free", FREE[0], "--max-iter", "30", "--quiet", cwd=tmp_path)  # fmt: skip
+        "--workers", "1", "--free", FREE[0], "--max-iter", "30", "--quiet",
+        cwd=tmp_path)  # fmt: skip
     doc = check("fleet", tmp_path / "out" / "fleet.json")
     assert doc["counts"] == {"machines": 5, "ok": 5, "failed": 0}
     assert [p["name"] for p in doc["parameters"]] == FREE[:1]

@@ -244,7 +244,10 @@ def schema_markdown(name: str) -> str:
     rows = ["| key | type | meaning |", "|---|---|---|"]
     _walk(schema, schema, "", rows, set())
     head = _cell(schema.get("description", ""))
-    src = f"Schema: `bondid/schemas/{name}.schema.json` (JSON Schema 2020-12, shipped in the package)."
+    src = (
+        f"Schema: `bondid/schemas/{name}.schema.json` (JSON Schema 2020-12, shipped in the"
+        " package)."
+    )
     return "\n".join([head, "", src, "", *rows, ""])
 
 
@@ -277,7 +280,7 @@ def study_example() -> str:
     from bondid.fit import study
 
     doc = study.__doc__ or ""
-    head, sep, rest = doc.partition("::\n")
+    _, sep, rest = doc.partition("::\n")
     if not sep:
         raise RuntimeError("bondid.fit.study: its docstring has no example block")
     lines = []
