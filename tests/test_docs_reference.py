@@ -93,6 +93,9 @@ def test_the_version_is_the_projects():
 
     project = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"]
     assert re.fullmatch(r"\d+\.\d+\.\d+", bondid.__version__)
+    # the fallback of a source tree without an install is the project's version too
+    init = (SRC / "__init__.py").read_text(encoding="utf-8")
+    assert re.search(r'__version__ = "([^"]+)"', init).group(1) == project["version"]
     try:
         dist = metadata.distribution("bondid")
         direct = json.loads(dist.read_text("direct_url.json") or "{}")
