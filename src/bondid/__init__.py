@@ -8,6 +8,12 @@ The package is layered; each layer only imports the ones before it::
 Nothing heavy is imported here: ``import bondid`` is cheap and has no side effects.
 """
 
-__version__ = "0.1.0"
+from importlib.metadata import PackageNotFoundError
+from importlib.metadata import version as _version
+
+try:
+    __version__ = _version("bondid")
+except PackageNotFoundError:  # a source tree on sys.path without an install
+    __version__ = "0.2.0"
 
 __all__ = ["__version__"]

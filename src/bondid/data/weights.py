@@ -10,8 +10,8 @@ measurement with noise — from one of (``weighting``):
   noise-to-signal ratios, ``N/S = max(N/S_coh, N/S_est)`` with ``N/S_coh = (1 − γ²)/γ²``,
   and ``w = 1 / (1 + N/S)``: a point counts as signal only as far as both say so; elsewhere
   the estimate alone. (The noise level's prediction takes their geometric mean, the best
-  guess of the point's noise: :func:`noise_to_signal` with ``prediction``.) Until stop 51 the
-  weights took the geometric mean too; then a scatter estimate that misread pure noise as
+  guess of the point's noise: :func:`noise_to_signal` with ``prediction``.) The weights do
+  not take the geometric mean: with it, a scatter estimate that misread pure noise as
   signal (the low end of an analyser's linear grid, where the floor windows are sparse)
   outvoted a coherence of 0.002–0.2 from 20 averages: those points kept weights of
   0.7–0.85 with log errors of 30–130 dB, and one of them outweighs hundreds of good points;
