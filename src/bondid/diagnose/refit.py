@@ -285,31 +285,6 @@ class Refit:
                     return None
         return z
 
-    def scan(self, state: State, exps: np.ndarray, grid: Sequence[float]) -> State:
-        """The lowest-cost state of :meth:`profile` (``state`` included)."""
-        states = [state, *self.profile(state, exps, grid)]
-        return states[int(np.argmin(self.costs(state, states)))]
-
-    def scan_starts(
-        self, state: State, exps: np.ndarray, grid: Sequence[float], n_starts: int = 3,
-        min_ratio: float = 1.5,
-    ) -> list[State]:  # fmt: skip
-        """Up to ``n_starts`` states at the lowest local minima of the profile over ``grid``
-        (increasing), at least ``min_ratio`` apart in ``s``, best first."""
-        g = np.asarray(grid, float)
-        states = self.profile(state, exps, g)
-        c = self.costs(state, states)
-        left, right = np.r_[np.inf, c[:-1]], np.r_[c[1:], np.inf]
-        minima = [int(i) for i in np.flatnonzero((c <= left) & (c <= right) & np.isfinite(c))]
-        minima.sort(key=lambda i: c[i])
-        chosen: list[int] = []
-        for i in minima:
-            if all(abs(np.log(g[i] / g[j])) >= np.log(min_ratio) for j in chosen):
-                chosen.append(i)
-            if len(chosen) == n_starts:
-                break
-        return [states[i] for i in chosen] or [state]
-
     # -- solves ------------------------------------------------------------------------------
     def solve(
         self, state: State, steps: Sequence[Step], *, max_iter: int = 30
