@@ -96,7 +96,8 @@ class Remainder:
             if not self.causes:
                 lines.append(
                     "none of the simple forms (a mode, a row or column filter, delay, gain, "
-                    "leakage, a drive's stiffness or mass) describes the excess"
+                    "leakage, a drive's stiffness or mass) describes the excess: an effect of "
+                    "another form, or more noise where it lies than the noise reference says"
                 )
             elif self.explained_share < DESCRIBED_ENOUGH:
                 lines.append(
