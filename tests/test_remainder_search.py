@@ -118,3 +118,23 @@ def test_json_form_holds_the_documented_keys():
     assert gain["kind"] == "gain_offset" and abs(gain["figures"]["gain_db"] - 1.0) < 0.05
     assert gain["significance"]["significant"] is True
     assert out["summary"] == rem.sentences() and all(isinstance(s, str) for s in out["summary"])
+
+
+def test_accelerance_data_give_the_same_remainder_as_receptance():
+    from bondid.frf.quantity import convert_quantity
+
+    H = model().copy()
+    H[:, Y] *= 10 ** (-0.8 / 20)  # the y drive's force constant 0.8 dB low
+    d = measured(H, 6)
+    acc = FrfData(d.freq_hz, d.outputs, d.inputs,
+                  convert_quantity(d.H, FREQ, "receptance", "accelerance"),
+                  quantity="accelerance", coherence=d.coherence)  # fmt: skip
+    settings = Settings(modes=False)
+    rec = describe_remainder(d, model(), settings=settings)
+    acc_rem = describe_remainder(
+        acc, convert_quantity(model(), FREQ, "receptance", "accelerance"), settings=settings
+    )
+    assert rec.causes[0].kind == acc_rem.causes[0].kind == "gain_offset"
+    assert acc_rem.causes[0].location.names == ("y",) and acc_rem.causes[0].location.side == "input"
+    assert abs(acc_rem.causes[0].gain_db - rec.causes[0].gain_db) < 1e-9
+    assert abs(acc_rem.excess.db_rms - rec.excess.db_rms) < 1e-9

@@ -40,6 +40,8 @@ class Settings:
         modes: look for missing, spurious and misplaced modes (needs a modal identification
             of the data and the model, a few seconds).
         bands_per_decade: fixed analysis bands of the excess figures.
+        rotary: the drives (collocated output and input names) that are rotary, for the
+            units of a drive's stiffness, damping and mass (N·m/rad, N·m·s/rad, kg·m²).
     """
 
     min_share: float = 0.10
@@ -49,6 +51,7 @@ class Settings:
     confined_ratio: float = 1.5
     modes: bool = True
     bands_per_decade: int = 6
+    rotary: tuple[str, ...] = ()
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -59,6 +62,7 @@ class Settings:
             "confined_ratio": self.confined_ratio,
             "modes": self.modes,
             "bands_per_decade": self.bands_per_decade,
+            "rotary": list(self.rotary),
             "verdict_min_excess_share": MIN_EXCESS_SHARE,
         }
 

@@ -12,8 +12,8 @@ exact whatever the rest of the model. Below the first mode the drive-point recep
 free axis rises as ``1/ω²``; with ``k`` it flattens at ``1/k``; a mass offsets the mass line
 above the modes. ``k``, ``c`` and ``m`` are fitted by least squares on the log residual of
 every channel; the terms the data do not determine (``|value|/std < Z``) are dropped and the
-rest refitted. Units: N/m, N·s/m and kg for a linear axis (N·m/rad, N·m·s/rad and kg·m² for
-a rotary one).
+rest refitted. Units: N/m, N·s/m and kg for a linear axis, N·m/rad, N·m·s/rad and kg·m² for
+the rotary ones named in :attr:`.Settings.rotary`.
 """
 
 from __future__ import annotations
@@ -33,6 +33,9 @@ from .residual import Points, Residual
 from .stats import LogFit, fit_points, scan
 
 TERMS = ("k", "c", "m")
+#: the units of k, c and m on a linear and on a rotary drive (:attr:`.Settings.rotary`)
+LINEAR_UNITS = {"k": "N/m", "c": "N·s/m", "m": "kg"}
+ROTARY_UNITS = {"k": "N·m/rad", "c": "N·m·s/rad", "m": "kg·m²"}
 #: the grid of |k|/k_ref and |m|/m_ref searched for a start (k_ref, m_ref: the drive point's
 #: apparent stiffness at the lowest frequency and mass at the highest)
 GRID_LO, GRID_HI, GRID_N = 1e-3, 1e3, 49
@@ -48,16 +51,18 @@ class DriveOffset(Finding):
     damping: float = 0.0
     mass: float = 0.0
     std: dict[str, float] | None = None
+    units: dict[str, str] | None = None
 
     def figures(self) -> dict[str, Any]:
         return {"drive": self.drive, "stiffness": self.stiffness, "damping": self.damping,
-                "mass": self.mass, "std": dict(self.std or {})}  # fmt: skip
+                "mass": self.mass, "std": dict(self.std or {}),
+                "units": dict(self.units or LINEAR_UNITS)}  # fmt: skip
 
 
 def candidates(res: Residual, ctx: Context) -> list[Candidate]:
     out = []
     for d in [n for n in res.outputs if n in res.inputs]:
-        cand = _fit(res, d)
+        cand = _fit(res, d, ctx)
         if cand is not None:
             out.append(cand)
     return out
@@ -85,7 +90,7 @@ def _gather(res: Residual, d: str) -> tuple[Points, np.ndarray, np.ndarray, np.n
     return pts.subset(ok), col[ok], row[ok], dd[ok]
 
 
-def _fit(res: Residual, d: str) -> Candidate | None:
+def _fit(res: Residual, d: str, ctx: Context) -> Candidate | None:
     pts, col, row, dd = _gather(res, d)
     if pts.size < MIN_POINTS:
         return None
@@ -106,10 +111,11 @@ def _fit(res: Residual, d: str) -> Candidate | None:
         return model
 
     def derivative_of(use: list[int]) -> Any:
-        def derivative(th: np.ndarray) -> np.ndarray:
-            dz = (th * ref[use]) @ basis[use]
-            dH = -col * row / (1.0 + dz * dd) ** 2  # ∂H/∂Δz
-            return (dH[None, :] * basis[use] * ref[use, None]).T
+        def derivative(th: np.ndarray, sel: np.ndarray) -> np.ndarray:
+            b = basis[use][:, sel]
+            dz = (th * ref[use]) @ b
+            dH = -col[sel] * row[sel] / (1.0 + dz * dd[sel]) ** 2  # ∂H/∂Δz
+            return (dH[None, :] * b * ref[use, None]).T
 
         return derivative
 
@@ -158,24 +164,28 @@ def _fit(res: Residual, d: str) -> Candidate | None:
     for n, u in enumerate(use):
         values[TERMS[u]] = float(fit.theta[n] * ref[u])
         stds[TERMS[u]] = float(fit.std[n] * ref[u])
+    units = ROTARY_UNITS if d in ctx.settings.rotary else LINEAR_UNITS
     return Candidate(f"stiffness or mass at drive {d}", pts, fit, 1.0,
-                     _describer(d, values, stds, k_ref))  # fmt: skip
+                     _describer(d, values, stds, k_ref, units))  # fmt: skip
 
 
-def _describer(d: str, v: dict[str, float], sd: dict[str, float], k_ref: float) -> Any:
+def _describer(
+    d: str, v: dict[str, float], sd: dict[str, float], k_ref: float, units: dict[str, str]
+) -> Any:
     def describe(sig: Significance) -> Finding:
         k, c, m = v["k"], v["c"], v["m"]
         loc = Location("drive", (d,), ())
         stiff = k != 0 and (m == 0 or abs(k) / k_ref >= 0.1)
         parts = []
+        uk, uc, um = units["k"], units["c"], units["m"]
         if k:
             sign = "a spring to ground" if k > 0 else "less stiffness to ground than the model"
-            parts.append(f"{sign} of {words.si(abs(k), 'N/m')} (± {words.si(sd['k'], 'N/m')})")
+            parts.append(f"{sign} of {words.si(abs(k), uk)} (± {words.si(sd['k'], uk)})")
         if c:
-            parts.append(f"damping {words.si(c, 'N·s/m')}")
+            parts.append(f"damping {words.si(c, uc)}")
         if m:
             what = "a mass the model lacks" if m > 0 else "less moving mass than the model"
-            parts.append(f"{what}: {abs(m):.3g} kg (± {sd['m']:.2g})")
+            parts.append(f"{what}: {abs(m):.3g} {um} (± {sd['m']:.2g})")
         if stiff:
             kind = "stiffness_offset"
             text = (
@@ -191,6 +201,6 @@ def _describer(d: str, v: dict[str, float], sd: dict[str, float], k_ref: float) 
             text = f"at drive {d} the mass line is offset: {words.names(parts)}"
             advice = f"look for mass moving with the {d} axis (cables, a bracket, a payload)"
         return DriveOffset(kind, text, sig.share, loc, None, advice, sig, drive=d, stiffness=k,
-                           damping=c, mass=m, std=sd)  # fmt: skip
+                           damping=c, mass=m, std=sd, units=dict(units))  # fmt: skip
 
     return describe

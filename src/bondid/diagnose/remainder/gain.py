@@ -69,7 +69,7 @@ def _fit(pts: Points, side: str, name: str) -> Candidate | None:
 
     r = np.sqrt(pts.w)
     jac = np.concatenate([-r, np.zeros_like(r)])[:, None]
-    fit = assess(pts, model, np.array([g]), jac)
+    fit = assess(pts, model, np.array([g]), jac=jac)
     if fit is None:
         return None
     loc = Location(side, (name,) if name else ())

@@ -3,6 +3,10 @@ misaligned on its axis, electrical cross-talk), ``H_meas[o, :] = H_model[o, :] +
 H_model[o', :]``; or one input also drives through another (a force not on its axis),
 ``H_meas[:, i] = H_model[:, i] + ε H_model[:, i']``. ``ε`` is real (a geometric
 misalignment), in units of output ``o`` per output ``o'`` (or of input ``i'`` per ``i``).
+
+The leaked row (column) is taken from the model and, as a second form, from the data (the
+measured source row holds the truth the model may miss, with its noise); the form that
+removes more is the candidate (``source_from``).
 """
 
 from __future__ import annotations
@@ -32,10 +36,11 @@ class Leakage(Finding):
     source: str = ""
     epsilon: float = math.nan
     std: float = math.nan
+    source_from: str = "model"
 
     def figures(self) -> dict[str, Any]:
         return {"target": self.target, "source": self.source, "epsilon": self.epsilon,
-                "std": self.std}  # fmt: skip
+                "std": self.std, "source_from": self.source_from}  # fmt: skip
 
 
 def candidates(res: Residual, ctx: Context) -> list[Candidate]:
@@ -45,15 +50,19 @@ def candidates(res: Residual, ctx: Context) -> list[Candidate]:
             for source in names:
                 if source == target:
                     continue
-                cand = _fit(res, side, target, source)
-                if cand is not None:
-                    out.append(cand)
+                fits = [_fit(res, side, target, source, m) for m in (False, True)]
+                best = [c for c in fits if c is not None]
+                if best:
+                    out.append(max(best, key=lambda c: c.fit.gain))
     return out
 
 
-def _gather(res: Residual, side: str, target: str, source: str) -> tuple[Points, np.ndarray]:
+def _gather(
+    res: Residual, side: str, target: str, source: str, measured: bool
+) -> tuple[Points, np.ndarray]:
     """The points of ``target``'s row (column) in the data sets that have ``source`` too, and
-    the model's ``source`` row (column) at them."""
+    the ``source`` row (column) at them: the model's, or the measured one (``measured``;
+    where it is used)."""
     names = "outputs" if side == "output" else "inputs"
 
     def select(k: int, st: Any) -> np.ndarray:
@@ -73,16 +82,18 @@ def _gather(res: Residual, side: str, target: str, source: str) -> tuple[Points,
         if not np.any(sel):
             continue
         src = getattr(st, names).index(source)
+        H = np.where(st.used, st.Hm, np.nan) if measured else st.Hs
         if side == "output":
-            aux[sel] = st.Hs[src, pts.b[sel], pts.j[sel]]
+            aux[sel] = H[src, pts.b[sel], pts.j[sel]]
         else:
-            aux[sel] = st.Hs[pts.a[sel], src, pts.j[sel]]
+            aux[sel] = H[pts.a[sel], src, pts.j[sel]]
     ok = np.isfinite(aux) & (aux != 0)
     return pts.subset(ok), aux[ok]
 
 
-def _fit(res: Residual, side: str, target: str, source: str) -> Candidate | None:
-    pts, aux = _gather(res, side, target, source)
+def _fit(res: Residual, side: str, target: str, source: str, measured: bool
+         ) -> Candidate | None:  # fmt: skip
+    pts, aux = _gather(res, side, target, source, measured)
     if pts.size < MIN_POINTS:
         return None
     g = aux / pts.Hs
@@ -117,11 +128,13 @@ def _fit(res: Residual, side: str, target: str, source: str) -> Candidate | None
             advice = f"check the {target} sensor's alignment and its cabling next to {source}"
         else:
             text = (
-                f"input {target} also drives ε = {eps:.3g} (± {std:.2g}) of what input "
-                f"{source} does: the {target} force is not on its axis, or cross-talk"
+                f"the {target} drive also acts through {source}: input column {target} reads "
+                f"ε = {eps:.3g} (± {std:.2g}) of column {source} (the {target} force is not "
+                "on its axis, or cross-talk)"
             )
             advice = f"check the {target} drive's line of action and its cabling"
         return Leakage("leakage", text, sig.share, loc, None, advice, sig, target=target,
-                       source=source, epsilon=eps, std=std)  # fmt: skip
+                       source=source, epsilon=eps, std=std,
+                       source_from="data" if measured else "model")  # fmt: skip
 
     return Candidate(f"{what} {target} reading {what} {source}", pts, fit, 1.0, describe)

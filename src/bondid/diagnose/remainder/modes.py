@@ -142,21 +142,22 @@ def _mode_model(pts: Points, idx: np.ndarray, n: int) -> tuple[Any, Any]:
         R = (th[2 : 2 + n] + 1j * th[2 + n :])[idx]
         return pts.Hs + R / (pts.s - lam) + np.conj(R) / (pts.s - np.conj(lam))
 
-    cols = np.arange(pts.size)
-
-    def derivative(th: np.ndarray) -> np.ndarray:
+    def derivative(th: np.ndarray, sel: np.ndarray) -> np.ndarray:
         f, z = math.exp(th[0]), math.exp(th[1])
         lam = pole(f, z)
-        R = (th[2 : 2 + n] + 1j * th[2 + n :])[idx]
-        p1, p2 = 1.0 / (pts.s - lam), 1.0 / (pts.s - np.conj(lam))
+        ix = idx[sel]
+        R = (th[2 : 2 + n] + 1j * th[2 + n :])[ix]
+        s = pts.s[sel]
+        p1, p2 = 1.0 / (s - lam), 1.0 / (s - np.conj(lam))
         w = 2 * math.pi * f
         root = math.sqrt(max(1.0 - z * z, 1e-12))
         dlam = (lam, z * w * complex(-1.0, -z / root))  # ∂λ/∂ln f, ∂λ/∂ln ζ
-        out = np.zeros((pts.size, 2 + 2 * n), complex)
+        out = np.zeros((s.size, 2 + 2 * n), complex)
         for k, dl in enumerate(dlam):
             out[:, k] = R * p1 * p1 * dl + np.conj(R) * p2 * p2 * np.conj(dl)
-        out[cols, 2 + idx] = p1 + p2
-        out[cols, 2 + n + idx] = 1j * (p1 - p2)
+        rows = np.arange(s.size)
+        out[rows, 2 + ix] = p1 + p2
+        out[rows, 2 + n + ix] = 1j * (p1 - p2)
         return out
 
     return model, derivative

@@ -44,10 +44,12 @@ from .residual import Points
 TOP_OUT = 3
 #: Jacobians with more entries than this are solved iteratively in the fits
 LARGE_JACOBIAN = 200_000
+#: the most Jacobian entries a fit holds at once (16 MB); beyond, it fits on fewer points
+JACOBIAN_BUDGET = 2_000_000
 #: ``H(θ)`` at the points of a fit
 Model = Callable[[np.ndarray], np.ndarray]
-#: ``∂H/∂θ`` at the points of a fit, ``(N, p)`` complex
-Derivative = Callable[[np.ndarray], np.ndarray]
+#: ``∂H/∂θ`` at the points ``sel`` (index array) of a fit, ``(len(sel), p)`` complex
+Derivative = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
 @dataclass
@@ -118,8 +120,11 @@ def fit_points(
 ) -> LogFit | None:
     """Fit ``θ`` of ``model`` by weighted least squares on the log residual at ``pts`` from
     ``theta0`` (bounds ``lower``/``upper``), with the figures of the module docstring.
-    ``derivative(θ)``: ``∂H/∂θ`` at the points ``(N, p)`` complex (finite differences when
-    None).
+    ``derivative(θ, sel)``: ``∂H/∂θ`` at the points ``sel`` (an index array) ``(n, p)``
+    complex (finite differences when None).
+
+    Where the Jacobian would hold more than :data:`JACOBIAN_BUDGET` entries the parameters
+    are fitted on evenly spread points within it; the figures are taken on every point.
 
     Returns None when the fit fails (a non-finite model or no point)."""
     from scipy.optimize import least_squares
@@ -133,52 +138,72 @@ def fit_points(
     x0 = np.clip(
         theta0, np.where(np.isfinite(lo), lo + pad, lo), np.where(np.isfinite(hi), hi - pad, hi)
     )
+    most = max(JACOBIAN_BUDGET // (2 * theta0.size), 1)
+    sel = np.arange(0, pts.size, max(1, -(-pts.size // most)))
+    part = pts.subset(sel)
 
     def fun(th: np.ndarray) -> np.ndarray:
         with np.errstate(all="ignore"):
-            r = weighted_residuals(pts, model(th))
+            r = weighted_residuals(part, model(th)[sel])
         return np.where(np.isfinite(r), r, 1e3)
 
     jac: Any = "2-point"
     if derivative is not None:
-        root = np.sqrt(pts.w)[:, None]
+        root = np.sqrt(part.w)[:, None]
 
         def jac(th: np.ndarray) -> np.ndarray:
             with np.errstate(all="ignore"):
-                d = -root * derivative(th) / model(th)[:, None]  # ∂ ln(H_meas/H) = −∂H/H
+                # ∂ ln(H_meas/H) = −∂H/H
+                d = -root * derivative(th, sel) / model(th)[sel][:, None]
             return np.nan_to_num(np.concatenate([d.real, d.imag]))
 
     try:
         # an iterative trust-region step where the Jacobian is large (an SVD per step costs
         # more than the whole fit of a few parameters)
-        solver = "lsmr" if 2 * pts.size * x0.size > LARGE_JACOBIAN else "exact"
+        solver = "lsmr" if 2 * sel.size * x0.size > LARGE_JACOBIAN else "exact"
         sol = least_squares(
             fun, x0, jac=jac, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf",
             tr_solver=solver,
         )  # fmt: skip
     except (ValueError, np.linalg.LinAlgError):
         return None
-    return assess(pts, model, sol.x, sol.jac)
+    if sel.size == pts.size:
+        return assess(pts, model, sol.x, jac=sol.jac)
+    return assess(pts, model, sol.x, derivative=derivative)
 
 
-def assess(pts: Points, model: Model, theta: np.ndarray, jac: np.ndarray | None) -> LogFit | None:
-    """The figures of a correction at ``theta`` (``jac``: the Jacobian of
-    :func:`weighted_residuals` there, ``(2N, p)``; taken by finite differences when None)."""
+def assess(
+    pts: Points, model: Model, theta: np.ndarray, *, jac: np.ndarray | None = None,
+    derivative: Derivative | None = None,
+) -> LogFit | None:  # fmt: skip
+    """The figures of a correction at ``theta``: ``jac`` the Jacobian of
+    :func:`weighted_residuals` there ``(2N, p)``, else from ``derivative`` (taken in blocks
+    of points), else by finite differences."""
     theta = np.asarray(theta, dtype=float)
     with np.errstate(all="ignore"):
         H = model(theta)
     if not np.all(np.isfinite(H)):
         return None
-    if jac is None:
-        jac = _jacobian(pts, model, theta)
     s0, s1 = pts.sq(), pts.sq(H)
     noise = float(np.sum(pts.w * pts.m))
     kappa = max(1.0, s1 / noise) if noise > 0 else 1.0
-    scale = (1.0 + LEVEL_TOL) ** 2 * kappa
-    half = 0.5 * pts.w * pts.m * scale
-    sig = np.concatenate([half, half])
-    A = jac.T @ jac
-    B = jac.T @ (sig[:, None] * jac)
+    half = 0.5 * pts.w * pts.m * (1.0 + LEVEL_TOL) ** 2 * kappa
+    p = theta.size
+    A, B = np.zeros((p, p)), np.zeros((p, p))
+    step = max(JACOBIAN_BUDGET // (2 * p), 1)
+    for start in range(0, pts.size, step):
+        idx = np.arange(start, min(start + step, pts.size))
+        if jac is not None:
+            J = np.concatenate([jac[idx], jac[pts.size + idx]])
+        elif derivative is not None:
+            with np.errstate(all="ignore"):
+                d = -np.sqrt(pts.w[idx])[:, None] * derivative(theta, idx) / H[idx][:, None]
+            J = np.nan_to_num(np.concatenate([d.real, d.imag]))
+        else:
+            J = _jacobian(pts.subset(idx), _restricted(model, idx), theta)
+        sig = np.concatenate([half[idx], half[idx]])
+        A += J.T @ J
+        B += J.T @ (sig[:, None] * J)
     try:
         Ainv = np.linalg.pinv(A)
     except np.linalg.LinAlgError:
@@ -188,6 +213,15 @@ def assess(pts: Points, model: Model, theta: np.ndarray, jac: np.ndarray | None)
     gains = pts.w * (np.abs(pts.e()) ** 2 - np.abs(pts.e(H)) ** 2)
     top = float(np.sum(np.sort(gains)[::-1][:TOP_OUT].clip(0.0)))
     return _figures(theta, cov, H, s0, s1, lam, kappa, top)
+
+
+def _restricted(model: Model, idx: np.ndarray) -> Model:
+    """``model`` at the points ``idx`` only."""
+
+    def part(th: np.ndarray) -> np.ndarray:
+        return model(th)[idx]
+
+    return part
 
 
 def _figures(
