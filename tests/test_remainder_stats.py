@@ -100,6 +100,12 @@ def test_the_drive_update_is_the_inverse_with_a_spring_to_ground():
     dz = 2500.0 + 5.0 * s
     update = H - H[:, [0], :] * dz * H[[0], :, :] / (1 + dz * H[0, 0])
     np.testing.assert_allclose(update, truth, rtol=RANK_ONE_REL)
+    assert "N/m" in finding.text and "N·m/rad" not in finding.text
+    # the same drive named rotary: its units follow
+    ctx = Context([d], [H], Settings(modes=False, rotary=("x",)))
+    rot = next(c for c in drive_candidates(res, ctx) if c.key.endswith("drive x"))
+    text = rot.describe(rot.significance(res.excess(), res.weight, 1e-8)).text
+    assert "N·m/rad" in text
 
 
 def test_words():

@@ -71,7 +71,8 @@ class Remainder:
 
     def sentences(self, n: int = 4) -> list[str]:
         """A few lines for a printed summary: the excess and where it lies, then the ``n``
-        largest findings, then how much is left undescribed."""
+        largest findings, then how much is left undescribed and what the remainder would be
+        with the causes corrected."""
         ex = self.excess
         head = (
             f"remainder {ex.db_rms:.2f} dB against a noise level of {ex.noise_db:.2f} dB "
@@ -104,6 +105,13 @@ class Remainder:
                     f"these describe {words.pct(self.explained_share)} of the excess; the "
                     "rest has no simple form"
                 )
+        if self.causes:
+            af = self.after
+            state = "at the noise level" if not af.above_noise else "still above the noise"
+            lines.append(
+                f"with them corrected the remainder would be {af.db_rms:.2f} dB against "
+                f"{af.noise_db:.2f} dB ({state})"
+            )
         return lines
 
 
