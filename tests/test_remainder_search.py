@@ -74,7 +74,7 @@ def test_a_cause_is_found_jointly_over_two_data_sets():
         H = Hm.copy()
         H[:, Z] /= 1 + S / (2 * np.pi * 600.0)
         sets.append(measured(H, 20 + k))
-    rem = describe_remainder(sets, models)
+    rem = describe_remainder(sets, models, settings=Settings(modes=False))
     top = rem.causes[0]
     assert top.kind == "lag" and top.location.names == ("z",)
     assert abs(top.f_c_hz / 600.0 - 1) < 0.02

@@ -50,6 +50,8 @@ kind                   form and figures
       #         weight), "z" (how far above the noise), "above_noise"}
       "after": {"db_rms", "noise_db", "above_noise"},   # with every cause corrected
       "explained_share": float,   # of the excess over the noise, by the causes together
+      # every share is taken against the excess where it lies: the positive parts of the
+      # excess of each channel in each fixed band (excess.positive_excess)
       "findings": [               # largest share first
         {"kind": str, "text": str, "share": float, "advice": str,
          "location": {"side": "output|input|channel|drive|global", "names": [str],

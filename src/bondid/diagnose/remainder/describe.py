@@ -14,7 +14,7 @@ from ...jsonsafe import json_safe
 from . import words
 from .base import Finding
 from .context import Context, Settings
-from .excess import ExcessFigures, excess_figures
+from .excess import ExcessFigures, excess_figures, positive_excess
 from .explain import explain
 from .location import confined
 from .residual import build_residual
@@ -165,10 +165,10 @@ def describe_remainder(
         None if model_modes is None else [list(m) for m in model_modes],
     )  # fmt: skip
     ex = excess_figures(res, s.bands_per_decade)
-    total = res.excess()
+    total = positive_excess(res, s.bands_per_decade)
     causes, final = explain(res, ctx, total)
     after = excess_figures(final, s.bands_per_decade)
-    left = final.excess()
+    left = positive_excess(final, s.bands_per_decade)
     explained = (1.0 - left / total) if total > 0 else 0.0
     explained = float(min(max(explained, 0.0), 1.0)) if math.isfinite(explained) else 0.0
     causes.sort(key=lambda f: -f.share)

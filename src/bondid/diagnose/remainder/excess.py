@@ -179,6 +179,22 @@ def band_edges(res: Residual, per_decade: int = BANDS_PER_DECADE) -> np.ndarray:
     return edges
 
 
+def positive_excess(res: Residual, per_decade: int = BANDS_PER_DECADE) -> float:
+    """The excess over the noise where it lies: ``Σ max(0, Σ w (|e|² − m))`` over the cells
+    of one channel of one data set in one fixed band (natural units). A noise reference
+    that is high in some places (a cautious estimate) would otherwise cancel part of a real
+    excess elsewhere in a plain sum, and every share taken against it would be inflated."""
+    edges = band_edges(res, per_decade)
+    total = 0.0
+    for st in res.sets:
+        x = st.w * (np.abs(st.e()) ** 2 - st.m)  # 0 where unused
+        idx = np.clip(np.searchsorted(edges, st.freq_hz, side="right") - 1, 0, edges.size - 2)
+        for n in np.unique(idx):
+            cell = np.sum(x[:, :, idx == n], axis=2)
+            total += float(np.sum(np.clip(cell, 0.0, None)))
+    return total
+
+
 def excess_figures(res: Residual, per_decade: int = BANDS_PER_DECADE) -> ExcessFigures:
     """The excess figures of ``res`` (module docstring)."""
     total = _Sums()

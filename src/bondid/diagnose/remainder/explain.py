@@ -42,7 +42,8 @@ MAX_ALTERNATIVES = 3
 
 def explain(res: Residual, ctx: Context, excess: float) -> tuple[list[Finding], Residual]:
     """The findings (in the order claimed) and the residual against the model with all their
-    corrections; ``excess`` is the original residual's ``Σ w (|e|² − m)``."""
+    corrections; ``excess`` is the original residual's excess over the noise
+    (:func:`.excess.positive_excess`), which every share is taken against."""
     from scipy.special import chdtri  # inverse χ² survival function
 
     s = ctx.settings
