@@ -104,7 +104,10 @@ def test_json_form_holds_the_documented_keys():
     H[X] *= 10 ** (1.0 / 20)
     rem = describe_remainder(measured(H, 4), model(), settings=Settings(modes=False))
     out = json.loads(json.dumps(rem.as_dict(), allow_nan=False))
-    assert set(out) >= {"excess", "after", "explained_share", "findings", "summary", "notes"}
+    assert set(out) >= {"primary", "excess", "after", "explained_share", "findings", "summary",
+                        "notes"}  # fmt: skip
+    assert out["primary"]["kind"] == "gain_offset"
+    assert (out["primary"]["side"], out["primary"]["names"]) == ("output", ["x"])
     ex = out["excess"]
     assert set(ex) >= {"db_rms", "noise_db", "ratio", "above_noise", "by_channel", "by_output",
                        "by_input", "by_band", "where"}  # fmt: skip

@@ -36,6 +36,8 @@ kind                   form and figures
 **JSON** (:meth:`Remainder.as_dict`, the ``remainder`` of ``diagnosis.json``)::
 
     {
+      "primary": {"kind": str | null, "side": str, "names": [str],
+                  "bands_hz": [[f_lo, f_hi], ...]},   # Remainder.primary()
       "excess": {
         "db_rms": float,          # weighted RMS log error of the model [dB]
         "noise_db": float,        # the level an exact model would show [dB]

@@ -51,10 +51,25 @@ class Remainder:
         """The findings that describe a cause (every kind but ``"confined"``)."""
         return [f for f in self.findings if f.kind != "confined"]
 
+    def primary(self) -> dict[str, Any]:
+        """Where the remainder points, in one place: the largest cause's kind, side
+        (``output``/``input``/``channel``/``drive``/``global``), names and band [Hz] (its own,
+        else the bands carrying most of the excess); without a cause, where the excess is
+        confined (kind ``"confined"``), else ``kind`` None with the channels and bands that
+        carry most of it."""
+        bands = [[b.f_lo_hz, b.f_hi_hz] for b in self.excess.where_bands]
+        for f in [*self.causes, *self.findings]:
+            band = [list(f.band_hz)] if f.band_hz is not None else bands
+            return {"kind": f.kind, "side": f.location.side, "names": list(f.location.names),
+                    "bands_hz": band}  # fmt: skip
+        return {"kind": None, "side": "channel", "names": list(self.excess.where_channels),
+                "bands_hz": bands}  # fmt: skip
+
     def as_dict(self) -> dict[str, Any]:
         """JSON-safe form (schema in :mod:`bondid.diagnose.remainder`)."""
         return json_safe(
             {
+                "primary": self.primary(),
                 "excess": self.excess.as_dict(),
                 "after": {
                     "db_rms": self.after.db_rms,

@@ -128,18 +128,24 @@ def _mac_phrase(near: Nearest | None) -> str:
     return f"nearest model mode {words.hz(near.f_hz)} (MAC {near.mac:.2f})"
 
 
-def _where_advice(seen: Seen) -> tuple[str, str]:
-    """``(location side, advice)`` for a missing mode seen as ``seen``."""
+def _where_advice(seen: Seen, form: str) -> tuple[str, str]:
+    """``(location side, advice)`` for a missing mode seen as ``seen``, fitted in ``form``.
+    A resonance that multiplies a whole row (column) is the sensor's (drive's) own; a mode
+    term that only one row's channels show may also be a mode local to where that sensor
+    measures, and is said so."""
     side, which = seen.confined()
+    whole = form.endswith("filter")
     if side == "output":
+        tail = "" if whole else ", or a mode local to where it measures"
         return side, (
             f"look at the {which[0]} sensor's mounting (a read head or bracket on a compliant "
-            "mount)"
+            f"mount){tail}"
         )
     if side == "input":
+        tail = "" if whole else ", or a mode local to where it acts"
         return side, (
             f"look at the {which[0]} drive (an amplifier or current-loop resonance, the motor's "
-            "coupling)"
+            f"coupling){tail}"
         )
     if side == "channel":
         return side, f"look at the {which[0]} measurement (set-up, a local resonance)"
@@ -169,7 +175,7 @@ def missing_mode(
             f_hz=f_hz, zeta=zeta, status="misplaced", form=form, seen=seen, nearest=near,
             f_model_hz=near.f_hz,
         )  # fmt: skip
-    _, advice = _where_advice(seen)
+    _, advice = _where_advice(seen, form)
     text = (
         f"a mode at {words.hz(f_hz)} (ζ {100 * zeta:.1f} %) is missing in the model; seen "
         f"{seen.phrase()}, {_mac_phrase(near)}: {advice}"
