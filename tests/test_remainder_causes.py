@@ -24,6 +24,8 @@ GAIN_DB = 0.05  # a gain offset [dB]
 K_REL = 0.05  # a stiffness
 MASS_REL = 0.05  # a mass
 EPS_REL = 0.05  # a leakage ratio
+SLOPE_ABS = 0.02  # a power-law exponent
+NOTCH_DB = 1.5  # a notch's depth [dB]
 #: the share of the excess the main finding must explain
 MAIN_SHARE = 0.8
 
@@ -179,3 +181,33 @@ def test_mass_the_model_lacks_on_a_drive():
     assert top.drive == "y"
     assert abs(top.mass / 0.5 - 1) < MASS_REL
     assert top.stiffness == 0.0
+
+
+def test_sensor_wired_with_the_wrong_polarity():
+    H = model().copy()
+    H[Y] *= -1.0
+    top = main(describe(H))
+    assert top.kind == "gain_offset" and top.reversed
+    assert top.location.side == "output" and top.location.names == ("y",)
+    assert abs(top.gain_db) < GAIN_DB
+
+
+def test_velocity_read_as_displacement_is_a_power_law_gain():
+    H = model().copy()
+    H[Z] *= S  # the z sensor gives velocity; the file says receptance
+    top = main(describe(H))
+    assert top.kind == "gain_slope"
+    assert top.location.side == "output" and top.location.names == ("z",)
+    assert abs(top.alpha - 1.0) < SLOPE_ABS
+    assert "a velocity taken for a displacement" in top.text
+
+
+def test_notch_filter_in_one_drive():
+    H = model().copy()
+    x = S / (2 * np.pi * 1200.0)
+    H[:, X] *= (1 + 2 * 0.01 * x + x * x) / (1 + 2 * 0.3 * x + x * x)
+    top = main(describe(H))
+    assert top.kind == "notch"
+    assert top.location.side == "input" and top.location.names == ("x",)
+    assert abs(top.f_hz / 1200.0 - 1) < F_REL
+    assert abs(top.depth_db - 20 * np.log10(0.01 / 0.3)) < NOTCH_DB

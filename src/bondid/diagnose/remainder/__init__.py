@@ -30,7 +30,13 @@ kind                   form and figures
                        roll-off (``f_c_hz``, ``zeta``) on a row, column or every channel
 ``leakage``            one output reading ``epsilon`` of another (sensor misalignment,
                        cross-talk), or one input driving through another (:mod:`.leakage`)
-``gain_offset``        a constant dB offset of a row or column (calibration): ``gain_db``
+``gain_offset``        a constant dB offset of a row or column (calibration): ``gain_db``,
+                       ``reversed`` (the sign flipped: wrong polarity)
+``gain_slope``         a gain growing as a power ``alpha`` of frequency (with its phase): a
+                       quantity taken for another (velocity for displacement), a sensitivity
+                       that changes with frequency (:mod:`.slope`)
+``notch``              a dip at ``f_hz`` (``depth_db``, ``zeta``) in one row or column only: a
+                       notch filter, an anti-resonance the model lacks (:mod:`.notch`)
 =====================  =====================================================================
 
 **JSON** (:meth:`Remainder.as_dict`, the ``remainder`` of ``diagnosis.json``)::

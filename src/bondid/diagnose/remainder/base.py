@@ -28,6 +28,8 @@ KINDS: tuple[str, ...] = (
     "lag",
     "leakage",
     "gain_offset",
+    "gain_slope",
+    "notch",
 )
 
 

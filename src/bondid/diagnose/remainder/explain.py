@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from . import delay, drive, gain, lag, leakage, modes
+from . import delay, drive, gain, lag, leakage, modes, notch, slope
 from .base import Candidate, Finding
 from .context import Context
 from .residual import Residual
@@ -29,8 +29,10 @@ Detector = Callable[[Residual, Context], list[Candidate]]
 #: every detector, in no particular order (the search ranks their candidates)
 DETECTORS: tuple[Detector, ...] = (
     gain.candidates,
+    slope.candidates,
     delay.candidates,
     lag.candidates,
+    notch.candidates,
     leakage.candidates,
     drive.candidates,
     modes.missing_candidates,
