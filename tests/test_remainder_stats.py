@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.special import exp1
 from test_remainder_systems import FREQ, measured, receptance, system
 
 from bondid.cost.noise_level import expected_log_error, expected_sq_db
@@ -20,6 +21,8 @@ from bondid.diagnose.remainder.stats import fit_points
 
 #: agreement with the peers' figures [dB]
 PEER_DB = 1e-9
+#: Monte-Carlo agreement (400 000 draws): absolute in units of the std, relative
+MC_ABS, MC_REL = 0.01, 0.02
 #: the rank-one drive update against the direct inverse (relative)
 RANK_ONE_REL = 1e-8
 
@@ -39,6 +42,17 @@ def test_excess_figures_match_the_gap_and_the_noise_level_of_the_diagnosis():
     assert abs(ex.noise_db - math.sqrt(np.sum(w * sq) / np.sum(w))) < PEER_DB
 
 
+def test_the_noise_mean_log_error_matches_monte_carlo():
+    """``E ln|1 + u| = ½ E₁(1/v)`` and ``E|ln(1 + u)|²`` (bondid.cost.noise_level) for u
+    complex Gaussian: the centring of the residual rests on both."""
+    rng = np.random.default_rng(3)
+    for v in (0.01, 1.0, 100.0):
+        u = np.sqrt(v / 2) * (rng.standard_normal(400_000) + 1j * rng.standard_normal(400_000))
+        e = np.log(1 + u)
+        assert abs(np.mean(e.real) - 0.5 * exp1(1 / v)) < MC_ABS * max(1.0, np.std(e.real))
+        assert abs(np.mean(np.abs(e) ** 2) / expected_log_error(v) - 1) < MC_REL
+
+
 def test_log_ratio_is_the_principal_complex_log():
     rng = np.random.default_rng(0)
     a = rng.standard_normal(500) + 1j * rng.standard_normal(500)
@@ -54,8 +68,9 @@ def _noise_points(rng: np.random.Generator, n: int, offset: float) -> Points:
     Hs = np.ones(n, complex)
     s = 2j * np.pi * np.geomspace(1, 1000, n)
     z = np.zeros(n, int)
+    mu = 0.5 * exp1(1 / v)  # the noise's mean log error
     return Points(z, z, z, np.arange(n), s, np.exp(offset) * (1 + u), Hs, 1 / (1 + v),
-                  expected_log_error(v))  # fmt: skip
+                  expected_log_error(v) - mu**2, mu)  # fmt: skip
 
 
 def _gain_p(pts: Points) -> float:

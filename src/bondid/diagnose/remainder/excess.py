@@ -3,9 +3,11 @@ output row, input column and frequency band (:func:`excess_figures`).
 
 For a group of points: ``db_rms = (20/ln 10)·√(Σ w|e|² / Σ w)`` (the weighted gap of the
 diagnosis), ``noise_db`` the same of the noise's ``m`` (the level an exact model would show),
-its excess ``Σ w (|e|² − m)``, and ``z = (Σ w|e|² − t Σ w m) / (t √(Σ w² q))`` with
-``t = (1 + LEVEL_TOL)²`` (how far it stands above the noise, allowing the noise prediction's
-tolerance). The ``share`` of a group is its positive excess over the sum of the positive
+its excess ``Σ w (|e − μ|² − m_c)`` on the centred residual (:mod:`.residual`: ``μ`` the
+noise's own mean log error, ``m_c = m − μ²``), and ``z = (Σ w|e − μ|² − t Σ w m_c) /
+(t √(Σ w² q))`` with ``t = (1 + LEVEL_TOL)²`` (how far it stands above the noise, allowing
+the noise prediction's tolerance); ``above_noise`` of the whole is the rule of the verdict on
+the same centred sums. The ``share`` of a group is its positive excess over the sum of the positive
 excesses of its partition (channels, rows, columns or bands); ``even_share`` is its share of
 the weight, what it would carry were the excess spread evenly.
 """
@@ -126,24 +128,39 @@ def _drop_name(p: Part) -> dict[str, Any]:
 class _Sums:
     s: float = 0.0  # Σ w |e|²
     m: float = 0.0  # Σ w m
+    sc: float = 0.0  # Σ w |e − μ|²
+    mc: float = 0.0  # Σ w (m − μ²)
     q: float = 0.0  # Σ w² q
     w: float = 0.0  # Σ w
 
-    def add(self, e2: np.ndarray, w: np.ndarray, m: np.ndarray, q: np.ndarray) -> None:
-        self.s += float(np.sum(w * e2))
-        self.m += float(np.sum(w * m))
-        self.q += float(np.sum(w * w * q))
+    def add(self, arrays: dict[str, np.ndarray], sel: np.ndarray) -> None:
+        w = arrays["w"][sel]
+        self.s += float(np.sum(w * arrays["e2"][sel]))
+        self.m += float(np.sum(w * arrays["m"][sel]))
+        self.sc += float(np.sum(w * arrays["c2"][sel]))
+        self.mc += float(np.sum(w * arrays["mc"][sel]))
+        self.q += float(np.sum(w * w * arrays["q"][sel]))
         self.w += float(np.sum(w))
+
+    def pool(self, other: _Sums) -> None:
+        for f in ("s", "m", "sc", "mc", "q", "w"):
+            setattr(self, f, getattr(self, f) + getattr(other, f))
 
     @property
     def excess(self) -> float:
-        return self.s - self.m
+        return self.sc - self.mc
 
     def z(self) -> float:
         t = (1.0 + LEVEL_TOL) ** 2
         if self.q <= 0:
-            return math.inf if self.s > t * self.m else -math.inf
-        return (self.s - t * self.m) / (t * math.sqrt(self.q))
+            return math.inf if self.sc > t * self.mc else -math.inf
+        return (self.sc - t * self.mc) / (t * math.sqrt(self.q))
+
+
+def _arrays(st: Any) -> dict[str, np.ndarray]:
+    """A data set's per-point arrays for :class:`_Sums`."""
+    return {"e2": np.abs(st.e()) ** 2, "c2": np.abs(st.centred()) ** 2, "w": st.w, "m": st.m,
+            "mc": st.mc, "q": st.q}  # fmt: skip
 
 
 def _rms(x: float, w: float) -> float:
@@ -187,7 +204,7 @@ def positive_excess(res: Residual, per_decade: int = BANDS_PER_DECADE) -> float:
     edges = band_edges(res, per_decade)
     total = 0.0
     for st in res.sets:
-        x = st.w * (np.abs(st.e()) ** 2 - st.m)  # 0 where unused
+        x = st.w * (np.abs(st.centred()) ** 2 - st.mc)  # 0 where unused
         idx = np.clip(np.searchsorted(edges, st.freq_hz, side="right") - 1, 0, edges.size - 2)
         for n in np.unique(idx):
             cell = np.sum(x[:, :, idx == n], axis=2)
@@ -206,28 +223,26 @@ def excess_figures(res: Residual, per_decade: int = BANDS_PER_DECADE) -> ExcessF
     bsum = {name: _Sums() for name in bands}
     bnames = list(bands)
     for st in res.sets:
-        e2 = np.abs(st.e()) ** 2
+        arr = _arrays(st)
         u = st.used
-        total.add(e2[u], st.w[u], st.m[u], st.q[u])
+        total.add(arr, u)
         idx = np.clip(np.searchsorted(edges, st.freq_hz, side="right") - 1, 0, len(bnames) - 1)
         for a, o in enumerate(st.outputs):
             for b, i in enumerate(st.inputs):
-                uu = u[a, b]
+                uu = np.zeros(u.shape, bool)
+                uu[a, b] = u[a, b]
                 if not np.any(uu):
                     continue
-                args = (e2[a, b][uu], st.w[a, b][uu], st.m[a, b][uu], st.q[a, b][uu])
-                chan.setdefault(f"{o}.{i}", _Sums()).add(*args)
-                rows[o].add(*args)
-                cols[i].add(*args)
-                for n in np.unique(idx[uu]):
-                    sel = uu & (idx == n)
-                    bsum[bnames[n]].add(e2[a, b][sel], st.w[a, b][sel], st.m[a, b][sel],
-                                        st.q[a, b][sel])  # fmt: skip
+                chan.setdefault(f"{o}.{i}", _Sums()).add(arr, uu)
+                rows[o].add(arr, uu)
+                cols[i].add(arr, uu)
+                for n in np.unique(idx[u[a, b]]):
+                    bsum[bnames[n]].add(arr, uu & (idx == n)[None, None, :])
     W = total.w
     by_band = _parts(bsum, W, bands)
     by_channel = _parts(chan, W)
-    n_eff = total.m**2 / total.q if total.q > 0 else math.inf
-    s0, L2 = total.s / W, total.m / W
+    n_eff = total.mc**2 / total.q if total.q > 0 else math.inf
+    s0, L2 = total.sc / W, total.mc / W
     above = s0 > (1.0 + LEVEL_TOL) ** 2 * L2 * (1.0 + Z / math.sqrt(n_eff))
     return ExcessFigures(
         db_rms=_rms(total.s, W), noise_db=_rms(total.m, W), n_eff=n_eff, above_noise=bool(above),
@@ -265,8 +280,7 @@ def _where_bands(by_band: list[Part], sums: dict[str, _Sums], total_w: float) ->
     for g in groups:
         pool = _Sums()
         for p in g:
-            x = sums[p.name]
-            pool.s, pool.m, pool.q, pool.w = pool.s + x.s, pool.m + x.m, pool.q + x.q, pool.w + x.w
+            pool.pool(sums[p.name])
         out.append(
             Part(
                 g[0].name, _rms(pool.s, pool.w), _rms(pool.m, pool.w), sum(p.share for p in g),

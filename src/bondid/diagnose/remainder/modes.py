@@ -110,8 +110,8 @@ def excess_peaks(res: Residual, n: int = N_PEAK_SEEDS) -> list[tuple[float, floa
     t = (1.0 + LEVEL_TOL) ** 2
     out: list[tuple[float, float]] = []
     for st in res.sets:
-        e2 = np.abs(st.e()) ** 2
-        s, m, q = (np.sum(a, axis=(0, 1)) for a in (st.w * e2, st.w * st.m, st.w**2 * st.q))
+        e2 = np.abs(st.centred()) ** 2
+        s, m, q = (np.sum(a, axis=(0, 1)) for a in (st.w * e2, st.w * st.mc, st.w**2 * st.q))
         f = st.freq_hz
         lf = np.log(f)
         win = [np.abs(lf - lf[j]) <= PEAK_WINDOW for j in range(f.size)]

@@ -7,10 +7,20 @@ A point is one frequency of one channel of one data set. Its log residual is
 in natural-log units (``(20/ln 10)·|e|`` is the spec's dB error; note the sign: ``e`` is what
 the data have that the model lacks). Under measurement noise ``H_meas = H (1 + u)`` with
 ``u`` complex Gaussian of variance ``v = N/S``, an exact model leaves ``e = ln(1 + u)``,
-whose mean square ``m = E|ln(1 + u)|²`` and its variance ``q`` come from
+whose mean square ``m = E|ln(1 + u)|²`` and the variance ``q`` of ``|e|²`` come from
 :mod:`bondid.cost.noise_level`. Each point also has an information weight ``w = S/(S + N)``
 in [0, 1] (the diagnosis' weights). Every figure of :mod:`bondid.diagnose.remainder` is
-weighted by ``w``; the excess of a set of points over the noise is ``Σ w (|e|² − m)``.
+weighted by ``w``.
+
+The noise's log error is not centred: ``E ln|1 + u| = ½ E₁(1/v)`` (``E₁`` the exponential
+integral; ``E ln|z|² = ln|μ|² + E₁(|μ|²/σ²)`` for ``z`` complex Gaussian of mean ``μ``),
+negligible at a good signal-to-noise ratio, ``½(ln v − γ)`` where the noise swamps the
+signal: there the measured magnitude sits above the model's by that much whatever the model.
+A finding fitted to such points would take this bias for a gain, a slope or a mode. So the
+fits and tests work on the centred residual ``e − μ`` (``μ = ½ E₁(1/v)``) with the noise's
+variance ``m − μ²``, and the excess of a set of points over the noise is
+``Σ w (|e − μ|² − (m − μ²))``; the dB figures (``db_rms``, ``noise_db``) stay those of ``e``
+and ``m``, as the diagnosis' gap and noise level.
 
 Both data and model are held as receptances (a ratio of two FRFs of one quantity does not
 depend on the quantity; the drive-point stiffness and mass need receptances).
@@ -49,6 +59,7 @@ class SetResidual:
         w: information weight of each point, 0 where the point is not used.
         m: ``E|ln(1 + u)|²`` of each point's noise (natural-log units²), 0 where unused.
         q: ``Var|ln(1 + u)|²`` of each point's noise, 0 where unused.
+        mu: ``E ln|1 + u|``, the noise's mean log error (real), 0 where unused.
     """
 
     freq_hz: np.ndarray
@@ -59,6 +70,7 @@ class SetResidual:
     w: np.ndarray
     m: np.ndarray
     q: np.ndarray
+    mu: np.ndarray
 
     @property
     def used(self) -> np.ndarray:
@@ -74,12 +86,22 @@ class SetResidual:
         out[used] = log_ratio(self.Hm[used], H[used])
         return out
 
+    def centred(self, Hs: np.ndarray | None = None) -> np.ndarray:
+        """``e − μ`` (module docstring), 0 where unused."""
+        return np.where(self.used, self.e(Hs) - self.mu, 0.0)
+
+    @property
+    def mc(self) -> np.ndarray:
+        """The centred residual's noise variance ``m − μ²`` (≥ 0)."""
+        return np.clip(self.m - self.mu**2, 0.0, None)
+
 
 @dataclass
 class Points:
     """A selection of points, flattened (each array ``(N,)``): data set ``k``, row ``a``,
-    column ``b``, frequency index ``j``; ``s = jω`` [rad/s]; ``Hm``, ``Hs``, ``w``, ``m``
-    as in :class:`SetResidual`."""
+    column ``b``, frequency index ``j``; ``s = jω`` [rad/s]; ``Hm``, ``Hs``, ``w`` as in
+    :class:`SetResidual`; ``m`` the noise variance of the centred residual ``m − μ²`` and
+    ``mu`` the noise's mean log error (the fits work on ``e − μ``, module docstring)."""
 
     k: np.ndarray
     a: np.ndarray
@@ -90,6 +112,7 @@ class Points:
     Hs: np.ndarray
     w: np.ndarray
     m: np.ndarray
+    mu: np.ndarray
 
     @property
     def size(self) -> int:
@@ -100,11 +123,11 @@ class Points:
         return self.s.imag / (2 * np.pi)
 
     def e(self, H: np.ndarray | None = None) -> np.ndarray:
-        """``ln(H_meas / H)`` at the points (default ``H = Hs``)."""
-        return log_ratio(self.Hm, self.Hs if H is None else H)
+        """The centred residual ``ln(H_meas / H) − μ`` at the points (default ``H = Hs``)."""
+        return log_ratio(self.Hm, self.Hs if H is None else H) - self.mu
 
     def sq(self, H: np.ndarray | None = None) -> float:
-        """``Σ w |ln(H_meas / H)|²`` over the points."""
+        """``Σ w |ln(H_meas / H) − μ|²`` over the points."""
         return float(np.sum(self.w * np.abs(self.e(H)) ** 2))
 
     def subset(self, keep: np.ndarray) -> Points:
@@ -121,7 +144,7 @@ class Points:
         return (self.k * 10_000 + self.a) * 10_000 + self.b
 
 
-_FIELDS = ("k", "a", "b", "j", "s", "Hm", "Hs", "w", "m")
+_FIELDS = ("k", "a", "b", "j", "s", "Hm", "Hs", "w", "m", "mu")
 
 #: a selection: ``select(k, set) -> bool (n_out, n_in, n_f)``, and-ed with the used points
 Selector = Callable[[int, SetResidual], np.ndarray]
@@ -156,14 +179,14 @@ class Residual:
             a, b, j = np.nonzero(mask)
             parts.append(
                 (np.full(a.size, k), a, b, j, 2j * np.pi * st.freq_hz[j], st.Hm[a, b, j],
-                 st.Hs[a, b, j], st.w[a, b, j], st.m[a, b, j])
+                 st.Hs[a, b, j], st.w[a, b, j], st.mc[a, b, j], st.mu[a, b, j])
             )  # fmt: skip
         return Points(*(np.concatenate([p[n] for p in parts]) for n in range(len(_FIELDS))))
 
     def with_model(self, Hs: Sequence[np.ndarray]) -> Residual:
         """The same points against another model ``Hs`` (one array per data set)."""
         sets = [
-            SetResidual(s.freq_hz, s.outputs, s.inputs, s.Hm, H, s.w, s.m, s.q)
+            SetResidual(s.freq_hz, s.outputs, s.inputs, s.Hm, H, s.w, s.m, s.q, s.mu)
             for s, H in zip(self.sets, Hs, strict=True)
         ]
         return Residual(sets, self.channels)
@@ -177,12 +200,12 @@ class Residual:
         return out
 
     def excess(self, select: Selector | None = None) -> float:
-        """``Σ w (|e|² − m)`` over the used points where ``select`` holds (natural units)."""
+        """``Σ w (|e − μ|² − (m − μ²))`` over the used points where ``select`` holds
+        (natural units)."""
         total = 0.0
         for k, st in enumerate(self.sets):
             mask = st.used if select is None else st.used & select(k, st)
-            e = st.e()
-            total += float(np.sum((st.w * (np.abs(e) ** 2 - st.m))[mask]))
+            total += float(np.sum((st.w * (np.abs(st.centred()) ** 2 - st.mc))[mask]))
         return total
 
 
@@ -223,6 +246,8 @@ def build_residual(
     Raises:
         DataError: shapes differ, or no point is usable.
     """
+    from scipy.special import exp1
+
     from ...cost.noise_level import expected_log_error, log_error_variance
 
     if not data or len(model_H) != len(data):
@@ -247,12 +272,14 @@ def build_residual(
                 & np.isfinite(v) & np.isfinite(w) & (w > 0)
             )  # fmt: skip
         v0 = np.where(ok, v, 0.0)
+        with np.errstate(divide="ignore"):
+            mu = np.where(ok & (v0 > 0), 0.5 * exp1(1.0 / np.where(v0 > 0, v0, 1.0)), 0.0)
         sets.append(
             SetResidual(
                 d.freq_hz.copy(), tuple(d.outputs), tuple(d.inputs), Hm, Hr,
                 np.where(ok, np.clip(w, 0.0, 1.0), 0.0),
                 np.where(ok, expected_log_error(v0), 0.0),
-                np.where(ok, log_error_variance(v0), 0.0),
+                np.where(ok, log_error_variance(v0), 0.0), mu,
             )
         )  # fmt: skip
     res = Residual(sets, use)
