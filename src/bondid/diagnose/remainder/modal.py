@@ -104,13 +104,6 @@ def nearest(f_hz: float, zeta: float, residues: np.ndarray, model: Sequence[Any]
     return Nearest(float(f[j]), float(df[j]), float(mac[j]), best, bool(best >= PAIR_MAC))
 
 
-def mode_terms(freq_hz: np.ndarray, lam: complex, R: np.ndarray) -> np.ndarray:
-    """``R/(s−λ) + R̄/(s−λ̄)`` at ``s = j2πf``, shape ``(*R.shape, n_f)``."""
-    from .._lscf import mode_terms as terms
-
-    return terms(freq_hz, lam, R)
-
-
 def pole(f_hz: float, zeta: float) -> complex:
     """λ [1/s] of a mode of natural frequency ``f_hz`` and damping ``zeta`` (Im λ > 0)."""
     w = 2 * math.pi * f_hz
