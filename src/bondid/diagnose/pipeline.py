@@ -130,6 +130,8 @@ class Diagnosis:
     places: Places = field(default_factory=Places)
     #: explained, partly explained or unexplained (:mod:`.outcome`)
     outcome: Outcome | None = None
+    #: what the final model still misses (:mod:`.remainder`); None when not described
+    remainder: Any = None
 
 
 def used_channels(datasets: Sequence[FrfData], requested: Sequence[str] | None) -> list[str]:
@@ -290,6 +292,8 @@ def diagnose(
             during_final(diag)
         diag.final = pending()
         say("final fit on all data")
+        diag.remainder = describe(doc, datasets, p, diag.final.model, measured, s)
+        say("the remainder described")
     except BaseException:
         pool.kill()
         raise
@@ -297,3 +301,46 @@ def diagnose(
         pool.close()
     diag.wall_s = time.perf_counter() - t0
     return diag
+
+
+def describe(
+    doc: UrdfDocument, originals: Sequence[FrfData], p: Prepared, model: JobResult,
+    measured: tuple, s: Settings,
+) -> Any:  # fmt: skip
+    """What ``model`` (the final model) still misses on all the data (:mod:`.remainder`),
+    its points judged against the prediction of their noise; None when it cannot be said."""
+    from ..cost.noise_level import point_noise_to_signal
+    from ..exceptions import BondidError
+    from .remainder import Settings as RemainderSettings
+    from .remainder import describe_remainder
+    from .where import modes_on_channels
+
+    if model.error or not model.full_H:
+        return None
+    rotary = tuple(t.joint for t in doc.transmissions
+                   if doc.joint(t.joint).type in ("revolute", "continuous"))  # fmt: skip
+    try:
+        nts = [point_noise_to_signal(d, "coherence", "prediction", (orig, s.weighting))
+               for d, orig in zip(p.full, originals, strict=True)]  # fmt: skip
+        final = UrdfDocument.from_string(model.urdf, source="final model")
+        mod = [modes_on_channels(final, d, p.channels) for d in p.full] if measured else None
+        return describe_remainder(
+            p.full, model.full_H, p.channels, noise_to_signal=nts,
+            measured_modes=list(measured) or None, model_modes=mod,
+            settings=RemainderSettings(modes=bool(measured), rotary=rotary),
+        )  # fmt: skip
+    except (BondidError, np.linalg.LinAlgError, ValueError) as exc:
+        return RemainderFailure(f"{type(exc).__name__}: {exc}")
+
+
+@dataclass
+class RemainderFailure:
+    """Why the remainder could not be described (it is then reported, not raised)."""
+
+    error: str
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"error": self.error, "findings": [], "summary": []}
+
+    def sentences(self) -> list[str]:
+        return [f"the remainder could not be described: {self.error}"]

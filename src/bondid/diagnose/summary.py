@@ -78,6 +78,10 @@ def summary(diag: Diagnosis, content: dict[str, Any]) -> str:
     ff = content.get("final_fit")
     if ff:
         lines.append(f"final model refitted on all data (final.urdf): {ff['note']}")
+    rem = content.get("remainder") or {}
+    if rem.get("summary"):
+        lines.append("what the final model still misses:")
+        lines += [f"  {x}" for x in rem["summary"]]
     lines.append(f"time {diag.wall_s:.1f} s")
     return "\n".join(lines)
 

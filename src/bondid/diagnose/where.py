@@ -21,7 +21,6 @@ def where(
     """Modes (measured vs refitted model), anti-resonance shifts, automatic bands and the modes
     identified in each data set (a tuple of tuples of :class:`.modal_id.IdentifiedMode`;
     empty without ``do_modes``)."""
-    from ..linear.affine import build_affine_model
     from ..modes.bands import Feature
     from .antiresonance import antiresonance_shifts
     from .gap import gap_bands
@@ -35,7 +34,7 @@ def where(
         rows: list[dict[str, Any]] = []
         error: dict[str, Any] | None = None
         if do_modes:
-            from .modal_id import identify_modes, model_modes
+            from .modal_id import identify_modes
             from .pairing import pair_modes
 
             try:
@@ -44,12 +43,7 @@ def where(
                 meas = []
                 error = {"error": f"modal identification failed: {exc}"}
             measured.append(tuple(meas))
-            lm = build_affine_model(refit_doc, d.operating_point, outputs=d.outputs)
-            mask = np.array([[f"{o}.{i}" in channels for i in lm.inputs] for o in lm.outputs])
-            mod = model_modes(lm.linear_model(), freq_hz=d.freq_hz, channel_mask=mask)
-            cols = [lm.inputs.index(i) for i in d.inputs]
-            for m in mod:
-                m.residues = m.residues[:, cols]
+            mod = modes_on_channels(refit_doc, d, channels)
             rows = pair_modes(meas, mod, f_band=(float(d.freq_hz[0]), float(d.freq_hz[-1])))
             if error is not None:  # kept: the pairing must not hide why no mode was measured
                 rows.insert(0, error)
@@ -66,3 +60,19 @@ def where(
     bands = gap_bands(full[0].freq_hz, feats)
     modes = by_ds[0] if by_ds else []
     return modes, by_ds, anti, bands, tuple(measured)
+
+
+def modes_on_channels(doc: UrdfDocument, d: FrfData, channels: list[str]) -> list[Any]:
+    """The modes of ``doc`` at ``d``'s operating point, their residues on ``d``'s outputs
+    and inputs and ``channels`` (:func:`.modal_id.model_modes`), as the measured modes of
+    ``d`` are identified."""
+    from ..linear.affine import build_affine_model
+    from .modal_id import model_modes
+
+    lm = build_affine_model(doc, d.operating_point, outputs=d.outputs)
+    mask = np.array([[f"{o}.{i}" in channels for i in lm.inputs] for o in lm.outputs])
+    mod = model_modes(lm.linear_model(), freq_hz=d.freq_hz, channel_mask=mask)
+    cols = [lm.inputs.index(i) for i in d.inputs]
+    for m in mod:
+        m.residues = m.residues[:, cols]
+    return mod

@@ -217,10 +217,18 @@ def diagnosis_headline(diag: Any) -> DiagnosisHeadline | None:
         worst_bands=_worst_bands(where),
         remainder=[
             (str(r.get("kind", "finding")).replace("_", " "), str(r.get("text", fmt(r))))
-            for r in records(diag.get("remainder") or v.get("remainder"))
+            for r in _remainder_findings(diag.get("remainder") or v.get("remainder"))
         ],
         over_noise=number(_first_step(diag).get("base_over_noise")),
     )
+
+
+def _remainder_findings(rem: Any) -> list[Mapping[str, Any]]:
+    """The findings of ``diagnosis.json``'s ``remainder`` (an object with ``findings``; a
+    bare list of findings is read too)."""
+    if isinstance(rem, Mapping):
+        return records(rem.get("findings"))
+    return records(rem)
 
 
 def _first_step(diag: Mapping[str, Any]) -> Mapping[str, Any]:
