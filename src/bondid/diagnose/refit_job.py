@@ -211,6 +211,8 @@ def run_refit(task: Task) -> JobResult:
     """Refit ``task``'s model (module docstring); never raises for a numerical failure of the
     model or the solver (``error`` set)."""
     t0 = time.perf_counter()
+    if cancelled(task.token):
+        return JobResult.failed(task, "cancelled", 0.0)
     try:
         models = Models(task)
         outcome = refit_loop(task, models)
@@ -219,6 +221,8 @@ def run_refit(task: Task) -> JobResult:
         return finish(task, models, outcome, t0)
     except FAILURES as exc:
         msg = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
+        if cancelled(task.token):
+            msg = "cancelled"
         return JobResult.failed(task, msg, time.perf_counter() - t0)
 
 

@@ -50,6 +50,8 @@ PATIENCE = 2
 IMPROVEMENT = 1e-3
 #: IPOPT's status of a solve stopped at its iteration limit (continued once, see the module)
 ITERATION_LIMIT = "Maximum_Iterations_Exceeded"
+#: a resumed search may run this many times the per-step iteration limit (within the budget)
+RESUME_FACTOR = 3
 
 #: a schedule, given or built for the problem at the start point when the start runs
 Schedule = Sequence["Step"] | Callable[["FitProblem"], Sequence["Step"]]
@@ -299,7 +301,9 @@ def keep_best(
         start = queued.pop(0) if queued else next(it, None)
         if start is None:
             break
-        a = run(start, max(1, min(max_iter, budget.remaining)))
+        # a resumed search gets what it lacks, more iterations (up to the budget's rest)
+        limit = RESUME_FACTOR * max_iter if resumed else max_iter
+        a = run(start, max(1, min(limit, budget.remaining)))
         a.resumed = resumed
         budget.spend(a.iterations)
         attempts.append(a)
@@ -314,6 +318,8 @@ def keep_best(
         elif not resumed:
             misses += 1
     if best is None or best.search is None:
+        if stopped == "cancelled":
+            raise SolverError("cancelled before any start ended")
         first = next((a.error for a in attempts if a.error), "no start")
         raise SolverError(f"every start of the fit failed: {first}")
     return Outcome(best, attempts, stopped, noise)
