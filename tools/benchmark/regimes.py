@@ -95,7 +95,7 @@ def measure(
     """Simulate, apply the signal effects (``factor(f, outputs, inputs)``), add the regime's
     noise and write one CSV per operating point. Returns the paths and the exact FRFs (in the
     files' quantity). With the case's ``effects`` the exact FRFs are the truth as observed
-    (:func:`.truth.observe_data`: sensor points read in place of their outputs, mixings and
+    (:func:`.truth.observe_data`: read heads' deflections in their outputs, mixings and
     signal factors; ``factor`` unused)."""
     from bondid.simulate import simulate
 

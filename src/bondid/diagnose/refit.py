@@ -259,8 +259,8 @@ class Refit:
         """:meth:`cost` of ``states`` that differ from ``base`` in the candidate's own new
         parameters only, on one problem (their decision vectors set directly: a new
         parameter is a joint entry ``value/scale`` or a modifier entry ``ln(θ/θ₀)`` (linear
-        ones ``(θ − θ₀)/s``); a state
-        that moves another kind, e.g. a link mass, is costed on its own problem)."""
+        ones ``(θ − θ₀)/s``); a state that moves another kind, e.g. a link mass, is costed on
+        its own problem)."""
         p = self.at(base)
         joints = {jv.name: jv for jv in p.layout.joints if jv.name_index >= 0}
         theta0 = p.theta(p.z0)
