@@ -158,14 +158,14 @@ OPEN: dict[str, tuple[tuple[str, E], ...]] = {
             ("polar", E("drive_spring", "ext", {"f": 8.0}))),
     "flk": (("polar", E("flexible_link", "arm", {"f": 600.0})),
             ("bonder_b", E("flexible_link", "rocker", {"f": 1500.0}))),
-    "gain": (("bonder", E("transducer_gain", "out.y", {"gain": 1.12})),
-             ("bonder_b", E("transducer_gain", "in.xa", {"gain": 0.88}))),
+    "gain": (("bonder", E("transducer_gain", "out.y", {"gain": 1.25})),
+             ("bonder_b", E("transducer_gain", "in.xa", {"gain": 0.8}))),
     "hp": (("bonder", E("amplifier_highpass", "x", {"f": 3.0})),
            ("gantry", E("amplifier_highpass", "gy", {"f": 4.0}))),
     "xtalk": (("bonder_b", E("actuator_crosstalk", "xa,ya", {"share": 0.01})),
               ("polar", E("actuator_crosstalk", "ext,lift", {"share": 0.01}))),
-    "appx": (("bonder", E("attached_mass", "x_stage", {"f": 250.0, "share": 0.10})),
-             ("gantry", E("attached_mass", "carriage", {"f": 180.0, "share": 0.12}))),
+    "appx": (("bonder", E("attached_mass", "x_stage", {"f": 200.0, "share": 0.25})),
+             ("gantry", E("attached_mass", "carriage", {"f": 180.0, "share": 0.25}))),
 }  # fmt: skip
 #: the open list's seeds start here (apart from :func:`all_cases`'s)
 OPEN_SEED = 500

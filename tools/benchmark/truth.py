@@ -250,10 +250,10 @@ def expected_remainder(e: TruthEffect) -> tuple[Remainder, ...]:
 
 def strengthen(e: TruthEffect) -> TruthEffect:
     """One strengthening step of a later cause (:mod:`.visibility`): a mode that shows
-    more (a lower bracket, bending or appendage mode; a stiffer carrier), a larger angle,
-    gain error, share or corner."""
+    more (a lower bracket or bending mode; a stiffer carrier; a heavier appendage), a larger
+    angle, gain error, share or corner."""
     spec = dict(e.spec)
-    if e.effect in ("sensor_dynamics", "flexible_link", "attached_mass"):
+    if e.effect in ("sensor_dynamics", "flexible_link"):
         spec["f"] *= 0.75
     elif e.effect in ("drive_spring", "amplifier_highpass"):
         spec["f"] *= 1.5
@@ -262,7 +262,7 @@ def strengthen(e: TruthEffect) -> TruthEffect:
         spec["deg_other"] = spec.get("deg_other", 0.0) * 1.5
     elif e.effect == "transducer_gain":
         spec["gain"] = float(np.exp(1.5 * np.log(spec["gain"])))
-    elif e.effect == "actuator_crosstalk":
+    elif e.effect in ("actuator_crosstalk", "attached_mass"):
         spec["share"] *= 1.5
     else:
         raise ValueError(f"no strengthening rule here for {e.effect!r}")
