@@ -141,3 +141,64 @@ def all_cases() -> list[Case]:
 
 
 QUICK = ("gantry/jct/harsh", "bonder_b/none_a/nocoh", "bonder/al/acc")
+
+
+# -- the open-world list: the later causes in the library, and causes outside it -------------
+
+#: per tag, the (design, cause) pairs: each later cause of the library on two designs, and
+#: three causes outside the library (:data:`.truth.OUTSIDE`)
+OPEN: dict[str, tuple[tuple[str, E], ...]] = {
+    "sdyn": (("bonder", E("sensor_dynamics", "y", {"f": 1100.0})),
+             ("bonder_b", E("sensor_dynamics", "xa", {"f": 900.0}))),
+    "mis": (("bonder", E("sensor_misalignment", "x,y", {"sensor": "x", "toward": "y",
+                                                        "deg": 0.5, "deg_other": -0.2})),
+            ("gantry", E("sensor_misalignment", "gx,gy", {"sensor": "gy", "toward": "gx",
+                                                          "deg": 0.8, "deg_other": 0.3}))),
+    "drv": (("bonder", E("drive_spring", "x", {"f": 5.0})),
+            ("polar", E("drive_spring", "ext", {"f": 8.0}))),
+    "flk": (("polar", E("flexible_link", "arm", {"f": 600.0})),
+            ("bonder_b", E("flexible_link", "rocker", {"f": 1500.0}))),
+    "gain": (("bonder", E("transducer_gain", "out.y", {"gain": 1.25})),
+             ("bonder_b", E("transducer_gain", "in.xa", {"gain": 0.8}))),
+    "hp": (("bonder", E("amplifier_highpass", "x", {"f": 3.0})),
+           ("gantry", E("amplifier_highpass", "gy", {"f": 4.0}))),
+    "xtalk": (("bonder_b", E("actuator_crosstalk", "xa,ya", {"share": 0.01})),
+              ("polar", E("actuator_crosstalk", "ext,lift", {"share": 0.01}))),
+    "appx": (("bonder", E("attached_mass", "x_stage", {"f": 200.0, "share": 0.25})),
+             ("gantry", E("attached_mass", "carriage", {"f": 180.0, "share": 0.25}))),
+}  # fmt: skip
+#: the open list's seeds start here (apart from :func:`all_cases`'s)
+OPEN_SEED = 500
+
+
+def open_cases() -> list[Case]:
+    """The open-world cases, in a fixed order: every (tag, design) of :data:`OPEN` in two
+    regimes (the design's own first where it has one, :data:`OWN_REGIME`), rotating so that
+    every regime sees the later causes and the causes outside the library. A case's class
+    is its effect's :attr:`~.truth.TruthEffect.library` (None outside the library);
+    :func:`leave_one_out` gives the ``--effects`` list without it."""
+    out: list[Case] = []
+    seed = OPEN_SEED
+    for t, (tag, pairs) in enumerate(OPEN.items()):
+        for d, (design, eff) in enumerate(pairs):
+            for shift in (0, 2):
+                seed += 1
+                r = _regime(design, t + d + shift, shift == 0)
+                out.append(Case(f"{design}/{tag}/{r}", design, r, (eff,), seed))
+    return out
+
+
+def classes(case: Case) -> tuple[str, ...]:
+    """The library classes of ``case``'s causes (none for a cause outside the library)."""
+    return tuple(dict.fromkeys(c for e in case.effects if (c := e.library) is not None))
+
+
+def leave_one_out(case: Case, effects: tuple[str, ...] | None = None) -> tuple[str, ...]:
+    """The ``--effects`` list of ``case``'s leave-one-class-out run: ``effects`` (default:
+    every effect of the diagnosis's library) without the case's classes."""
+    if effects is None:
+        from bondid.diagnose.effects import available
+
+        effects = tuple(available())
+    drop = set(classes(case))
+    return tuple(e for e in effects if e not in drop)

@@ -90,16 +90,25 @@ def measure(
     factor,
     folder: Path,
     seed: int,
+    effects: Sequence | None = None,
 ) -> tuple[list[Path], list[np.ndarray]]:
     """Simulate, apply the signal effects (``factor(f, outputs, inputs)``), add the regime's
     noise and write one CSV per operating point. Returns the paths and the exact FRFs (in the
-    files' quantity)."""
+    files' quantity). With the case's ``effects`` the exact FRFs are the truth as observed
+    (:func:`.truth.observe_data`: read heads' deflections in their outputs, mixings and
+    signal factors; ``factor`` unused)."""
     from bondid.simulate import simulate
+
+    from .truth import observe_data
 
     paths, exact = [], []
     for k, op in enumerate(operating_points):
-        d = simulate(truth, op, f, noise=0.0, quantity=quantity_of(regime))
-        H = d.H * factor(f, d.outputs, d.inputs)
+        if effects is None:
+            d = simulate(truth, op, f, noise=0.0, quantity=quantity_of(regime))
+            H = d.H * factor(f, d.outputs, d.inputs)
+        else:
+            d = observe_data(truth, effects, op, f, quantity_of(regime))
+            H = d.H
         Hn, coh = noisy(regime, H, f, seed * 10 + k)
         p = folder / f"op{k}.csv"
         data = FrfData(f, d.outputs, d.inputs, Hn, d.quantity, dict(d.operating_point), coh, str(p))

@@ -135,7 +135,7 @@ def run_case(case: Case, s: Settings) -> dict[str, Any]:
     with tempfile.TemporaryDirectory(prefix="bondid_blind_") as tmp:
         folder = Path(tmp)
         paths, exact = measure(
-            truth, dz.operating_points, f, case.regime, factor, folder, case.seed
+            truth, dz.operating_points, f, case.regime, factor, folder, case.seed, case.effects
         )
         proc, row["diagnosis_s"] = _run(diagnose_cmd(dz.path, paths, folder / "diag", s))
         if proc.returncode != 0:

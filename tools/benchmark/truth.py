@@ -11,6 +11,17 @@ Every effect here is built deliberately unlike the diagnosis's own candidate for
 - ``sensor_delay``: a pure delay ``e^{−jωτ}`` on one output or all;
 - ``actuator_lag``: a current loop with two real poles, ``1/((1 + jωT)(1 + jωT/8))`` (the
   candidate: one pole).
+
+The later causes (``sensor_dynamics``, ``sensor_misalignment``, ``drive_spring``,
+``flexible_link``, ``transducer_gain``) and three outside the diagnosis's library
+(``amplifier_highpass``, ``actuator_crosstalk``, ``attached_mass``) are built in
+:mod:`.truth_structures` and :mod:`.truth_signals`; a truth's files come from
+:func:`observe_data` (its read heads' deflections added to their outputs, its output and
+input mixings and signal factors applied).
+
+Each effect knows its class in the library (:attr:`TruthEffect.library`, None outside it:
+what a leave-one-class-out run removes) and what a description of the remainder should
+point at when no candidate explains it (:func:`expected_remainder`).
 """
 
 from __future__ import annotations
@@ -27,6 +38,11 @@ from bondid.model.parameters import get_parameter, link_inertial, parameter_info
 STRUCTURAL = ("joint_compliance", "flexible_base", "soft_mounts")
 SIGNAL = ("sensor_delay", "actuator_lag")
 EFFECTS = STRUCTURAL + SIGNAL
+#: the later causes in the diagnosis's library, and the ones outside it
+LIBRARY_MORE = ("sensor_dynamics", "sensor_misalignment", "drive_spring", "flexible_link",
+                "transducer_gain")  # fmt: skip
+OUTSIDE = ("amplifier_highpass", "actuator_crosstalk", "attached_mass")
+ALL_EFFECTS = EFFECTS + LIBRARY_MORE + OUTSIDE
 
 
 @dataclass(frozen=True)
@@ -38,6 +54,32 @@ class TruthEffect:
     effect: str
     location: str
     spec: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def library(self) -> str | None:
+        """The diagnosis's effect class this cause belongs to (None: outside the library)."""
+        return None if self.effect in OUTSIDE else self.effect
+
+
+@dataclass(frozen=True)
+class Remainder:
+    """What a description of the remainder should point at for a cause no candidate
+    explains, in the words of issue 57's list.
+
+    Attributes:
+        kind: ``missing_mode`` (a mode the model lacks, near ``band_hz``), ``output_row``
+            (confined to the rows ``rows``: the sensor side), ``input_column`` (the columns
+            ``columns``: the actuator side), ``low_frequency`` (a stiffness or mass line
+            offset below ``band_hz[1]``), ``cross_talk`` (leakage into cross channels
+            proportional to a direct one), ``delay`` (phase growing linearly with frequency).
+        rows, columns: the output / input channels it lives in (empty: not confined).
+        band_hz: ``(f_lo, f_hi)`` where it shows [Hz], or None (the whole band).
+    """
+
+    kind: str
+    rows: tuple[str, ...] = ()
+    columns: tuple[str, ...] = ()
+    band_hz: tuple[float, float] | None = None
 
 
 def perturb(doc: UrdfDocument, rng: np.random.Generator) -> UrdfDocument:
@@ -172,11 +214,67 @@ def add_soft_mounts(doc: UrdfDocument, f: float) -> UrdfDocument:
     return out
 
 
+def expected_remainder(e: TruthEffect) -> tuple[Remainder, ...]:
+    """What a right description of ``e``'s remainder points at (the most telling first; one
+    of them is enough)."""
+    spec, loc = e.spec, e.location
+    if e.effect == "sensor_dynamics":
+        band = (0.7 * spec["f"], 1.4 * spec["f"])
+        return (Remainder("output_row", rows=(loc,), band_hz=band),
+                Remainder("missing_mode", rows=(loc,), band_hz=band))  # fmt: skip
+    if e.effect == "sensor_misalignment":
+        return (Remainder("cross_talk", rows=(spec["sensor"],)),
+                Remainder("output_row", rows=(spec["sensor"],)))  # fmt: skip
+    if e.effect == "transducer_gain":
+        side, chan = loc.split(".", 1)
+        return (Remainder("output_row", rows=(chan,)) if side == "out"
+                else Remainder("input_column", columns=(chan,)),)  # fmt: skip
+    if e.effect == "drive_spring":
+        return (Remainder("low_frequency", rows=(loc,), columns=(loc,),
+                          band_hz=(0.0, 3.0 * spec["f"])),)  # fmt: skip
+    if e.effect == "amplifier_highpass":
+        return (
+            Remainder("input_column", columns=(loc,), band_hz=(0.0, 3.0 * spec["f"])),
+            Remainder("low_frequency", columns=(loc,), band_hz=(0.0, 3.0 * spec["f"])),
+        )
+    if e.effect == "actuator_crosstalk":
+        a = loc.split(",")[0]
+        return (Remainder("cross_talk", columns=(a,)), Remainder("input_column", columns=(a,)))
+    if e.effect == "sensor_delay":
+        return (Remainder("delay", rows=() if loc == "all" else (loc,)),)
+    if e.effect == "actuator_lag":
+        return (Remainder("input_column", columns=() if loc == "all" else (loc,)),)
+    f = float(spec.get("f", 0.0))
+    return (Remainder("missing_mode", band_hz=(0.7 * f, 1.4 * f) if f else None),)
+
+
+def strengthen(e: TruthEffect) -> TruthEffect:
+    """One strengthening step of a later cause (:mod:`.visibility`): a mode that shows
+    more (a lower bracket or bending mode; a stiffer carrier; a heavier appendage), a larger
+    angle, gain error, share or corner."""
+    spec = dict(e.spec)
+    if e.effect in ("sensor_dynamics", "flexible_link"):
+        spec["f"] *= 0.75
+    elif e.effect in ("drive_spring", "amplifier_highpass"):
+        spec["f"] *= 1.5
+    elif e.effect == "sensor_misalignment":
+        spec["deg"] *= 1.5
+        spec["deg_other"] = spec.get("deg_other", 0.0) * 1.5
+    elif e.effect == "transducer_gain":
+        spec["gain"] = float(np.exp(1.5 * np.log(spec["gain"])))
+    elif e.effect in ("actuator_crosstalk", "attached_mass"):
+        spec["share"] *= 1.5
+    else:
+        raise ValueError(f"no strengthening rule here for {e.effect!r}")
+    return TruthEffect(e.effect, e.location, spec)
+
+
 def signal_factor(
     effects: Sequence[TruthEffect], f_hz: np.ndarray, outputs: Sequence[str], inputs: Sequence[str]
 ) -> np.ndarray:
     """``(n_out, n_in, n_freq)`` factor of the signal effects: sensor delays on rows, actuator
-    lags on columns (1 elsewhere)."""
+    lags and amplifier high-passes on columns (1 elsewhere; the other causes are built into
+    the truth model or mix channels, :func:`observe_data`)."""
     G = np.ones((len(outputs), len(inputs), np.size(f_hz)), complex)
     w = 2 * np.pi * np.asarray(f_hz, float)
     for e in effects:
@@ -187,7 +285,33 @@ def signal_factor(
             cols = [i for i, o in enumerate(inputs) if e.location in ("all", o)]
             T = e.spec["T"]
             G[:, cols] *= 1.0 / ((1.0 + 1j * w * T) * (1.0 + 1j * w * T / 8.0))
+        elif e.effect == "amplifier_highpass":
+            from .truth_signals import highpass
+
+            cols = [i for i, o in enumerate(inputs) if e.location == o]
+            G[:, cols] *= highpass(w, e.spec["f"], e.spec.get("zeta", 0.7))
     return G
+
+
+def observe_data(
+    truth: UrdfDocument, effects: Sequence[TruthEffect], op: dict[str, float], f: np.ndarray,
+    quantity: str = "receptance", outputs: Sequence[str] | None = None,
+):  # fmt: skip
+    """The exact :class:`~bondid.data.measurement.FrfData` of ``truth`` at ``op`` as the files
+    hold it (:func:`.truth_signals.observe` with :func:`signal_factor`)."""
+    from .truth_signals import observe
+
+    def factor(ff, outs, ins):
+        return signal_factor(effects, ff, outs, ins)
+
+    return observe(truth, effects, op, f, quantity, outputs, factor)
+
+
+def observed_like(truth: UrdfDocument, effects: Sequence[TruthEffect], ds) -> np.ndarray:
+    """The exact FRF of ``truth`` in the layout of the data set ``ds`` (its operating point,
+    frequencies, quantity, outputs; its inputs' columns) ``(n_out, n_in, n_freq)``."""
+    d = observe_data(truth, effects, dict(ds.operating_point), ds.freq_hz, ds.quantity, ds.outputs)
+    return d.H[:, [d.inputs.index(i) for i in ds.inputs], :]
 
 
 def truth_model(nominal: UrdfDocument, effects: Sequence[TruthEffect], seed: int) -> UrdfDocument:
@@ -200,6 +324,29 @@ def truth_model(nominal: UrdfDocument, effects: Sequence[TruthEffect], seed: int
             doc = add_flexible_base(doc, e.spec["f"])
         elif e.effect == "soft_mounts":
             doc = add_soft_mounts(doc, e.spec["f"])
+        elif e.effect in ALL_EFFECTS[len(EFFECTS) :]:
+            doc = _later_cause(doc, e)
         elif e.effect not in SIGNAL:
-            raise ValueError(f"unknown effect {e.effect!r}; valid: {', '.join(EFFECTS)}")
+            raise ValueError(f"unknown effect {e.effect!r}; valid: {', '.join(ALL_EFFECTS)}")
+    return doc
+
+
+def _later_cause(doc: UrdfDocument, e: TruthEffect) -> UrdfDocument:
+    """``doc`` with a later cause built in (the signal-only ones leave it as it is)."""
+    from . import truth_signals as sig
+    from . import truth_structures as st
+
+    s = e.spec
+    if e.effect == "sensor_dynamics":
+        return sig.add_sensor_head(doc, e.location, s["f"], s.get("zeta", 0.03))
+    if e.effect == "transducer_gain":
+        out = doc.copy()
+        out.set_gain(f"gain.{e.location}", s["gain"])
+        return out
+    if e.effect == "drive_spring":
+        return st.add_cable_carrier(doc, e.location, s["f"])
+    if e.effect == "flexible_link":
+        return st.add_bending_arm(doc, e.location, s["f"])
+    if e.effect == "attached_mass":
+        return st.add_attached_mass(doc, e.location, s["f"], s["share"])
     return doc

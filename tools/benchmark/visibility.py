@@ -34,7 +34,7 @@ import numpy as np
 from .cases import Case
 from .designs import design
 from .regimes import measure
-from .truth import STRUCTURAL, TruthEffect, signal_factor, truth_model
+from .truth import EFFECTS, STRUCTURAL, TruthEffect, signal_factor, strengthen, truth_model
 
 #: an effect shows when the oracle parameter-only refit ends at least this factor above the
 #: truth model's own weighted gap (module docstring)
@@ -58,14 +58,12 @@ def truth_model_db(case: Case, sets: list, channels: list[str]) -> float:
     """The truth model's weighted db_rms [dB] on ``sets`` (data sets whose ``coherence`` holds
     the diagnosis's information weights, in their quantity) over ``channels``."""
     from bondid.diagnose.gap import gap_report
-    from bondid.frf.aligned import model_frf
     from bondid.model import UrdfDocument
 
+    from .truth import observed_like
+
     truth = truth_model(UrdfDocument.load(design(case.design).path), case.effects, case.seed)
-    H = [
-        model_frf(truth, d) * signal_factor(case.effects, d.freq_hz, d.outputs, d.inputs)
-        for d in sets
-    ]
+    H = [observed_like(truth, case.effects, d) for d in sets]
     return float(gap_report(sets, H, channels=channels, weighting="coherence").db_rms)
 
 
@@ -88,7 +86,10 @@ def oracle(case: Case, paths: list[Path], points: int = POINTS) -> dict[str, Any
 
 
 def stronger(effect: TruthEffect) -> TruthEffect:
-    """One strengthening step of ``effect`` (module docstring)."""
+    """One strengthening step of ``effect`` (module docstring; the later causes:
+    :func:`.truth.strengthen`)."""
+    if effect.effect not in EFFECTS:
+        return strengthen(effect)
     spec = dict(effect.spec)
     if effect.effect in STRUCTURAL:
         spec["f"] = spec["f"] * STRUCTURAL_STEP
@@ -111,7 +112,7 @@ def case_files(case: Case, folder: Path, freq: int) -> tuple[list[Path], list[np
         return signal_factor(case.effects, ff, outs, ins)
 
     return measure(truth, dz.operating_points, frequencies(freq), case.regime, factor, folder,
-                   case.seed)  # fmt: skip
+                   case.seed, case.effects)  # fmt: skip
 
 
 def visible_case(case: Case, freq: int, points: int = POINTS) -> tuple[Case, dict[str, Any]]:

@@ -141,7 +141,7 @@ class FrfProblem:
         datasets: measured FRFs (receptance), each at its operating point.
         options: cost options (default :class:`CostOptions`).
         affines: the linearisations, one per data set (default: built from ``doc``).
-        modifier: an FRF modifier ``H ← G(ω; θ) ⊙ H`` (:mod:`bondid.cost.modifier`); θ comes
+        modifier: an FRF modifier ``H ← G(ω; θ) ⊙ (L H R)`` (:mod:`bondid.cost.modifier`); θ comes
             from a parameter model with ``modifier_values(x)`` / ``modifier_jacobian(x)``
             (``(n_θ,)``, ``(n_θ, size)``), else it is held at :attr:`modifier_theta`.
 
@@ -251,7 +251,10 @@ class FrfProblem:
 
         def one(b: DataSelection) -> np.ndarray:
             H = _block_frf(b, values, gains)
-            return H if theta is None else H * self._modifier_at(b, theta)[0]
+            if theta is None:
+                return H
+            assert self.modifier is not None
+            return self.modifier.apply(theta, b.freq_hz, b.affine.outputs, b.affine.inputs, H)
 
         return thread_map(one, self.blocks, parallel=self.threaded)
 
@@ -323,10 +326,14 @@ class FrfProblem:
                 self._grid_rows(b, affine, (dpi, dk, dd), rb, Jb)
                 return
             H, dH = frf_and_jacobian(affine, b.freq_hz, dpi, dk, dd)
+            mod = self.modifier
+            mixed = theta is not None and mod is not None and mod.mixing is not None
+            if mixed and theta is not None:  # the mixing needs every channel: whole grid
+                H, dH = self._mixed(b, affine, theta, dtheta, H, dH, gains, dgains)
             Hs = H[b.rows, b.cols, b.fidx]
             flat = np.arange(Hs.size) if b.flat is None else b.flat
             dHs = dH.reshape(-1, n_p)[flat]
-            if gains:
+            if gains and not mixed:
                 dHs = dHs + _gain_columns(affine, gains, dgains, b.rows, b.cols, Hs)
             if theta is not None:
                 Hs, dHs = self._modified(b, theta, dtheta, Hs, dHs)
@@ -336,6 +343,24 @@ class FrfProblem:
 
         thread_map(one, range(len(self.blocks)), parallel=self.threaded)
         return r, J
+
+    def _mixed(
+        self, b: DataSelection, affine: AffineModel, theta: np.ndarray,
+        dtheta: np.ndarray | None, H: np.ndarray, dH: np.ndarray, gains: _Gains,
+        dgains: dict[str, np.ndarray],
+    ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+        """The modifier's mixing ``L H R`` of a data set's whole grid ``H`` ``(n_out, n_in,
+        n_fu)`` and its derivative ``(…, size)`` (the free gains' columns included first)."""
+        assert self.modifier is not None
+        if gains:
+            no, ni, nf = H.shape
+            rows = np.repeat(np.arange(no), ni * nf)
+            cols = np.tile(np.repeat(np.arange(ni), nf), no)
+            dg = _gain_columns(affine, gains, dgains, rows, cols, H.reshape(-1))
+            dH = dH + dg.reshape(dH.shape)
+        return self.modifier.mixed_with_jacobian(
+            theta, dtheta, b.affine.outputs, b.affine.inputs, H, dH
+        )
 
     def _modified(
         self,

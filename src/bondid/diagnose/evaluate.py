@@ -3,7 +3,7 @@
 The fitted (augmented) model and its FRF modifier's values are evaluated through the core's
 own problem on each set of data (:class:`bondid.optim.FitProblem`: the same residual, weights
 and normalisation as the refit's training cost), and the model FRF on each data set's whole
-grid (:func:`bondid.frf.aligned.model_frf` times the modifier's factor) feeds the gap figures
+grid (:func:`bondid.frf.aligned.model_frf` through the modifier) feeds the gap figures
 (:func:`.gap.gap_report`).
 """
 
@@ -72,7 +72,7 @@ def figures(
     for ds, aff in zip(datasets, on.frf.affines, strict=True):
         h = model_frf(doc, ds, affine=aff)
         if mod is not None:
-            h = h * mod.at(theta, ds.freq_hz, ds.outputs, ds.inputs)[0]
+            h = mod.apply(theta, ds.freq_hz, ds.outputs, ds.inputs, h)
         H.append(h)
     chans = options.channels
     weighted = gap_report(list(datasets), H, channels=chans, weighting="coherence").db_rms

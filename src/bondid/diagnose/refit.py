@@ -93,6 +93,8 @@ class NewVar:
         ties: the other members ``((name, factor relative to the leader), ...)``.
         theta: index into the FRF modifier's parameters (modifier), else None.
         held: not fitted (members the core cannot tie).
+        linear: a modifier parameter fitted on a linear scale (signed, may be 0), of typical
+            size ``scale`` (:class:`bondid.cost.modifier.FrfModifier`); else on a log scale.
     """
 
     name: str
@@ -104,6 +106,8 @@ class NewVar:
     ties: tuple[tuple[str, float], ...] = ()
     theta: int | None = None
     held: bool = False
+    linear: bool = False
+    scale: float = 1.0
 
 
 @dataclass
@@ -180,6 +184,8 @@ class Refit:
                 modifier,  # type: ignore[arg-type]
                 tuple(v.name for v in mods), tuple(v.initial for v in mods),
                 tuple(v.lower for v in mods), tuple(v.upper for v in mods),
+                tuple(v.linear for v in mods), tuple(v.scale for v in mods),
+                getattr(modifier, "mixing", None) if getattr(modifier, "mixes", False) else None,
             )  # fmt: skip
         self.modifier = frf_mod
         self.problem = FitProblem(
@@ -252,8 +258,9 @@ class Refit:
     def costs(self, base: State, states: Sequence[State]) -> np.ndarray:
         """:meth:`cost` of ``states`` that differ from ``base`` in the candidate's own new
         parameters only, on one problem (their decision vectors set directly: a new
-        parameter is a joint entry ``value/scale`` or a modifier entry ``ln(θ/θ₀)``; a state
-        that moves another kind, e.g. a link mass, is costed on its own problem)."""
+        parameter is a joint entry ``value/scale`` or a modifier entry ``ln(θ/θ₀)`` (linear
+        ones ``(θ − θ₀)/s``); a state that moves another kind, e.g. a link mass, is costed on
+        its own problem)."""
         p = self.at(base)
         joints = {jv.name: jv for jv in p.layout.joints if jv.name_index >= 0}
         theta0 = p.theta(p.z0)
@@ -273,9 +280,10 @@ class Refit:
         """The decision vector of ``s`` on ``p`` (started at ``base``), or None when ``s``
         moves a new parameter that is not a joint entry."""
         z = p.z0.copy()
+        u = None if self.modifier is None else self.modifier.u_of(s.theta, theta0)
         for v in self.own:
-            if v.theta is not None:
-                z[p.layout.size + v.theta] = np.log(s.theta[v.theta] / theta0[v.theta])
+            if v.theta is not None and u is not None:
+                z[p.layout.size + v.theta] = u[v.theta]
             elif v.leader is not None and not v.held:
                 i = self.problem.names.index(v.leader)
                 jv = joints.get(v.leader)
@@ -341,7 +349,7 @@ class Refit:
         r, J_named = p.named_residual_and_jacobian(p.z0)
         J_z = p.residual_and_jacobian(p.z0)[1][: p.n_residuals]
         n = self.modifier.size
-        J = np.hstack([J_named, J_z[:, p.size - n :] / theta])  # ∂r/∂u = θ ∂r/∂θ
+        J = np.hstack([J_named, J_z[:, p.size - n :] / self.modifier.slope(theta)])  # ∂r/∂θ
         std, _ = parameter_statistics(J, r)
         return dataclasses.replace(fit, std=std[:-n]), std[-n:]
 

@@ -93,9 +93,10 @@ class FitProblem:
             and ``rows.size == m`` (:class:`~.evaluator.ExtraRows`); it may tighten
             ``problem.lbz``/``ubz`` and extend ``var_labels`` and ``notes``. The reported
             costs stay the data's alone.
-        modifier: an FRF modifier ``H ← G(ω; θ) ⊙ H`` (:class:`bondid.cost.modifier.
+        modifier: an FRF modifier ``H ← G(ω; θ) ⊙ (L H R)`` (:class:`bondid.cost.modifier.
             FrfModifier`, e.g. a sensor delay) whose parameters θ are fitted too, in ``ln θ``
-            after the named ones in ``z`` (:mod:`.modified`); read them with :meth:`theta`.
+            (or linearly, its signed ones) after the named ones in ``z`` (:mod:`.modified`);
+            read them with :meth:`theta`.
 
     Raises:
         ParameterError: an unknown name or a link that does not move.
@@ -254,14 +255,15 @@ class FitProblem:
         return out
 
     def _add_modifier(self, modifier: FrfModifier, theta0: np.ndarray) -> None:
-        """Append the modifier's ``ln θ`` entries to ``z`` (start, bounds, labels)."""
+        """Append the modifier's entries to ``z`` (``ln θ``, or ``(θ − θ₀)/s`` for its
+        linear-scale parameters: :meth:`~bondid.cost.modifier.FrfModifier.u_of`; start,
+        bounds, labels)."""
         theta0 = np.clip(theta0, modifier.lower, modifier.upper)
         self._theta0 = theta0
-        self.model = ModifiedLayout(self.layout, theta0)
+        self.model = ModifiedLayout(self.layout, theta0, modifier)
         n = self.layout.size
-        with np.errstate(divide="ignore"):
-            lo = np.log(np.asarray(modifier.lower) / theta0)
-            hi = np.log(np.asarray(modifier.upper) / theta0)
+        lo = modifier.u_of(np.asarray(modifier.lower, float), theta0)
+        hi = modifier.u_of(np.asarray(modifier.upper, float), theta0)
         self.z0 = np.concatenate([self.z0, np.zeros(theta0.size)])
         self.lbz, self.ubz = np.concatenate([self.lbz, lo]), np.concatenate([self.ubz, hi])
         self.var_labels = self.var_labels + [(m, n + k) for k, m in enumerate(modifier.names)]

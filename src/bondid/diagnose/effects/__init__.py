@@ -14,7 +14,10 @@ from ...exceptions import ConfigError
 from .base import Candidate, Effect, NewParameter
 
 _REGISTRY: dict[str, type[Effect]] = {}
-_BUILTIN = ("joint_compliance", "flexible_base", "soft_mounts", "sensor_delay", "actuator_lag")
+_BUILTIN = (
+    "joint_compliance", "flexible_base", "soft_mounts", "sensor_delay", "actuator_lag",
+    "sensor_dynamics", "sensor_misalignment", "drive_spring", "flexible_link", "transducer_gain",
+)  # fmt: skip
 
 E = TypeVar("E", bound=type[Effect])
 

@@ -11,9 +11,15 @@ A candidate says how it augments the model and which new parameters it brings:
   number and the augmented model stays an ordinary URDF that can be written and inspected;
 * a *modifier* candidate leaves the URDF alone and multiplies the model FRF by a factor
   ``G(ω; θ)`` per channel (``sensor_delay``, ``actuator_lag``): :meth:`Effect.modifier`
-  returns ``G`` ``(n_out, n_in, n_f)`` and its exact derivatives ``(n_out, n_in, n_f, n_θ)``.
+  returns ``G`` ``(n_out, n_in, n_f)`` and its exact derivatives ``(n_out, n_in, n_f, n_θ)``;
+  a modifier may also mix the outputs or the inputs (``H ← L H R``, e.g. a sensor
+  misalignment): an effect with ``mixes = True`` returns the matrices and their derivatives
+  from :meth:`Effect.mixing` (:class:`bondid.cost.modifier.Mixing`; the factor ``G`` acts
+  after the mixing).
 
-Every new parameter is positive and refitted on a log scale within its bounds. ``scan`` is the
+Every new parameter is positive and refitted on a log scale within its bounds, except a
+*signed* modifier parameter (``NewParameter.signed``: a mixing entry, a log-gain, near 0 and
+of either sign), refitted on a linear scale in steps of its ``typical`` size. ``scan`` is the
 exponent with which it follows a common scale factor in the coarse 1-D scan that picks the
 refit's starting point (0 = not scanned; 1 = proportional; 0.5 = with the square root, e.g. a
 damping that keeps the damping ratio while a stiffness is scanned).
@@ -30,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from ...cost.modifier import Mixing
 from ...model.document import UrdfDocument
 
 
@@ -39,8 +46,9 @@ class NewParameter:
 
     Attributes:
         name: readable name, e.g. ``stiffness`` or ``tau_s`` (unique in the candidate).
-        initial: starting value (SI), > 0.
-        lower, upper: bounds (SI), ``0 < lower ≤ initial ≤ upper``.
+        initial: starting value (SI), > 0 (any sign when ``signed``).
+        lower, upper: bounds (SI), ``0 < lower ≤ initial ≤ upper`` (``lower ≤ initial ≤
+            upper`` when ``signed``).
         unit: SI unit text.
         members: ``((URDF parameter name, factor), ...)``: the URDF values it sets
             (structural candidates); empty for modifier parameters.
@@ -48,7 +56,11 @@ class NewParameter:
         strength: the parameter sets how far the effect is from absent (a stiffness, whose
             compliance vanishes as it grows; a delay or a lag time). The verdict asks the data
             to determine at least one of a candidate's strength parameters
-            (:func:`bondid.diagnose.scoring.strength_z`).
+            (:func:`bondid.diagnose.scoring.strength_z`). For a signed parameter the Wald
+            test ``|value|/std`` is that of its absence (0).
+        signed: a modifier parameter refitted on a linear scale, of either sign (absent at
+            0); structural parameters are never signed.
+        typical: the typical size of a signed parameter, the unit of its refit's variable.
     """
 
     name: str
@@ -59,6 +71,8 @@ class NewParameter:
     members: tuple[tuple[str, float], ...] = ()
     scan: float = 0.0
     strength: bool = False
+    signed: bool = False
+    typical: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -106,6 +120,8 @@ class Effect:
     description: str = ""
     #: True when the effect multiplies the FRF instead of editing the URDF
     is_modifier: bool = False
+    #: True when the (modifier) effect mixes outputs or inputs (:meth:`mixing`)
+    mixes: bool = False
 
     def candidates(self, doc: UrdfDocument) -> list[Candidate]:
         """One candidate per location where this effect could act on ``doc``."""
@@ -130,6 +146,17 @@ class Effect:
         n = len(candidate.parameters)
         shape = (len(outputs), len(inputs), np.size(freq_hz))
         return np.ones(shape, complex), np.zeros((*shape, n), complex)
+
+    def mixing(
+        self,
+        candidate: Candidate,
+        values: np.ndarray,
+        outputs: tuple[str, ...],
+        inputs: tuple[str, ...],
+    ) -> Mixing | None:
+        """The output/input mixing ``L``, ``R`` at ``values`` (``(n_θ,)``, SI) and their
+        derivatives (:class:`bondid.cost.modifier.Mixing`), or None (no mixing: the default)."""
+        return None
 
 
 def per_joint_candidates(
