@@ -36,16 +36,23 @@ PROBE_HZ = 1000.0
 
 
 def entries(cand: Candidate | None, outputs: Sequence[str], inputs: Sequence[str]):
-    """``(n_out, n_in)`` bool: the FRF entries an FRF-modifier candidate changes (at its start
-    values); None for a structural candidate or an unknown effect."""
+    """``(n_out, n_in)`` bool: the FRF entries an FRF-modifier candidate changes, read at its
+    typical values (a signed parameter at its typical size: at its start, 0, it changes
+    nothing) on a probe FRF of independent random entries, mixing included; None for a
+    structural candidate or an unknown effect."""
     if cand is None:
         return None
     cls = available().get(cand.effect)
     if cls is None or not cls.is_modifier:
         return None
-    values = np.array([p.initial for p in cand.parameters], float)
-    G, _ = cls().modifier(cand, values, np.array([PROBE_HZ]), tuple(outputs), tuple(inputs))
-    return np.abs(G[..., 0] - 1.0) > 1e-12
+    effect = cls()
+    values = np.array([p.typical if p.signed else p.initial for p in cand.parameters], float)
+    outs, ins = tuple(outputs), tuple(inputs)
+    G, _ = effect.modifier(cand, values, np.array([PROBE_HZ]), outs, ins)
+    probe = np.random.default_rng(0).standard_normal((len(outs), len(ins), 1)) + 1.0
+    mixing = effect.mixing(cand, values, outs, ins)
+    changed = G * (mixing.apply(probe) if mixing is not None else probe)
+    return (np.abs(changed - probe) > 1e-12 * np.abs(probe).max())[..., 0]
 
 
 def prefer_simpler(

@@ -7,8 +7,8 @@ from the physics and the data, so the starts come from there:
 * **the scale scan** — the candidate's parameters scaled together over its range (a mode
   swept through the band, a delay from microseconds to milliseconds), the lowest local
   minima of the training cost kept (:data:`N_SCAN`);
-* **the mode placed at a measured one** — for a candidate with springs, the scale that puts
-  its mode at each measured mode the model lacks, then at the measured modes it matches
+* **the mode placed at a measured one** — for a candidate with a mode (springs, a sensor
+  on its mount), the scale that puts its mode at each measured mode the model lacks, then at the measured modes it matches
   worst (:data:`N_PLACED`): a missing mode is where a missing spring shows;
 * **the modes matched** — for a candidate with several springs (a flexible base, soft
   mounts), each spring set on its own so that the model's modes match the measured ones
@@ -150,7 +150,7 @@ def _scales(refit: Refit, cand: Candidate, places: Places) -> list[tuple[str, fl
             break
         if all(abs(math.log(g[i] / s)) >= math.log(1.5) for _, s in out):
             out.append((f"scan ×{g[i]:.3g}", float(g[i])))
-    if cand.ref_hz and any(p.scan == 1.0 for p in cand.parameters):
+    if cand.ref_hz and any(p.scan > 0 for p in cand.parameters):
         lo, hi = min(cand.scan_grid), max(cand.scan_grid)
         placed = 0
         freqs = [*places.missing, *places.worst]

@@ -93,8 +93,8 @@ class Candidate:
             mode (FRF modifiers).
         variants: alternatives of this candidate at the same location that differ in a detail
             the refit does not vary continuously (e.g. the pivot of a rotational DOF, which
-            enters the kinematics); the runner screens them with short refits from the
-            nominal model and refits the best one fully.
+            enters the kinematics); the screening gives each a start of its own, and the
+            candidate's refit tries them in the order of their figures.
     """
 
     effect: str

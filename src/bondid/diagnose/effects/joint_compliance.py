@@ -7,7 +7,7 @@ ry rz`` (child-body frame) along which its chain does not move yet is one candid
 body keeps its placement and its parameters; a rotational DOF pivots about the interface's
 bearing centre (the mean of its existing parasitic pivots; the child's CoM when it has none);
 where a guide really pivots is seldom known, so the candidate carries variants
-(:attr:`~.base.Candidate.variants`, screened by the runner) whose pivot is moved, one
+(:attr:`~.base.Candidate.variants`, each with a start of its own) whose pivot is moved, one
 direction across the axis at a time, to the child frame's origin, the child's CoM and the two
 faces of its collision hull (:func:`pivot_options`).
 New parameters: the joint's stiffness and damping. The start puts its mode at 300 Hz with 3 %
