@@ -8,8 +8,9 @@ from the physics and the data, so the starts come from there:
   swept through the band, a delay from microseconds to milliseconds), the lowest local
   minima of the training cost kept (:data:`N_SCAN`);
 * **the mode placed at a measured one** — for a candidate with a mode (springs, a sensor
-  on its mount), the scale that puts its mode at each measured mode the model lacks, then at the measured modes it matches
-  worst (:data:`N_PLACED`): a missing mode is where a missing spring shows;
+  on its mount), the scale that puts its mode at each measured mode the model lacks, then
+  at the measured modes it matches worst (:data:`N_PLACED`): a missing mode is where a
+  missing spring shows;
 * **the modes matched** — for a candidate with several springs (a flexible base, soft
   mounts), each spring set on its own so that the model's modes match the measured ones
   (:mod:`.matching`): their modes are seldom in the ratios the scan keeps;

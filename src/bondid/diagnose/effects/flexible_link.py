@@ -11,8 +11,8 @@ and its parent joint; the far part becomes the link ``{link}_distal``, and the c
 beyond the cut move onto it (placed as before).
 
 Where a link bends most is seldom known: the candidate cuts it halfway and carries the cuts
-at a quarter and three quarters as variants (:attr:`~.base.Candidate.variants`, screened by
-the screening, as the pivots of a rotational joint compliance). Candidates: every moving body
+at a quarter and three quarters as variants (:attr:`~.base.Candidate.variants`, each with a
+start of its own, as the pivots of a rotational joint compliance). Candidates: every moving body
 whose equivalent box is at least :data:`~.link_split.ELONGATION` times longer than wide
 (location = the link). New parameters: the stiffness (the strength) and damping of each
 bending hinge; the start puts each hinge's mode at 400 Hz on its effective inertia, 2 %
