@@ -35,7 +35,7 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT / "src"), str(ROOT / "tools")]
 
-from benchmark.cases import QUICK, Case, all_cases  # noqa: E402
+from benchmark.cases import QUICK, Case, all_cases, leave_one_out, open_cases  # noqa: E402
 from benchmark.designs import DESIGNS  # noqa: E402
 from benchmark.regimes import REGIMES  # noqa: E402
 from benchmark.runner import STOPPING, Settings, run_case, stop_on_sigterm  # noqa: E402
@@ -58,7 +58,7 @@ def select(args: argparse.Namespace) -> list[Case]:
     """The cases named by ``--cases`` (in the order named, so that a run stopped early has
     the broadest subset first; else ``--quick``'s or all), kept to ``--designs`` and
     ``--regimes``."""
-    cases = all_cases()
+    cases = open_cases() if args.open else all_cases()
     if args.cases:
         wanted = _names(args.cases, [c.name for c in cases], "case")
         by_name = {c.name: c for c in cases}
@@ -76,6 +76,11 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--regimes", help=f"comma-separated, of {', '.join(REGIMES)} (default all)")
     p.add_argument("--cases", help="comma-separated case names (see --list)")
     p.add_argument("--quick", action="store_true", help="3 small cases, 300 frequencies")
+    p.add_argument("--open", action="store_true",
+                   help="the open-world cases (later causes and causes outside the library)")
+    p.add_argument("--leave-one-out", action="store_true",
+                   help="each case diagnosed without its own effect classes among the "
+                   "candidates (the leave-one-class-out run)")  # fmt: skip
     p.add_argument("--list", action="store_true", help="print the selected cases and stop")
     p.add_argument("--jobs", type=int, default=1, help="cases in parallel (default 1)")
     p.add_argument("--freq", type=int, help="frequencies per data file (default 2000; quick 300)")

@@ -149,7 +149,28 @@ def run_case(case: Case, s: Settings) -> dict[str, Any]:
             dest = s.keep / case.name
             shutil.rmtree(dest, ignore_errors=True)
             shutil.copytree(folder, dest)
-    return {**row, **score(case, diag, row["db_truth"])}
+    return {**row, **score(case, diag, row["db_truth"]), **open_score(case, diag, s.effects)}
+
+
+def open_score(case: Case, diag: dict[str, Any], effects: str | None) -> dict[str, Any]:
+    """The open-world figures of a case (:mod:`.open_scoring`): the answer, whether a case
+    whose cause no candidate can name stayed honest, whether the remainder's description
+    points where its cause lives."""
+    from .open_scoring import honest, remainder_ok
+    from .truth import expected_remainder
+
+    offered = set(effects.split(",")) if effects else None
+    left_out = any(
+        e.library is None or (offered is not None and e.library not in offered)
+        for e in case.effects
+    )
+    expected = [r for e in case.effects for r in expected_remainder(e)]
+    return {
+        "outcome": (diag.get("verdict") or {}).get("outcome"),
+        "left_out": left_out,
+        "honest": honest(diag, left_out),
+        "remainder_ok": remainder_ok(diag, expected) if left_out else None,
+    }
 
 
 def _fit_status(proc: subprocess.CompletedProcess, path: Path) -> str:
@@ -288,7 +309,7 @@ def score(case: Case, diag: dict[str, Any], db_truth: float | None) -> dict[str,
     stages = diag.get("stages") or {}
     final = final_db(diag, claimed)
     at_noise = _at_noise(final, db_truth)
-    # the final model refitted on all data (stop 29; absent from older outputs)
+    # the final model refitted on all data
     ff = (diag.get("final_fit") or {}).get("db_rms")
     ff_at = _at_noise(ff, db_truth)
     return {
