@@ -9,6 +9,8 @@
   (in :mod:`bondid.diagnose.pairing`, re-exported here).
 * :func:`antiresonances`, :func:`antiresonance_shifts` — drive-point anti-resonances.
 
+Modes are :class:`~bondid.diagnose.mode_record.IdentifiedMode` records (re-exported here).
+
 A mode is described by its pole ``λ`` (``f_hz = |λ|/2π``, ``zeta = −Re λ/|λ|``) and its
 residue matrix ``R`` (n_out, n_in) in ``H(s) ≈ Σ R/(s−λ) + R̄/(s−λ̄)`` (receptance units ×
 1/s). Its ``prominence`` is ``max over channels |R/(s−λ) + R̄/(s−λ̄)| / |H|`` at
@@ -46,8 +48,6 @@ from __future__ import annotations
 
 import json
 from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -56,67 +56,8 @@ from ..exceptions import DataError
 from ..linear.linear_model import LinearModel
 from . import _lscf
 from .antiresonance import antiresonance_shifts, antiresonances
+from .mode_record import INFORMED_COHERENCE, IdentifiedMode, mode_shape
 from .pairing import VISIBLE_PROMINENCE, mac_matrix, pair_modes
-
-#: a channel carries information at a frequency where its coherence (or information weight,
-#: :func:`bondid.data.weights.with_weights_as_coherence`) is at least this: S/N ≥ 1
-INFORMED_COHERENCE = 0.5
-
-
-@dataclass
-class IdentifiedMode:
-    """One mode (one member of a conjugate pair).
-
-    Attributes:
-        f_hz: undamped natural frequency |λ|/2π [Hz].
-        zeta: damping ratio −Re λ/|λ|.
-        residues: modal residue matrix ``(n_out, n_in)`` complex [FRF units / s].
-        shape: ``(n_out,)`` complex, dominant left singular vector of ``residues``, largest
-            entry 1; None when unknown.
-        prominence: peak contribution relative to the FRF (see the module docstring); NaN
-            when unknown.
-        n_orders: number of model orders at which the pole was stable (identified modes).
-        determined: ``(n_out, n_in)`` bool, the channels whose data carry information at the
-            mode (coherence, or the information weight, ≥ 0.5 at its frequency): the residue
-            entries the data determine; None = all (model modes). Pairing compares residues
-            on these entries only (:func:`.pairing.mac_matrix`).
-    """
-
-    f_hz: float
-    zeta: float
-    residues: np.ndarray
-    shape: np.ndarray | None = None
-    prominence: float = float("nan")
-    n_orders: int = 0
-    determined: np.ndarray | None = None
-
-    @property
-    def eigenvalue(self) -> complex:
-        """λ [1/s] with Im λ > 0."""
-        w = 2 * np.pi * self.f_hz
-        return complex(-self.zeta * w, w * np.sqrt(max(1.0 - self.zeta**2, 0.0)))
-
-    def to_dict(self) -> dict[str, Any]:
-        def c(v: complex) -> dict[str, float]:
-            return {"re": float(v.real), "im": float(v.imag)}
-
-        return {
-            "f_hz": float(self.f_hz),
-            "zeta": float(self.zeta),
-            "prominence": None if not np.isfinite(self.prominence) else float(self.prominence),
-            "shape": None if self.shape is None else [c(v) for v in self.shape],
-        }
-
-
-def _shape(R: np.ndarray) -> np.ndarray | None:
-    if not np.all(np.isfinite(R)) or not np.any(R):
-        return None
-    u = np.linalg.svd(R)[0][:, 0]
-    k = int(np.argmax(np.abs(u)))
-    out = u / u[k]
-    out[k] = 1.0
-    return out
-
 
 def identify_modes(
     data: FrfData,
@@ -336,7 +277,7 @@ def _prominent(
             modes.append(
                 IdentifiedMode(
                     f_hz=abs(lr) / (2 * np.pi), zeta=-lr.real / abs(lr), residues=R[k],
-                    shape=_shape(R[k]), prominence=prom, n_orders=cnt,
+                    shape=mode_shape(R[k]), prominence=prom, n_orders=cnt,
                     determined=coh[:, :, at] >= INFORMED_COHERENCE,
                 )
             )  # fmt: skip
@@ -417,7 +358,7 @@ def model_modes(
                 f_hz=md.f_hz,
                 zeta=float(md.zeta if md.zeta is not None else 0.0),
                 residues=md.residue,
-                shape=_shape(md.residue),
+                shape=mode_shape(md.residue),
                 prominence=prom,
             )
         )
@@ -430,6 +371,7 @@ def modes_to_json(modes: Sequence[IdentifiedMode]) -> str:
 
 
 __all__ = [
+    "INFORMED_COHERENCE",
     "VISIBLE_PROMINENCE",
     "IdentifiedMode",
     "antiresonance_shifts",

@@ -1,7 +1,7 @@
 """How measured and model modes pair up: :func:`pair_modes` (paired / missing / spurious, by
 frequency and MAC of the residues, :func:`mac_matrix`).
 
-Modes are :class:`~bondid.diagnose.modal_id.IdentifiedMode` records (measured ones from
+Modes are :class:`~bondid.diagnose.mode_record.IdentifiedMode` records (measured ones from
 :func:`~bondid.diagnose.modal_id.identify_modes`, the model's from
 :func:`~bondid.diagnose.modal_id.model_modes`).
 """
@@ -9,14 +9,12 @@ Modes are :class:`~bondid.diagnose.modal_id.IdentifiedMode` records (measured on
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from . import _lscf
-
-if TYPE_CHECKING:  # pragma: no cover - typing only
-    from .modal_id import IdentifiedMode
+from .mode_record import IdentifiedMode
 
 VISIBLE_PROMINENCE = 0.1
 """A model mode counts as visible (so unpaired = spurious) at this prominence or above."""
