@@ -31,6 +31,7 @@ from .points import (
     point_from_element,
 )
 from .preserve import LostPart, lost_parts, restore
+from .structure import check_structure
 
 MOVABLE_TYPES = ("revolute", "continuous", "prismatic")
 _YOURDFPY_TAGS = ("link", "joint", "material")
@@ -79,7 +80,10 @@ class UrdfDocument:
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> UrdfDocument:
         """Read a URDF file. Raises :class:`ModelError` naming the file on failure."""
+        from ..paths import check_input_file
+
         p = Path(path)
+        check_input_file(p, "URDF file", ModelError)  # a FIFO would block, a folder is no file
         try:
             text = p.read_text(encoding="utf-8")
         except OSError as exc:
@@ -96,6 +100,7 @@ class UrdfDocument:
         import yourdfpy
 
         where = source or "<URDF string>"
+        check_structure(xml, where)  # before any tree: depth and chain limits
         try:
             root = ET.fromstring(xml)
         except ET.ParseError as exc:

@@ -130,7 +130,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             _serve(args, doc, result, fitted, index)
         return 0
 
-    return run(body)
+    return run(body, args)
 
 
 def _scene(args, doc, result: ModalResult, fitted, index: int):

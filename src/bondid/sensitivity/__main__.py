@@ -37,7 +37,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from .. import cli
 
     args = _parser().parse_args(argv)
-    return cli.run(lambda: _run(args))
+    return cli.run(lambda: _run(args), args)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -78,7 +78,7 @@ def _run(args: argparse.Namespace) -> int:
     from ..cost.selection import informative_only
     from ..data.for_model import load_datasets
     from ..results import open_results
-    from ..validation import check_inputs, load_model
+    from ..validation import check_inputs, check_selection, load_model
     from . import output
     from ._common import make_setup
     from .local import linearise_cost
@@ -95,6 +95,7 @@ def _run(args: argparse.Namespace) -> int:
     )
     warnings += check_inputs(doc, datasets, args.data)
     channels = cli.split_names(args.channels) or None
+    check_selection(datasets, bands=args.band, channels=channels)
     options = CostOptions(kind=args.cost, bands=args.band, channels=channels)
     options, left_out, note = informative_only(datasets, options)
     if note:
