@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import copy
 import os
+import sys
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -378,12 +379,20 @@ class UrdfDocument:
         """The Pinocchio model of this document (built from memory, no file written)."""
         import pinocchio as pin
 
+        from .native_messages import captured_native_stderr
+
+        text = self.to_string()
         try:
-            return pin.buildModelFromXML(self.to_string())
+            with captured_native_stderr() as said:  # urdfdom prints its reasons on fd 2
+                model = pin.buildModelFromXML(text)
         except Exception as exc:
+            why = "; ".join([*said.messages(), " ".join(str(exc).split())])
             raise ModelError(
-                f"{self.source or '<URDF>'}: Pinocchio could not build the model ({exc})"
+                f"{self.source or '<URDF>'}: Pinocchio could not build the model ({why})"
             ) from exc
+        if said.text.strip():  # warnings of a model that was built: pass them on
+            print(f"{self.source or '<URDF>'}: urdfdom: {said.one_line()}", file=sys.stderr)
+        return model
 
 
 def _writable(core: ET.Element) -> ET.Element:

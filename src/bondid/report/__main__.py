@@ -33,7 +33,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         from ..paths import check_output_path
         from ..results import open_results
         from .build import REPORT_NAME, build_report_html
-        from .inputs import check_folder, check_results, manifest_warnings
+        from .inputs import check_folder, check_results, manifest_warnings, with_warnings
 
         results = Path(args.results or args.out)
         check_output_path(results, "RESULTS_DIR")
@@ -49,6 +49,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         check_results(results)
         warnings = manifest_warnings(results)
         text, _ = build_report_html(results, out)
+        text = with_warnings(text, warnings)
         res.path(REPORT_NAME).write_text(text, encoding="utf-8")
         res.commit(warnings=warnings, main=REPORT_NAME)
         path = out / REPORT_NAME

@@ -231,8 +231,8 @@ def manifest_warnings(results: Path) -> list[str]:
         listed: set[str] = set()
         found: dict[str, dict[str, Any] | None] = {}
         for command, patterns in RESULT_PATTERNS.items():
-            if manifest_name(command) not in names:
-                continue
+            if manifest_name(command) not in names or command == "report":
+                continue  # (the report's own page is never read, only replaced)
             try:
                 found[command] = read_manifest(folder, command, patterns=patterns)
             except ManifestError as exc:
@@ -260,3 +260,15 @@ def manifest_warnings(results: Path) -> list[str]:
                     f" from another run than the rest of bondid.{command}'s results"
                 )
     return out
+
+
+def with_warnings(page: str, warnings: list[str]) -> str:
+    """The page with the folder's warnings at the top of its body (a reader of the page
+    sees that the folder is incomplete or mixed, as the command line said)."""
+    if not warnings:
+        return page
+    from html import escape
+
+    block = "".join(f'<p class="warn">warning: {escape(w)}</p>' for w in warnings)
+    head, sep, tail = page.partition("<body>")
+    return head + sep + block + tail if sep else block + page
