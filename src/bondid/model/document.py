@@ -98,7 +98,7 @@ class UrdfDocument:
     @classmethod
     def from_string(cls, xml: str, source: str | None = None) -> UrdfDocument:
         """Parse URDF text; ``source`` names it in error messages."""
-        import yourdfpy
+        yourdfpy = _import_yourdfpy()
 
         where = source or "<URDF string>"
         check_structure(xml, where)  # before any tree: depth and chain limits
@@ -393,6 +393,25 @@ class UrdfDocument:
         if said.text.strip():  # warnings of a model that was built: pass them on
             print(f"{self.source or '<URDF>'}: urdfdom: {said.one_line()}", file=sys.stderr)
         return model
+
+
+def _import_yourdfpy() -> Any:
+    """``import yourdfpy``, interruptible. trimesh (which yourdfpy imports) wraps its own
+    imports of SciPy, networkx and others in ``except BaseException``: a Ctrl-C landing
+    there was swallowed and the command went on for seconds. So those are imported first,
+    where an interrupt goes through, and the rest of the import runs with the interrupt
+    held until it ends (:func:`bondid.interrupt.signals_deferred`, a fraction of a second)."""
+    import contextlib
+    import importlib
+
+    from ..interrupt import signals_deferred
+
+    for name in ("scipy.sparse", "scipy.spatial", "scipy.optimize", "networkx"):
+        with contextlib.suppress(ImportError):
+            importlib.import_module(name)
+    with signals_deferred():
+        import yourdfpy
+    return yourdfpy
 
 
 def _writable(core: ET.Element) -> ET.Element:
