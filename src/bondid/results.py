@@ -224,6 +224,9 @@ class Results:
         Returns:
             The final paths of the files written (manifest excluded).
         """
+        from . import interrupt
+
+        interrupt.check()  # an interrupt a library swallowed: the run ends here, uncommitted
         files = self._files()
         for f in files:  # last guard: never replace an input
             dest = self.out if self.file else self.out / f.relative_to(self.tmp)

@@ -130,6 +130,18 @@ class UrdfDocument:
 
     def _check(self) -> None:
         where = self.source or "<URDF string>"
+        for j in self.robot.joints:  # yourdfpy keeps <dynamics> values as text
+            dyn = getattr(j, "dynamics", None)
+            for attr in ("damping", "friction"):
+                value = getattr(dyn, attr, None)
+                if isinstance(value, str):
+                    try:
+                        setattr(dyn, attr, float(value))
+                    except ValueError:
+                        raise ModelError(
+                            f"{where}: joint {j.name!r}: <dynamics {attr}={value!r}> is not a"
+                            " number; valid: a number >= 0, or leave the attribute out"
+                        ) from None
         links = {lk.name for lk in self.robot.links}
         for j in self.robot.joints:
             for end in (j.parent, j.child):
