@@ -14,6 +14,7 @@ sys.path.insert(0, str(TOOLS))
 
 import sweep_cases  # noqa: E402
 import sweep_inputs  # noqa: E402
+import sweep_sandbox  # noqa: E402
 
 FAST = (
     "model_fifo-modes", "model_deep_200k-modes", "model_chain_3000-modes",
@@ -26,7 +27,7 @@ FAST = (
 
 @pytest.fixture(scope="module")
 def base(tmp_path_factory):
-    return sweep_cases.make_base(tmp_path_factory.mktemp("sweep") / "_base")
+    return sweep_sandbox.make_base(tmp_path_factory.mktemp("sweep") / "_base")
 
 
 @pytest.mark.parametrize("name", FAST)

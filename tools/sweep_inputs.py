@@ -1,6 +1,7 @@
 """A hostile or unlucky user's sweep over every command: bad data files, bad models, bad
 options, planted manifests, bad output targets, signals, a full disk, a killed fleet
-worker, a kill in the middle of a commit (cases: ``tools/sweep_cases.py``).
+worker, a kill in the middle of a commit (cases: ``tools/sweep_cases.py`` and
+``tools/sweep_events.py``).
 
 Each case runs ``python -m bondid.<command>`` as its own process in a fresh sandbox folder
 (the inputs, a results folder, and a sibling folder of files that no run may touch), with a
@@ -44,7 +45,9 @@ if str(ROOT / "src") not in sys.path:
 if str(ROOT / "tools") not in sys.path:
     sys.path.insert(0, str(ROOT / "tools"))
 
-from sweep_cases import CASES, Case, Sandbox, Skip, make_base  # noqa: E402
+from sweep_cases import CASES  # noqa: E402
+from sweep_events import Skip  # noqa: E402
+from sweep_sandbox import Case, Sandbox, make_base  # noqa: E402
 
 PROBLEMS = ("traceback", "segfault", "hang", "accepted", "wrong_exit", "not_one_line", "touched")
 CRASH_SIGNALS = {signal.SIGSEGV, signal.SIGBUS, signal.SIGABRT}
@@ -64,6 +67,7 @@ class Run:
     stderr_tail: list[str]
     problems: list[str] = field(default_factory=list)
     skipped: str | None = None
+    stderr: str = field(default="", repr=False)
 
 
 def snapshot(root: Path, skip: list[Path]) -> dict[str, str]:
@@ -135,8 +139,8 @@ def run_case(case: Case, base: Path, work: Path, timeout: float) -> Run:
     stop_s = None
     hung = False
     try:
+        case.wait_for(box, p)  # (a case without a signal may act itself: kill a worker)
         if case.signal is not None:
-            case.wait_for(box, p)
             if p.poll() is None:
                 ts = time.monotonic()
                 os.killpg(p.pid, case.signal)
@@ -168,6 +172,7 @@ def run_case(case: Case, base: Path, work: Path, timeout: float) -> Run:
         None if stop_s is None else round(stop_s, 3),
         lines[-3:],
     )
+    r.stderr = err
     _classify(r, case, box, out, err, lines, hung, leftover, before, skip)
     return r
 
@@ -286,7 +291,8 @@ def main(argv: list[str] | None = None) -> int:
     if stops:
         print(f"\nsignals: {len(stops)} runs stopped in {min(stops):.2f}–{max(stops):.2f} s")
     if args.json is not None:
-        args.json.write_text(json.dumps([asdict(r) for r in runs], indent=1) + "\n")
+        rows = [{k: v for k, v in asdict(r).items() if k != "stderr"} for r in runs]
+        args.json.write_text(json.dumps(rows, indent=1) + "\n")
     return 1 if bad else 0
 
 

@@ -409,6 +409,21 @@ def check_workers(value: int, option: str = "--workers") -> int:
     return int(value)
 
 
+def check_number(
+    value: float | None, option: str, *, low: float = -math.inf, low_open: bool = False
+) -> float | None:
+    """The same rule for a float option in every command: finite and at least ``low``
+    (above it with ``low_open``); None (not given) passes."""
+    from .exceptions import ConfigError
+
+    if value is None:
+        return None
+    if not (math.isfinite(value) and (value > low if low_open else value >= low)):
+        sign = ">" if low_open else ">="
+        raise ConfigError(f"{option} {value}: give a finite number {sign} {low:g}")
+    return value
+
+
 def warn_lines(warnings: Sequence[str]) -> list[str]:
     """``warning: …`` lines for a command's printed summary."""
     return [f"warning: {w}" for w in warnings]

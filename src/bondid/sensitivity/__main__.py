@@ -85,6 +85,8 @@ def _run(args: argparse.Namespace) -> int:
 
     t_start = time.perf_counter()
     cli.check_workers(args.workers)
+    cli.check_number(args.max_rel_std, "--max-rel-std", low=0.0, low_open=True)
+    cli.check_number(args.noise, "--noise", low=0.0)
     res = None
     if args.out is not None:
         names = [*output.PNG_NAMES.values(), "sensitivity.json"]
