@@ -111,3 +111,91 @@ def test_static_mode_page_renders_the_machine(tmp_path: Path):
     # the mode is animated: 0.6 s later (virtual time) the machines have moved
     moved = (np.abs(later - shot).sum(axis=2) > 40).sum()
     assert moved > 300, f"only {moved} pixels changed between frames"
+
+
+REPORT_FIT = {
+    "status": "Solve_Succeeded", "success": True, "iterations": 94, "wall_s": 49.2,
+    "cost_name": "complex_log_l2", "cost_initial": 53.1, "cost_final": 0.243,
+    "parameters": [
+        {"name": "x_stage.mass", "unit": "kg", "initial": 1.67, "fitted": 2.13, "lower": 0.8,
+         "upper": 2.5, "std": 0.0015},
+        {"name": "x_stage.inertia.ixx", "unit": "kg·m²", "initial": 0.0058, "fitted": 0.0049,
+         "lower": 0.0029, "upper": 0.0087, "std": None},
+    ],
+    "db_rms": {"initial": 7.289, "final": 0.493, "noise_level": 0.508, "weighting": "auto",
+               "by_dataset": [{"file": "data/q0.csv",
+                               "by_channel": {"x.x": {"initial": 6.9, "final": 0.18}}}]},
+    "channels_by_file": [{"file": "data/q0.csv", "used": ["x.x"], "left_out": {"y.x": 0.0}}],
+}  # fmt: skip
+REPORT_DIAGNOSIS = {
+    "gap": {"db_rms": 2.4, "by_channel": {"x.x": 1.2, "x.y": 3.9},
+            "by_band": [{"f_lo_hz": 300.0, "f_hi_hz": 600.0, "db_rms": 4.1}]},
+    "candidates": [{"effect": "soft_mounts", "location": "base", "parameters": {"k_z": 3e6},
+                    "db_rms_after": 2.3, "gap_closed": 0.04}],
+    "verdict": {"effect": "none", "location": None, "gap_closed": 0.0,
+                "outcome": "unexplained", "reason": "no candidate passes the rule"},
+    "remainder": [{"kind": "missing_mode", "text": "a mode near 480 Hz in x.y is in no model"}],
+}  # fmt: skip
+
+
+def _runs(mask: np.ndarray) -> int:
+    """The longest vertical run of True pixels in any column of ``mask``."""
+    best = 0
+    for col in mask.T:
+        run = 0
+        for v in col:
+            run = run + 1 if v else 0
+            best = max(best, run)
+    return best
+
+
+def test_report_first_screen_leads_with_the_answer(tmp_path: Path):
+    """The report as a person opens it: the fit's and the diagnosis's cards (green = at the
+    noise level, red = not explained) on the first screen, above everything else; no Python
+    dict in any table cell. Layout, not pixels: the cards' coloured edges are found."""
+    import json
+    from html.parser import HTMLParser
+
+    from bondid.report.build import build_report
+
+    exe = _chromium()
+    res = tmp_path / "res"
+    (res / "diag").mkdir(parents=True)
+    (res / "fit.json").write_text(json.dumps(REPORT_FIT))
+    (res / "diag" / "diagnosis.json").write_text(json.dumps(REPORT_DIAGNOSIS))
+    page = build_report(res)
+    shot = _screenshot(exe, page, tmp_path / "report.png", 1000, tmp_path / "p4")
+    assert shot.shape == (900, 1200, 3)
+    r, g, b = shot[..., 0], shot[..., 1], shot[..., 2]
+    green = (abs(r - 0x33) < 30) & (abs(g - 0xAA) < 30) & (abs(b - 0x33) < 30)
+    red = (abs(r - 0xCC) < 30) & (abs(g - 0x33) < 30) & (abs(b - 0x33) < 30)
+    assert _runs(green[:600]) > 80, "no fit card on the first screen"
+    assert _runs(red[:600]) > 80, "no diagnosis card on the first screen"
+    # the cards sit side by side near the top: their edges start in the upper third
+    assert np.nonzero(green.any(axis=1))[0][0] < 300 and np.nonzero(red.any(axis=1))[0][0] < 300
+
+    class Cells(HTMLParser):
+        def __init__(self) -> None:
+            super().__init__()
+            self.depth, self.cells, self.text = 0, [], ""
+
+        def handle_starttag(self, tag, attrs):
+            if tag in ("td", "th"):
+                self.depth, self.text = 1, ""
+
+        def handle_endtag(self, tag):
+            if tag in ("td", "th") and self.depth:
+                self.cells.append(self.text)
+                self.depth = 0
+
+        def handle_data(self, data):
+            if self.depth:
+                self.text += data
+
+    html = page.read_text(encoding="utf-8")
+    parser = Cells()
+    parser.feed(html)
+    assert len(parser.cells) > 20
+    assert not [c for c in parser.cells if "{'" in c or "['" in c]
+    assert "7.29 dB → 0.493 dB" in html and "at the noise level" in html
+    assert "Not explained" in html and "a mode near 480 Hz" in html

@@ -63,7 +63,7 @@ def test_bode_png_axes_and_magnitude(tmp_path: Path) -> None:
     assert len(axes) == 2 * 4  # magnitude + phase per cell of the 2 × 2 grid
     ax_mag, ax_ph = axes[2], axes[3]  # cell x.y (row 0, column 1)
     assert ax_mag.get_title() == "x.y"
-    assert ax_mag.get_ylabel() == "dB re 1 m/(N·m)"
+    assert ax_mag.get_ylabel() == "receptance [dB re 1 m/(N·m)]"
     mag = ax_mag.get_lines()[0]
     np.testing.assert_allclose(mag.get_xdata(), F)
     np.testing.assert_allclose(mag.get_ydata(), 20 * np.log10(np.abs(H[0, 1])), rtol=1e-12)

@@ -78,6 +78,21 @@ DIAGNOSIS = {
 }
 
 
+SENSITIVITY = {
+    "parameters": [
+        {"name": "x_stage.mass", "kind": "mass", "overall": 15.9, "std_alone": 0.01,
+         "std_all": 0.025, "recommended": True},
+        {"name": "x_stage.com.x", "kind": "com", "overall": 0.0, "std_alone": None,
+         "std_all": None, "recommended": False},
+    ],
+    "bands": [{"label": "R 12.4 Hz", "f_lo_hz": 10.0, "f_hi_hz": 15.0, "class": "resonance",
+               "top": [{"name": "x_stage.mass", "sensitivity": 15.9004}]}],
+    "identifiability": {"noise": 0.5, "noise_estimated": True, "max_rel_std": 0.1,
+                        "n_identifiable": 1, "n_parameters": 2, "combinations": [],
+                        "recommended": [{"name": "x_stage.mass", "std": 0.025}]},
+}  # fmt: skip
+
+
 def _png(color: tuple[int, int, int]) -> bytes:
     from PIL import Image
 
@@ -100,9 +115,7 @@ def results(tmp_path: Path) -> Path:
     (res / "fit" / "fit.json").write_text(json.dumps(FIT))
     (res / "fit" / "bode_x.x.png").write_bytes(_png((255, 0, 0)))
     (res / "fit" / "convergence.png").write_bytes(_png((0, 255, 0)))
-    (res / "sensitivity.json").write_text(
-        json.dumps({"parameters": ["x_stage.mass"], "channels": ["x.x"], "identifiable": True})
-    )
+    (res / "sensitivity.json").write_text(json.dumps(SENSITIVITY))
     (res / "sensitivity_heatmap.png").write_bytes(_png((0, 0, 255)))
     (res / "diagnosis.json").write_text(json.dumps(DIAGNOSIS))
     (res / "residual_map.png").write_bytes(_png((9, 9, 9)))
@@ -123,9 +136,10 @@ def test_report_has_tables_images_and_no_network(results: Path, tmp_path: Path):
     # fit summary and parameter table, the at-bound row flagged
     assert "Solve_Succeeded" in page and "x_guide_ty.stiffness" in page
     assert re.search(r'<tr class="flag"><td class="l">x_guide_ty\.stiffness', page)
-    assert "0.01" in page  # cost ratio 0.125 / 12.5
-    # diagnosis: verdict, gap tables, candidates
-    assert "Verdict: <b>soft_mounts</b> at <b>base</b>" in page and "78.6 %" in page
+    assert "12.5 → 0.125" in page  # the cost before → after
+    # diagnosis: verdict on the first screen (no outcome field: an effect = explained)
+    card = page[page.index('id="diagnosis-headline"') : page.index('id="fit"')]
+    assert "Explained: soft_mounts at base" in card and "78.6 %" in card
     assert '<td class="l">y.y</td><td>5</td>' in page
     assert "6.6" in page and "missing" in page and "sensor_delay" in page
     # one effect and nothing dropped: no effect tables (the verdict says it)
@@ -153,8 +167,9 @@ def test_report_lists_the_effects_and_the_dropped_one(results: Path, tmp_path: P
     gone = page.index("dropped as redundant")
     assert gone > second and page.index("a-&gt;b:rz", gone) > gone
     assert "0.831" in page[gone:] and "0.815" in page[gone:]
-    # sensitivity rendered generically
-    assert "identifiable" in page
+    # sensitivity: readable tables, no dict reprs
+    assert "Recommended free parameters (1)" in page and "2.5 %" in page
+    assert "resonance 12.4 Hz" in page and "{'" not in page
     # modes: the frequency of the one-mass model and relative links to the animations
     f_hz = (8e3 / 2.0) ** 0.5 / (2 * 3.141592653589793)
     assert f"{f_hz:.6g}" in page
@@ -173,7 +188,8 @@ def test_report_missing_parts_noted(tmp_path: Path):
     res = tmp_path / "r"
     res.mkdir()
     (res / "fit.json").write_text("{not json")
-    (res / "plot.png").write_bytes(_png((1, 2, 3)))
+    (res / "extra").mkdir()  # a PNG no command's manifest lists, apart from any result file
+    (res / "extra" / "plot.png").write_bytes(_png((1, 2, 3)))
     assert _run([res]) == 0  # default --out: the results folder itself
     page = (res / "report.html").read_text(encoding="utf-8")
     assert "could not read fit.json" in page

@@ -2,7 +2,8 @@
 
 Exit codes (spec §4): 0 success, 2 bad input (one line naming the file and what is wrong),
 1 the computation itself failed. Every command builds its parser with :func:`make_parser`,
-runs its body through :func:`run`, and reports progress with :class:`Progress`.
+runs its body through :func:`run`, and reports progress with
+:class:`bondid.progress.Progress` (a tqdm bar).
 """
 
 from __future__ import annotations
@@ -13,12 +14,14 @@ import math
 import os
 import signal
 import sys
-import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
 from .exceptions import BondidError, ComputationError
+from .progress import Progress
+
+__all__ = ["EXIT_BAD_INPUT", "EXIT_FAILED", "EXIT_OK", "Progress"]
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -252,6 +255,7 @@ def run(body: Callable[[], int | None], args: argparse.Namespace | None = None) 
     :mod:`bondid.results`).
     """
     from . import interrupt, results
+    from .warnlines import one_line_warnings
 
     if args is not None:
         from .paths import check_path_options
@@ -264,7 +268,8 @@ def run(body: Callable[[], int | None], args: argparse.Namespace | None = None) 
 
     previous = interrupt.install()
     try:
-        return _run(body)
+        with one_line_warnings():
+            return _run(body)
     finally:
         results.close_all()
         interrupt.restore(previous)
@@ -353,43 +358,21 @@ def os_error_line(exc: OSError) -> str:
     return f"file system error{name}: {one_line(exc.strerror or exc)} (writing {where})"
 
 
-class Progress:
-    """A one-line progress display on stderr (silent when ``quiet`` or not a terminal... but
-    always prints the final line so logs show the work was done)."""
+class _JoinNames(argparse.Action):
+    """Store the names of one or more values (``a b`` or ``a,b``, repeatable) as one
+    comma-separated string."""
 
-    def __init__(self, label: str, total: int | None = None, *, quiet: bool = False):
-        self.label, self.total, self.quiet = label, total, quiet
-        self.count = 0
-        self.t0 = time.perf_counter()
-        self._tty = sys.stderr.isatty()
-        self._last = 0.0
+    def __call__(self, parser: Any, namespace: Any, values: Any, option_string: Any = None):
+        before = getattr(namespace, self.dest, None) or ""
+        setattr(namespace, self.dest, ",".join(split_names([before, *values])))
 
-    def update(self, n: int = 1, info: str = "") -> None:
-        self.count += n
-        if self.quiet:
-            return
-        now = time.perf_counter()
-        if (
-            not self._tty
-            and now - self._last < 2.0
-            and (self.total is None or self.count < self.total)
-        ):
-            return
-        self._last = now
-        frac = f"{self.count}/{self.total}" if self.total else str(self.count)
-        line = f"{self.label}: {frac} {info} [{now - self.t0:.1f} s]"
-        print(
-            ("\r" + line) if self._tty else line,
-            end="" if self._tty else "\n",
-            file=sys.stderr,
-            flush=True,
-        )
 
-    def close(self, info: str = "") -> None:
-        if self.quiet:
-            return
-        line = f"{self.label}: done {info} [{time.perf_counter() - self.t0:.1f} s]"
-        print(("\r" + line) if self._tty else line, file=sys.stderr, flush=True)
+def add_channels_arg(p: Any, text: str = "channels OUT.IN to use") -> None:
+    """``--channels`` taking ``x.x y.y`` as well as ``x.x,y.y`` (stored comma-separated)."""
+    p.add_argument(
+        "--channels", nargs="+", action=_JoinNames, default=None, metavar="OUT.IN",
+        help=f"{text}, e.g. x.x y.y or x.x,y.y (OUT.IN = response at OUT to the excitation at IN)",
+    )  # fmt: skip
 
 
 def split_names(values: Sequence[str] | None) -> list[str]:

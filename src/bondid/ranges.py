@@ -1,14 +1,15 @@
 """The physical ranges bondid accepts, in one place (SI units, frequencies in Hz).
 
 A value outside is not a machine any instrument measured: a typing or unit error, or a file
-made to break the tool (a spring of 1e300 once ran and reported a "negative stiffness"; a
-mass of 1e-300 was fitted). Each is refused before any work with the item and the range.
+made to break the tool (unchecked, a spring of 1e300 runs and is reported as a "negative
+stiffness" after round-off, and a mass of 1e-300 is fitted). Each is refused before any work
+with the item and the range.
 The ranges are wide on purpose: from a MEMS part to a machine tool's bed, from a flexure to
 a rigid coupling.
 
 Also here: the structural limits of a model file, checked before it is parsed deeply (a URDF
-of 200,000 nested elements crashed the process in a recursive copy; a chain of 3,000 links
-exhausted Python's recursion).
+of 200,000 nested elements crashes the process in a recursive copy; a chain of 3,000 links
+exhausts Python's recursion).
 """
 
 from __future__ import annotations

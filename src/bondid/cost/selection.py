@@ -23,6 +23,9 @@ class CostOptions:
         norm: ``l2`` or ``l1`` (smooth pseudo-Huber, ``l1_delta`` in residual units).
         bands: frequency bands (Hz) to use; None = all.
         channels: ``OUT.IN`` names to use; None = every channel in the data.
+        channels_by_file: per data file (its ``source``), the ``OUT.IN`` names used there;
+            it wins over ``channels`` for that file (the information rule applied file by
+            file, :func:`informative_only`).
         channel_weights: extra weight per channel (default 1: the log residuals already
             balance channels whose levels differ by 50 dB).
         use_coherence: False ignores the file's coherence column (``auto`` then weighs by
@@ -38,6 +41,7 @@ class CostOptions:
     l1_delta: float = 1.0
     bands: Sequence[tuple[float, float]] | None = None
     channels: Sequence[str] | None = None
+    channels_by_file: dict[str, tuple[str, ...]] | None = None
     channel_weights: dict[str, float] = field(default_factory=dict)
     use_coherence: bool = True
     weighting: str = "auto"
@@ -45,6 +49,12 @@ class CostOptions:
     @property
     def name(self) -> str:
         return f"{self.kind}_{self.norm}"
+
+    def channels_for(self, ds: FrfData) -> Sequence[str] | None:
+        """The channels used of data set ``ds`` (None = every one present)."""
+        if self.channels_by_file and ds.source in self.channels_by_file:
+            return self.channels_by_file[ds.source]
+        return self.channels
 
     @property
     def effective_weighting(self) -> str:
@@ -103,8 +113,9 @@ def used_points(ds: FrfData, options: CostOptions) -> np.ndarray:
         ChannelError: ``options.channels`` names a channel the data lack.
     """
     chosen = np.array(ds.present)
-    if options.channels is not None:
-        wanted = set(options.channels)
+    names = options.channels_for(ds)
+    if names is not None:
+        wanted = set(names)
         unknown = wanted - {f"{o}.{i}" for o in ds.outputs for i in ds.inputs}
         if unknown:
             raise ChannelError(
@@ -151,26 +162,40 @@ def select_points(ds: FrfData, affine: AffineModel, opt: CostOptions) -> DataSel
 
 def informative_only(
     datasets: Sequence[FrfData], options: CostOptions
-) -> tuple[CostOptions, dict[str, float], str]:
-    """``options`` limited to the informative channels when it names none
-    (:func:`bondid.data.weights.informative_channels`, the diagnosis's rule too), the channels
-    left out with their median information weight, and a note on them ("" when none is).
-    When no channel is informative, every one is kept (none is left out) and the note says
+) -> tuple[CostOptions, dict[str, dict[str, float]], str]:
+    """``options`` limited, file by file, to the informative channels when it names none
+    (:func:`bondid.data.weights.informative_channels` applied to each data file alone, so a
+    channel informative at one operating point is used there), the channels left out per
+    file ``{file: {channel: median information weight}}``, and a note on them ("" when none
+    is). A file none of whose channels is informative keeps every one, and the note says
     so."""
-    from ..data.weights import MIN_CHANNEL_WEIGHT, informative_channels, left_out_note
+    from ..data.weights import informative_by_file, left_out_note
 
     if options.channels is not None:
         return options, {}, ""
-    keep, left_out = informative_channels(datasets, options.effective_weighting)
+    by_file, left_out, notes = informative_by_file(datasets, options.effective_weighting)
     if not left_out:
-        return options, {}, ""
-    if not keep:
-        return (
-            options,
-            {},
-            (
-                f"every channel's median information weight is below {MIN_CHANNEL_WEIGHT} (median"
-                " SNR below 0 dB): all are fitted; check the data or name channels with --channels"
-            ),
-        )
-    return replace(options, channels=keep), left_out, left_out_note(left_out)
+        return options, {}, "; ".join(notes)
+    union = tuple(dict.fromkeys(c for keep in by_file.values() for c in keep))
+    note = "; ".join([left_out_note(left_out), *notes])
+    return replace(options, channels=list(union), channels_by_file=by_file), left_out, note
+
+
+def channels_by_file(
+    datasets: Sequence[FrfData], options: CostOptions, left_out: dict[str, dict[str, float]]
+) -> tuple[dict[str, float], list[dict[str, object]]]:
+    """What a results file says of the channels: ``channels_left_out`` ``{channel: median
+    information weight}`` (each channel left out of some file, with its largest median
+    there) and ``channels_by_file`` ``[{"file", "used", "left_out"}]``, one entry a data
+    set."""
+    flat: dict[str, float] = {}
+    for chans in left_out.values():
+        for c, m in chans.items():
+            flat[c] = max(m, flat.get(c, m))
+    entries: list[dict[str, object]] = []
+    for i, ds in enumerate(datasets):
+        key = ds.source or f"data{i}"
+        names = options.channels_for(ds)
+        used = [c for c in ds.channels if names is None or c in names]
+        entries.append({"file": key, "used": used, "left_out": dict(left_out.get(key, {}))})
+    return flat, entries

@@ -127,3 +127,22 @@ def check_against_model(
                 f"{where}: operating point names joint {name!r}, which the model lacks; "
                 f"valid joints: {', '.join(joints) or 'none'}"
             )
+
+
+def states_operating_point(path: str | os.PathLike[str]) -> bool:
+    """True when the data file states an operating point: a CSV ``# operating_point`` line
+    (empty = the neutral pose, stated), or a UFF58 ID line ``operating_point:``. False for a
+    file without one (or that cannot be read)."""
+    p = Path(path)
+    try:
+        with p.open("r", encoding="utf-8", errors="replace") as fh:
+            if _kind(p) == "csv":
+                for line in fh:
+                    if not line.startswith("#"):
+                        return False
+                    if line[1:].strip().startswith("operating_point"):
+                        return True
+                return False
+            return any("operating_point:" in line for line in fh)
+    except (OSError, DataError):
+        return False

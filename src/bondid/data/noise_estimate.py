@@ -37,14 +37,14 @@ Method, per channel (a complex series ``H_k`` at frequencies ``f_k``):
    :data:`SIGNAL_MARGIN`; ``SNR = Ŝ / N̂``. The margin ``κ = 4`` (instead of the unbiased 1)
    makes a point of pure noise count as signal only when its 5-point power exceeds 4 N̂:
    ~2e-5 with an exact ``N̂``, 0.1 % measured with the estimate's own scatter (pure noise,
-   1000 lines; 0.7 % with ``κ = 3``, stop 16's value). Noise-only points must weigh next to
+   1000 lines; 0.7 % with ``κ = 3``). Noise-only points must weigh next to
    nothing, as they do with a measured coherence: where the FRF itself lies far below the
    noise (a weak cross-term) such a point's log error is tens of dB against any model, and
    one of them outweighs hundreds of good points. Measured on the 56 benchmark truths
-   (stop 17, ``κ`` 3 → 4 with the ends above): the exact model's own weighted held-out
-   score over the verdict's predicted noise level had a median 1.15 and 6 of 14 cases
-   above 1.2 in files without coherence (3 above 1.5 on the training data), then a median
-   0.96 and 3 of 14 (1 above 1.5 on the training data).
+   (``κ`` 3 → 4, with the ends above): the exact model's own weighted held-out score over
+   the verdict's predicted noise level had a median 1.15 and 6 of 14 cases above 1.2 in
+   files without coherence (3 above 1.5 on the training data) with ``κ = 3``, and a median
+   0.96 and 3 of 14 (1 above 1.5 on the training data) with ``κ = 4``.
 
 Noise here is the complex standard deviation of the measured FRF (``E|H_meas − H|² = σ²``),
 in the units of ``H``.

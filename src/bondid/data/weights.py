@@ -10,8 +10,8 @@ measurement with noise — from one of (``weighting``):
   noise-to-signal ratios, ``N/S = max(N/S_coh, N/S_est)`` with ``N/S_coh = (1 − γ²)/γ²``,
   and ``w = 1 / (1 + N/S)``: a point counts as signal only as far as both say so; elsewhere
   the estimate alone. (The noise level's prediction takes their geometric mean, the best
-  guess of the point's noise: :func:`noise_to_signal` with ``prediction``.) Until stop 51 the
-  weights took the geometric mean too; then a scatter estimate that misread pure noise as
+  guess of the point's noise: :func:`noise_to_signal` with ``prediction``.) The weights do
+  not take the geometric mean: with it, a scatter estimate that misread pure noise as
   signal (the low end of an analyser's linear grid, where the floor windows are sparse)
   outvoted a coherence of 0.002–0.2 from 20 averages: those points kept weights of
   0.7–0.85 with log errors of 30–130 dB, and one of them outweighs hundreds of good points;
@@ -23,6 +23,7 @@ The estimate is computed once per :class:`FrfData` (on its full grid) and cached
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -145,14 +146,45 @@ def informative_channels(
     return kept, out
 
 
-def left_out_note(left_out: dict[str, float]) -> str:
-    """One line on the channels :func:`informative_channels` left out ("" when none)."""
+def informative_by_file(
+    datasets: Sequence[FrfData], weighting: str = "auto", min_weight: float = MIN_CHANNEL_WEIGHT
+) -> tuple[dict[str, tuple[str, ...]], dict[str, dict[str, float]], list[str]]:
+    """:func:`informative_channels` applied to each data file alone: ``({file: channels
+    kept}, {file: {channel left out: median weight}}, notes)``. A file (by its ``source``;
+    ``data<i>`` when it has none) none of whose channels is informative keeps every one, and
+    a note says so."""
+    kept: dict[str, tuple[str, ...]] = {}
+    left: dict[str, dict[str, float]] = {}
+    notes = []
+    for i, ds in enumerate(datasets):
+        key = ds.source or f"data{i}"
+        keep, out = informative_channels([ds], weighting, min_weight)
+        if out and not keep:
+            notes.append(
+                f"{key}: every channel's median information weight is below {min_weight}"
+                " (median SNR below 0 dB): all are fitted; check the data or name channels"
+                " with --channels"
+            )
+            keep, out = list(out), {}
+        kept[key] = tuple(keep)
+        if out:
+            left[key] = out
+    return kept, left, notes
+
+
+def left_out_note(left_out: dict[str, dict[str, float]]) -> str:
+    """One line on the channels :func:`informative_by_file` left out, per file ("" when
+    none)."""
     if not left_out:
         return ""
-    each = ", ".join(f"{c} ({m:.2f})" for c, m in left_out.items())
+    per_channel: dict[str, list[str]] = {}
+    for f, chans in left_out.items():
+        for c, m in chans.items():
+            per_channel.setdefault(c, []).append(f"{m:.2f} in {Path(f).name}")
+    each = ", ".join(f"{c} ({'; '.join(v)})" for c, v in per_channel.items())
     return (
-        f"channels left out, their median information weight below {MIN_CHANNEL_WEIGHT}"
-        f" (median SNR below 0 dB): {each}; name the channels with --channels to use them"
+        f"channels left out where their median information weight is below {MIN_CHANNEL_WEIGHT}"
+        f" (median SNR below 0 dB): {each}; name channels with --channels to use them"
     )
 
 

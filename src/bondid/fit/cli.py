@@ -27,12 +27,12 @@ from ..cli import (
     warn_lines,
 )
 from ..cost.problem import CostOptions
-from ..cost.selection import informative_only
+from ..cost.selection import channels_by_file, informative_only
 from ..data.measurement import FrfData
 from ..exceptions import ConfigError, DependencyError, SolverError
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameters, parameter_infos, select_parameters
-from .headline import headline_lines
+from .headline import headline_lines, std_footer
 from .options import build_parser, resolve_settings
 from .study import (
     KINDS,
@@ -206,10 +206,18 @@ def summary(result: Any, content: dict[str, Any] | None, extra: dict[str, Any]) 
         lines.append(f"stage {st['name']}: {info}")
     w = max([len("parameter"), *(len(n) for n in result.names)])
     lines.append(f"{'parameter':<{w}}  {'initial':>12}  {'fitted':>12}  {'change':>9}  {'std':>10}")
+    n_bound = 0
     for i, n in enumerate(result.names):
         a, b, sd = float(result.initial[i]), float(result.fitted[i]), float(result.std[i])
         ch = f"{100 * (b - a) / abs(a):+.2f} %" if a != 0 else f"{b - a:+.3g}"
-        lines.append(f"{n:<{w}}  {_fmt(a):>12}  {_fmt(b):>12}  {ch:>9}  {_fmt(sd):>10}")
+        lo, hi = float(result.lower[i]), float(result.upper[i])
+        bound = any(math.isfinite(x) and abs(b - x) <= 1e-6 * max(abs(x), 1e-12) for x in (lo, hi))
+        n_bound += bound
+        mark = "  [bound]" if bound else ""
+        lines.append(f"{n:<{w}}  {_fmt(a):>12}  {_fmt(b):>12}  {ch:>9}  {_fmt(sd):>10}{mark}")
+    footer = std_footer([float(v) for v in result.std], n_bound)
+    if footer:
+        lines.append(footer)
     if result.active_constraints:
         lines.append("active constraints: " + "; ".join(result.active_constraints))
     for note in getattr(result, "notes", []) or []:
@@ -223,6 +231,7 @@ def _load(args: argparse.Namespace, s: StudySettings) -> dict[str, Any]:
     from ..results import open_results
     from ..validation import check_inputs, check_selection, load_model
     from .model_setup import prepare_model, uff_map
+    from .operating_points import given_operating_points
     from .outputs import check_out_dir
 
     assert s.model is not None
@@ -231,6 +240,7 @@ def _load(args: argparse.Namespace, s: StudySettings) -> dict[str, Any]:
     res = None if args.out is None else open_results(args.out, "fit", inputs, patterns=OUT_PATTERNS)
     doc, warnings = load_model(s.model, lambda d: prepare_model(d, s, args))
     raw = load_datasets(doc, s.data, drop_nan=args.drop_nan, channel_map=uff_map(s, args.uff_map))
+    warnings += given_operating_points(doc, raw, s.operating_points)
     warnings += check_inputs(doc, raw, s.data)
     check_selection(raw, bands=s.bands, channels=s.channels, band_option=_where(s, "--band"),
                     channel_option=_where(s, "--channels"))  # fmt: skip
@@ -247,7 +257,7 @@ def _load(args: argparse.Namespace, s: StudySettings) -> dict[str, Any]:
     return {
         "inputs": inputs, "res": res, "doc": doc, "warnings": warnings, "datasets": datasets,
         "options": options, "names": names, "lower": lower, "upper": upper,
-        "left_out": left_out,
+        "left_out": left_out, "quantities": [ds.quantity for ds in raw],
     }  # fmt: skip
 
 
@@ -262,22 +272,24 @@ def _search(s: StudySettings, w: dict[str, Any], quiet: bool) -> Any:
     from .multistart import run_multistart
 
     single = s.multistart == 1 or s.workers == 1
+    # one start: a bar over the IPOPT iterations (out of the limit); several in parallel:
+    # a bar over the starts
     prog = Progress(
-        "fit" if s.multistart == 1 else f"fit ({s.multistart} starts)",
-        None if single else s.multistart,
+        "fit (iterations)" if single else f"fit ({s.multistart} starts)",
+        s.max_iter if single else s.multistart,
         quiet=quiet,
     )
 
     def on_iteration(it: int, cost: float) -> None:
-        prog.update(1, f"iteration {it} cost {cost:.4g}")
+        prog.set(it, f"cost {cost:.4g}")
 
     def on_run(done: int, total: int, out: Any) -> None:
         tier = s.multistart == 1 and out.index > 0  # after a single search: fallback starts
-        if tier or not single:
-            info = (
-                f"{out.result.status} cost {out.cost:.4g}" if out.result else f"failed: {out.error}"
-            )
-            prog.update(1, f"{'fallback start' if tier else 'start'} {out.index}: {info}")
+        info = f"{out.result.status} cost {out.cost:.4g}" if out.result else f"failed: {out.error}"
+        if not single:
+            prog.update(1, f"start {out.index}: {info}")
+        elif tier or s.multistart > 1:
+            prog.write(f"fit: {'fallback start' if tier else 'start'} {out.index}: {info}")
 
     strategy = Strategy(
         staged=s.staged, continuation=s.continuation, stage_bands=s.stage_bands or None,
@@ -343,8 +355,11 @@ def _body(args: argparse.Namespace) -> int:
         "study_file": None if s.source is None else str(s.source),
         "settings": s.to_json_dict(), "multistart": ms.spread(),
         "stages": [st.to_json_dict() for st in ms.best_run.stages] or None,
-        "warnings": warnings, "channels_left_out": w["left_out"],
+        "warnings": warnings,
     }  # fmt: skip
+    extra["channels_left_out"], extra["channels_by_file"] = channels_by_file(
+        w["datasets"], w["options"], w["left_out"]
+    )
     content = None
     if res is not None:
         histories = [r.result.cost_history if r.result else [] for r in ms.runs]
@@ -352,6 +367,7 @@ def _body(args: argparse.Namespace) -> int:
             res.tmp, result=result, initial_doc=w["doc"], datasets=w["datasets"],
             options=w["options"], inputs=w["inputs"], histories=histories,
             history_labels=[f"start {r.index}" for r in ms.runs], extra=extra,
+            file_quantities=w["quantities"],
         )  # fmt: skip
         res.commit(warnings=warnings, main=FIT_JSON)
     print(summary(result, content, extra))

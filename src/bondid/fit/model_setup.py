@@ -17,7 +17,8 @@ from .study import StudySettings
 
 def read_model_keys(doc: Mapping[str, Any], s: StudySettings, where: str, base: Path) -> None:
     """The study keys ``points``, ``gains``, ``points_file``, ``package_path``,
-    ``floating_base`` and ``uff_map`` into ``s`` (raises ``ConfigError`` naming the key)."""
+    ``floating_base``, ``uff_map`` and ``operating_points`` into ``s`` (raises
+    ``ConfigError`` naming the key)."""
     if "points" in doc:
         s.points = points_from_table(doc["points"], where)
     if "gains" in doc:
@@ -34,6 +35,10 @@ def read_model_keys(doc: Mapping[str, Any], s: StudySettings, where: str, base: 
         s.package_path = [
             check_path(v, base, where, f"package_path[{i}]") for i, v in enumerate(items)
         ]
+    if "operating_points" in doc:
+        from .operating_points import from_table
+
+        s.operating_points = from_table(doc["operating_points"], where, base)
     if "floating_base" in doc:
         s.floating_base = check_bool(doc["floating_base"], where, "floating_base")
     for name, v in check_table(doc.get("uff_map", {}), where, "uff_map").items():

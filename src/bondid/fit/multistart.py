@@ -40,7 +40,7 @@ RunProgress = Callable[[int, int, "RunOutcome"], None]
 
 #: the fallback starts of :func:`run_multistart` run when a single-start fit ends above this
 #: multiple of the predicted noise level (db_rms). The prediction itself is off by up to
-#: 30 %: on the 24 fits of ``tools/refit_benchmark.py`` (stop 23) the truth model scored
+#: 30 %: on the 24 fits of ``tools/refit_benchmark.py`` the truth model scored
 #: 0.95–1.30× it, so a fit above 1.3× is above what an exact model would score, not a low
 #: prediction.
 STARTS_RATIO = 1.3

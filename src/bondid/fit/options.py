@@ -8,6 +8,7 @@ import math
 from pathlib import Path
 
 from ..cli import (
+    add_channels_arg,
     add_drop_nan_arg,
     add_floating_base_arg,
     add_package_path_arg,
@@ -22,6 +23,7 @@ from ..cli import (
 from ..cost.residuals import NORMS, RESIDUAL_KINDS
 from ..exceptions import ConfigError
 from .defaults import add_prior_arg, check_prior
+from .operating_points import add_operating_point_arg, operating_points_of
 from .setting_checks import check_names, parse_bound_option
 from .study import (
     STAGES,
@@ -45,6 +47,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--study", type=Path, help="study TOML file; command-line options override it")
     add_package_path_arg(p)
     add_uff_map_arg(p)
+    add_operating_point_arg(p)
     add_floating_base_arg(p)
     add_points_arg(p)
     p.add_argument(
@@ -67,7 +70,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--band", action="append", type=parse_band, metavar="F_LO:F_HI",
         help="frequency band to fit, Hz; repeatable",
     )  # fmt: skip
-    p.add_argument("--channels", help="channels to fit, e.g. x.x,y.y (default: all in the data)")
+    add_channels_arg(p, "channels to fit (default: those above the noise floor, file by file)")
     p.add_argument(
         "--weight",
         action="append",
@@ -137,6 +140,7 @@ def resolve_settings(args: argparse.Namespace) -> StudySettings:
         s.model = args.model
     if args.data:
         s.data = list(args.data)
+    s.operating_points.update(operating_points_of(args))
     if args.free:
         s.free = split_names(args.free)
     if args.fixed:

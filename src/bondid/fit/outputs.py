@@ -84,10 +84,29 @@ def _units(doc: UrdfDocument, joints: Sequence[str]) -> dict[str, Any]:
 
 
 def _sq_db(Hs: np.ndarray, Hm: np.ndarray) -> np.ndarray:
-    """Per point ``((20/ln10)|ln(Hm/Hs)|)²`` with the phase wrapped to (−π, π]."""
-    L = np.log(Hm / Hs)
-    ph = np.pi - np.mod(np.pi - L.imag, 2.0 * np.pi)
-    return DB**2 * (L.real**2 + ph**2)
+    """Per point ``((20/ln10)|ln(Hm/Hs)|)²`` with the phase wrapped to (−π, π]; NaN where
+    either FRF is zero or not finite (no finite figure there: :func:`no_figure_reason`)."""
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        L = np.log(Hm / Hs)
+        ph = np.pi - np.mod(np.pi - L.imag, 2.0 * np.pi)
+        e = DB**2 * (L.real**2 + ph**2)
+    return np.where(np.isfinite(e), e, np.nan)
+
+
+def no_figure_reason(Hs: np.ndarray, Hm: np.ndarray) -> str:
+    """Why the dB error of a channel (model ``Hs``, measured ``Hm``, ``(n,)``) is not finite
+    at some of its points ("" when it is finite everywhere)."""
+    bad = ~np.isfinite(_sq_db(Hs, Hm))
+    if not bad.any():
+        return ""
+    where = "at every frequency" if bad.all() else f"at {int(bad.sum())} of {bad.size} frequencies"
+    if np.any(~np.isfinite(Hs[bad])):
+        why = "the model's FRF is not finite (a singular dynamic stiffness: a mode at 0 Hz?)"
+    elif np.any(Hs[bad] == 0):
+        why = "the model's FRF is zero (the model has no path from this input to this output)"
+    else:
+        why = "the measured FRF is zero"
+    return f"{why} {where}; those points are left out of the figures"
 
 
 #: coherence from which a point counts in the ``coherent`` db_rms figure
@@ -103,10 +122,13 @@ DB_RMS_DEFINITION = (
 
 
 def _wrms(e: list[np.ndarray], w: list[np.ndarray]) -> float | None:
-    """``sqrt(Σ w e² / Σ w)`` over the concatenated points (None if no weight)."""
+    """``sqrt(Σ w e² / Σ w)`` over the concatenated points with a finite error (None when
+    no such point has weight)."""
     if not e:
         return None
     ee, ww = np.concatenate(e), np.concatenate(w)
+    ok = np.isfinite(ee)
+    ee, ww = ee[ok], ww[ok]
     tot = float(ww.sum())
     return float(np.sqrt(np.sum(ww * ee) / tot)) if ee.size and tot > 0 else None
 
@@ -125,6 +147,7 @@ class _Errors:
         self.coh: dict[str, list[np.ndarray]] = {"initial": [], "final": []}
         self.per_ch: dict[str, dict[str, list[np.ndarray]]] = {}
         self.n_all = 0
+        self.no_figure: list[str] = []  # "channel in file: why" for non-finite errors
 
     def add(
         self, ds: FrfData, frfs: tuple[np.ndarray, np.ndarray], mask: np.ndarray, w: np.ndarray
@@ -158,6 +181,11 @@ class _Errors:
                 ch = f"{o}.{i}"
                 ec = _sq_db(H[a, b, m], ds.H[a, b, m])
                 slot = out.setdefault(ch, {})
+                why = no_figure_reason(H[a, b, m], ds.H[a, b, m])
+                if why:
+                    slot[f"{label}_no_figure"] = why
+                    name = Path(ds.source).name if ds.source else "data"
+                    self.no_figure.append(f"{ch} in {name} ({label} model): {why}")
                 slot[label] = _wrms([ec], [w[a, b, m]])
                 slot[f"{label}_unweighted"] = _rms([ec])
                 acc = self.per_ch.setdefault(ch, {"initial": [], "final": [], "w": []})
@@ -189,7 +217,10 @@ def db_rms_report(
         "by_channel": {ch: {"initial", "final", "initial_unweighted", "final_unweighted"}},
         "by_dataset": [{"file", "initial", "final", "initial_unweighted",
         "final_unweighted", "by_channel"}], "coherent": {"initial", "final", "fraction",
-        "min_coherence"}, "noise_level"}`` (dB). ``noise_level``: the weighted figure an exact
+        "min_coherence"}, "noise_level", "no_figure"}`` (dB). Points where the model's or the
+        measured FRF is zero or not finite have no dB error: they are left out of every
+        figure, and ``no_figure`` lists each such channel and why (a channel entry then has
+        ``initial_no_figure`` / ``final_no_figure``). ``noise_level``: the weighted figure an exact
         model would score on these data (:mod:`bondid.cost.noise_level`; whatever the cost
         the fit minimised: ``db_rms`` is always the complex-log figure).
         ``initial``/``final`` are ``sqrt(Σ w e² / Σ w)`` with ``w``
@@ -219,6 +250,7 @@ def db_rms_report(
         "unweighted": {"initial": _rms(acc.E["initial"]), "final": _rms(acc.E["final"])},
         "by_channel": acc.by_channel(),
         "by_dataset": by_ds,
+        "no_figure": acc.no_figure,
         "coherent": {
             "initial": _rms(acc.coh["initial"]),
             "final": _rms(acc.coh["final"]),
@@ -239,6 +271,7 @@ def write_outputs(
     histories: Sequence[Sequence[float]] = (),
     history_labels: Sequence[str] | None = None,
     extra: Mapping[str, Any] | None = None,
+    file_quantities: Sequence[str] | None = None,
 ) -> dict[str, Any]:
     """Write every output of a fit under ``out_dir`` and return the ``fit.json`` content.
 
@@ -252,6 +285,8 @@ def write_outputs(
         histories: cost per iteration of each run, for ``convergence.png``.
         history_labels: a label per history.
         extra: more top-level keys for ``fit.json`` (settings, multistart, stages, ...).
+        file_quantities: the quantity each data file holds (the Bode plots are drawn in
+            it); default: that of ``datasets``.
 
     Returns:
         The dictionary written as ``fit.json``.
@@ -264,11 +299,13 @@ def write_outputs(
     out = check_out_dir(out_dir, inputs, datasets)
     out.mkdir(parents=True, exist_ok=True)
     frfs = [(model_frf(initial_doc, ds), model_frf(result.document, ds)) for ds in datasets]
-    written = _bode_plots(out, datasets, frfs, initial_doc)
+    quantities = list(file_quantities or [ds.quantity for ds in datasets])
+    written = _bode_plots(out, datasets, frfs, initial_doc, quantities, options)
     written += _convergence_plot(out, result.cost_name, histories, history_labels)
     result.document.write(out / FITTED_URDF)
     written.append(FITTED_URDF)
     content = dict(result.to_json_dict())
+    _add_units(content, initial_doc)
     content.update(extra or {})
     content["data_files"] = [ds.source for ds in datasets]
     content["db_rms"] = db_rms_report(initial_doc, result.document, datasets, options, frfs)
@@ -279,29 +316,47 @@ def write_outputs(
     return content
 
 
+def _add_units(content: dict[str, Any], doc: UrdfDocument) -> None:
+    """Each parameter entry's SI ``unit`` (spec extension of fit.json)."""
+    from ..model.parameters import parameter_infos
+
+    units = {p.name: p.unit for p in parameter_infos(doc)}
+    for p in content.get("parameters", []):
+        if p.get("name") in units:
+            p["unit"] = units[p["name"]]
+
+
 def _bode_plots(
     out: Path,
     datasets: Sequence[FrfData],
     frfs: Sequence[tuple[np.ndarray, np.ndarray]],
     doc: UrdfDocument,
+    quantities: Sequence[str],
+    options: CostOptions,
 ) -> list[str]:
-    """``bode_<stem>.png`` per data set: measured, initial and fitted model, noise level."""
+    """``bode_<stem>.png`` per data set, in the quantity of its file: measured, initial and
+    fitted model, noise level; the channels the fit left out greyed."""
     from ..data.weights import noise_estimate
+    from ..frf.quantity import quantity_factor
     from ..plots import Curve, noise_curve, plot_bode
 
     written = []
-    for ds, (H0, H1), name in zip(datasets, frfs, bode_names(datasets), strict=True):
+    items = zip(datasets, frfs, bode_names(datasets), quantities, strict=True)
+    for ds, (H0, H1), name, q in items:
         op = " ".join(f"{k}={v:g}" for k, v in ds.operating_point.items()) or "neutral"
+        g = quantity_factor(ds.freq_hz, q) / quantity_factor(ds.freq_hz, ds.quantity)
         curves = [
-            Curve("measured", ds.H, kind="measured"),
-            Curve("initial model", H0, style={"linestyle": "--"}),
-            Curve("fitted model", H1),
-            noise_curve(noise_estimate(ds).sigma),
+            Curve("measured", ds.H * g, kind="measured"),
+            Curve("initial model", H0 * g, style={"linestyle": "--"}),
+            Curve("fitted model", H1 * g),
+            noise_curve(noise_estimate(ds).sigma * np.abs(g)),
         ]
+        names = options.channels_for(ds)
+        left = [c for c in ds.channels if names is not None and c not in names]
         plot_bode(
             ds.freq_hz, curves, outputs=ds.outputs, inputs=ds.inputs, path=out / name,
             title=f"{Path(ds.source).name if ds.source else name}: operating point {op}",
-            quantity=ds.quantity, units=_units(doc, [*ds.outputs, *ds.inputs]),
+            quantity=q, units=_units(doc, [*ds.outputs, *ds.inputs]), left_out=left,
         )  # fmt: skip
         written.append(name)
     return written

@@ -31,6 +31,9 @@ Every section and key is optional::
     package_path = ["../ros_ws/src"]         # --package-path (package:// meshes)
     floating_base = false                    # --floating-base (a free-free structure)
 
+    [operating_points]                       # --operating-point FILE=x=0.1,y=0.3
+    "pose_b.uff" = {x = 0.1, y = 0.3}        # for data files that state none (m or rad)
+
     [uff_map]                                # --uff-map NAME=NODE:DIR (UFF58 files)
     acc = [101, 3]                           # channel name = [node, direction code ±1..±6]
 
@@ -98,7 +101,7 @@ STAGES = ("stiffness", "damping", "inertia")
 
 _TOP_KEYS = (
     "model", "data", "parameters", "bounds", "cost", "search", "points", "gains", "points_file",
-    "package_path", "floating_base", "uff_map",
+    "package_path", "floating_base", "uff_map", "operating_points",
 )  # fmt: skip
 _SECTION_KEYS = {
     "parameters": ("free", "fixed", "prior"),
@@ -158,6 +161,8 @@ class StudySettings:
         package_path: folders searched first for ``package://`` meshes.
         floating_base: add a floating joint above the root (a free-free structure).
         uff_map: channel name -> (node, direction) of UFF58 records.
+        operating_points: data file -> its operating point (joint -> m or rad), for files
+            that state none (:mod:`bondid.fit.operating_points`).
     """
 
     model: Path | None = None
@@ -191,6 +196,7 @@ class StudySettings:
     package_path: list[Path] = field(default_factory=list)
     floating_base: bool = False
     uff_map: dict[str, tuple[int, int]] = field(default_factory=dict)
+    operating_points: dict[str, dict[str, float]] = field(default_factory=dict)
 
     def to_json_dict(self) -> dict[str, Any]:
         """The settings as plain JSON values (paths as strings)."""
@@ -226,6 +232,7 @@ class StudySettings:
             "package_path": [str(p) for p in self.package_path],
             "floating_base": self.floating_base,
             "uff_map": {k: list(v) for k, v in self.uff_map.items()},
+            "operating_points": {k: dict(v) for k, v in self.operating_points.items()},
         }
 
 

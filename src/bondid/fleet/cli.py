@@ -19,7 +19,15 @@ from pathlib import Path
 from typing import Any
 
 from .. import interrupt
-from ..cli import EXIT_FAILED, EXIT_OK, make_parser, parse_and_run, parse_band, split_names
+from ..cli import (
+    EXIT_FAILED,
+    EXIT_OK,
+    add_channels_arg,
+    make_parser,
+    parse_and_run,
+    parse_band,
+    split_names,
+)
 from ..exceptions import ComputationError, ConfigError
 from ..fit.defaults import add_prior_arg, check_prior
 from .machines import Machine
@@ -29,7 +37,6 @@ LOCK_NAME = ".fleet.lock"
 _BOUND = re.compile(r"^[^=\s]+=([0-9.eE+-]+|[0-9.eE+-]+:[0-9.eE+-]+)$")
 #: fit options passed through unchanged: (option, takes a list, help)
 _FIT_VALUE_OPTIONS = (
-    ("--channels", "channels to fit, e.g. x.x,y.y"),
     ("--cost", "residual kind of the fit (default complex_log)"),
     ("--norm", "norm of the fit (default l2)"),
 )
@@ -68,6 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--bound", action="append", metavar="KEY=REL|KEY=LO:HI", help="bounds")
     g.add_argument("--band", action="append", metavar="F_LO:F_HI", help="band, Hz")
     g.add_argument("--weight", action="append", metavar="OUT.IN=W", help="channel weight")
+    add_channels_arg(g, "channels to fit")
     for opt, text in _FIT_VALUE_OPTIONS:
         g.add_argument(opt, help=text)
     for opt, text, _ in _FIT_INT_OPTIONS:
@@ -97,6 +105,8 @@ def fit_argv(args: argparse.Namespace) -> list[str]:
         argv += ["--band", b]
     for w in args.weight or ():
         argv += ["--weight", w]
+    if args.channels:
+        argv += ["--channels", args.channels]
     for opt, _ in _FIT_VALUE_OPTIONS:
         value = getattr(args, opt[2:].replace("-", "_"))
         if value is not None:

@@ -31,6 +31,27 @@ def scheduler_address(option: str | None) -> str | None:
     return option or os.environ.get(SCHEDULER_ENV) or None
 
 
+#: what to install when Dask is missing (it is the optional extra ``bondid[fleet]``)
+INSTALL_HINT = "pip install 'bondid[fleet]'"
+
+
+def require_dask() -> Any:
+    """The ``dask.distributed`` module.
+
+    Raises:
+        DependencyError: Dask is not installed (one line saying what to install).
+    """
+    from ..exceptions import DependencyError
+
+    try:
+        import dask.distributed
+    except ImportError:
+        raise DependencyError(
+            f"bondid.fleet needs Dask (dask[distributed]), which is not installed: {INSTALL_HINT}"
+        ) from None
+    return dask.distributed
+
+
 @contextlib.contextmanager
 def open_client(address: str | None, workers: int) -> Iterator[Any]:
     """A connected ``dask.distributed.Client`` (closed, with any local cluster, on exit).
@@ -47,7 +68,7 @@ def open_client(address: str | None, workers: int) -> Iterator[Any]:
     Raises:
         ConfigError: the scheduler cannot be reached (names the address).
     """
-    from dask.distributed import Client
+    Client = require_dask().Client
 
     interrupt.check()  # a Ctrl-C that a library swallowed in its import (trimesh does)
     with one_line_logs():
@@ -93,11 +114,11 @@ def _local_cluster(workers: int) -> Any:
 
     The cluster's event-loop thread, and the worker processes it spawns, inherit the
     blocked SIGINT: a Ctrl-C, which the terminal sends to the whole process group, then
-    never reaches a worker in the middle of its start-up (it printed a traceback there);
+    never reaches a worker in the middle of its start-up (it would print a traceback there);
     this process stops them (:func:`_kill_new_children`). And the Ctrl-C is seen here within
     :data:`START_POLL_S`, not when the cluster is up seconds later.
     """
-    from dask.distributed import LocalCluster
+    LocalCluster = require_dask().LocalCluster
 
     box: dict[str, Any] = {}
 
@@ -177,8 +198,8 @@ class _OneLine(logging.Filter):
 @contextlib.contextmanager
 def one_line_logs() -> Iterator[None]:
     """Context: every handler of Dask's loggers (and the root logger's) writes a record in
-    one line, a traceback folded into it (a worker killed mid-task logged a 28-line
-    ``CommClosedError`` traceback)."""
+    one line, a traceback folded into it (a worker killed mid-task makes Dask log a
+    ``CommClosedError`` with its whole traceback)."""
     flt = _OneLine()
     handlers = set()
     for name in ("", "distributed", "dask"):

@@ -65,10 +65,10 @@ def run_jobs(
     at once even when a library swallowed its ``KeyboardInterrupt``
     (:func:`bondid.interrupt.check`).
     """
-    from dask.distributed import as_completed
-
     from .. import interrupt
+    from .cluster import require_dask
 
+    as_completed = require_dask().as_completed
     run = uuid.uuid4().hex[:8]
     futures = {
         client.submit(

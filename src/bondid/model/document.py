@@ -410,7 +410,7 @@ class UrdfDocument:
 def _import_yourdfpy() -> Any:
     """``import yourdfpy``, interruptible. trimesh (which yourdfpy imports) wraps its own
     imports of SciPy, networkx and others in ``except BaseException``: a Ctrl-C landing
-    there was swallowed and the command went on for seconds. So those are imported first,
+    there is swallowed and the command goes on for seconds. So those are imported first,
     where an interrupt goes through, and the rest of the import runs with the interrupt
     held until it ends (:func:`bondid.interrupt.signals_deferred`, a fraction of a second)."""
     import contextlib

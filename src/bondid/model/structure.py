@@ -2,8 +2,8 @@
 a tree: :func:`check_structure`.
 
 A tree parser, a deep copy and every recursive walk of the model hold one stack frame per
-level: 200,000 nested elements crashed the process (a segmentation fault in a deep copy),
-a chain of 3,000 links exhausted Python's recursion. The pass here holds no tree and no
+level: 200,000 nested elements crash the process (a segmentation fault in a deep copy), a
+chain of 3,000 links exhausts Python's recursion. The pass here holds no tree and no
 recursion: it counts the element depth and the elements (expat), and collects each joint's
 parent and child link to measure the longest chain from the root. Limits:
 :data:`~bondid.ranges.MAX_XML_DEPTH`, :data:`~bondid.ranges.MAX_XML_ELEMENTS`,

@@ -169,7 +169,7 @@ def _write_outputs(
                 write_mode_html(out / name, scene, f"{Path(args.model).name} mode {k}", caption)
             result.html[k] = name
             prog.update(1, name)
-        prog.close(f"{len(todo)} page(s) in {out}")
+        prog.close(f"{len(todo)} page(s) in {args.out}")
     data = result.to_dict()
     data["model"] = str(args.model)
     data["animated_mode"] = index

@@ -50,9 +50,10 @@ SOFT_STATUSES = frozenset(
 )
 #: IPOPT options of a solve warm-started at a fit (IPOPT's default initial barrier, 0.1, is of
 #: the order of our objectives there and pushes the iterates off the start). Measured on the
-#: all-data refit of a blind case's final model (gantry/jcr/nocoh, 50 parameters, from cost
-#: 1.087 at a feasible start): 0.1 went uphill to 1.365 in 300 iterations, 1e-4 (and 1e-6)
-#: converged to 0.936 in 109 (122). Cold fits of the refit benchmark (harsh and acc regimes,
+#: all-data refit of a blind-benchmark case's final model (the gantry design, a rotational
+#: joint compliance, no coherence; 50 parameters, from cost 1.087 at a feasible start): 0.1
+#: went uphill to 1.365 in 300 iterations, 1e-4 (and 1e-6) converged to 0.936 in 109 (122).
+#: Cold fits of the refit benchmark (harsh and acc regimes,
 #: the three designs, 6 cases) ended at the same db_rms with either; the diagnosis's search
 #: keeps the default until its benchmark is run with it.
 WARM_START: dict[str, float] = {"mu_init": 1e-4}

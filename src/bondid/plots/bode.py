@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -153,6 +153,7 @@ def build_bode(
     quantity: str = "receptance",
     units: Mapping[str, Any] | None = None,
     channels: Sequence[str] | None = None,
+    left_out: Collection[str] = (),
 ) -> Figure:
     """Build the Bode grid figure (see :func:`plot_bode`) without saving it.
 
@@ -181,15 +182,23 @@ def build_bode(
         ax_p = fig.add_subplot(sub[1], sharex=share)
         assert cell is not None
         a, b = cell
-        ax_m.set_title(f"{outputs[a]}.{inputs[b]}", fontsize=11, fontweight="bold", pad=4)
-        any_data = _draw_channel(ax_m, ax_p, cell, data, curves, styles)
+        name = f"{outputs[a]}.{inputs[b]}"
+        muted = name in left_out
+        ax_m.set_title(
+            f"{name}  (left out of the fit)" if muted else name,
+            fontsize=11, fontweight="normal" if muted else "bold", pad=4,
+            color="0.5" if muted else "black",
+        )  # fmt: skip
+        any_data = _draw_channel(ax_m, ax_p, cell, data, curves, styles, muted)
         unit = channel_unit(units, outputs[a], inputs[b], quantity)
-        _style_cell(ax_m, ax_p, f_range, f"dB re 1 {unit}" if unit else "|H| [dB]")
+        _style_cell(ax_m, ax_p, f_range, magnitude_label(quantity, unit))
         if r == nrows - 1 or k + ncols >= len(cells):
             ax_p.set_xlabel("frequency [Hz]", fontsize=9.5)
         if not any_data:
             _mark_no_data(ax_m, ax_p)
-    _legend(fig, curves, styles)
+        elif muted:
+            _mark_left_out(ax_m, ax_p)
+    _legend(fig, curves, styles, bool(left_out))
     if title:
         fig.suptitle(title, fontsize=13)
     return fig
@@ -234,15 +243,19 @@ def _draw_channel(
     data: list[tuple[np.ndarray, np.ndarray]],
     curves: Sequence[Curve],
     styles: list[dict[str, Any]],
+    muted: bool = False,
 ) -> bool:
     """Draw channel ``cell = (i_out, i_in)`` of every curve that has data there (noise
-    curves: magnitude only); True when a curve other than a noise level had data."""
+    curves: magnitude only; ``muted``: faded, a channel left out of the fit); True when a
+    curve other than a noise level had data."""
     a, b = cell
     any_data = False
     for (f, H), c, st in zip(data, curves, styles, strict=True):
         h = H[a, b]
         if not np.any(np.isfinite(h)):
             continue
+        if muted:
+            st = {**st, "alpha": 0.35 * float(st.get("alpha", 1.0))}
         any_data = any_data or c.kind != "noise"
         ax_m.plot(f, magnitude_db(h), label=c.label, **st)
         if c.kind == "noise":
@@ -268,6 +281,30 @@ def _style_cell(ax_m: Any, ax_p: Any, f_range: tuple[float, float], mag_label: s
     ax_p.set_ylabel("phase [°]", fontsize=9)
 
 
+#: what a magnitude axis shows, per quantity
+QUANTITY_WORDS = {
+    "receptance": "receptance",
+    "mobility": "mobility",
+    "accelerance": "accelerance",
+}
+
+
+def magnitude_label(quantity: str, unit: str | None) -> str:
+    """The magnitude axis label: the quantity and ``dB re 1 UNIT`` (or ``[dB]``)."""
+    word = QUANTITY_WORDS.get(quantity, quantity)
+    return f"{word} [dB re 1 {unit}]" if unit else f"|{word}| [dB]"
+
+
+def _mark_left_out(ax_m: Any, ax_p: Any) -> None:
+    """Grey a cell whose channel the fit left out (below the noise floor)."""
+    for ax in (ax_m, ax_p):
+        ax.set_facecolor("0.93")
+    ax_m.text(
+        0.5, 0.08, "left out of the fit", transform=ax_m.transAxes,
+        ha="center", va="bottom", fontsize=9, color="0.35", style="italic", gid="left-out",
+    )  # fmt: skip
+
+
 def _mark_no_data(ax_m: Any, ax_p: Any) -> None:
     """Shade a cell where no curve has data and write "no data" in it."""
     for ax in (ax_m, ax_p):
@@ -279,16 +316,30 @@ def _mark_no_data(ax_m: Any, ax_p: Any) -> None:
     )  # fmt: skip
 
 
-def _legend(fig: Figure, curves: Sequence[Curve], styles: list[dict[str, Any]]) -> None:
-    """One legend below the grid, a line per curve."""
-    from matplotlib.lines import Line2D
+#: the legend's line on channel names
+CHANNEL_KEY = "cell OUT.IN: response at OUT to the excitation at IN"
 
-    handles = [Line2D([], [], **st) for st in styles]
+
+def _legend(
+    fig: Figure, curves: Sequence[Curve], styles: list[dict[str, Any]], left_out: bool = False
+) -> None:
+    """One legend below the grid, a line per curve, then what a cell's name means (and
+    a grey patch for channels left out of the fit, when there are)."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    handles: list[Any] = [Line2D([], [], **st) for st in styles]
+    labels = [c.label for c in curves]
+    handles.append(Line2D([], [], linestyle="none"))
+    labels.append(CHANNEL_KEY)
+    if left_out:
+        handles.append(Patch(facecolor="0.93", edgecolor="0.6"))
+        labels.append("channel left out of the fit")
     fig.legend(
         handles,
-        [c.label for c in curves],
+        labels,
         loc="outside lower center",
-        ncols=min(len(curves), 6),
+        ncols=min(len(labels), 6),
         fontsize=10,
         frameon=False,
     )
@@ -310,6 +361,7 @@ def plot_bode(
     quantity: str = "receptance",
     units: Mapping[str, Any] | None = None,
     channels: Sequence[str] | None = None,
+    left_out: Collection[str] = (),
 ) -> Path:
     """Draw FRF matrices as an ``n_out × n_in`` grid of Bode cells and save a PNG.
 
@@ -320,10 +372,12 @@ def plot_bode(
         inputs: excited joint names (grid columns), length ``n_in``.
         path: output ``.png`` file, written atomically.
         title: figure title.
-        quantity: ``receptance``, ``mobility`` or ``accelerance`` (only labels the axes).
+        quantity: ``receptance``, ``mobility`` or ``accelerance`` of the curves (labels the
+            axes: ``accelerance [dB re 1 (m/s²)/N]``; convert the curves to it first).
         units: joint -> ``'m'`` / ``'rad'`` (or ``'N'`` / ``'N·m'``, or a
             ``(response, excitation)`` pair) to label magnitudes as ``dB re 1 m/N``.
         channels: optional subset ``['OUT.IN', ...]``, drawn compactly (≤ 3 cells per row).
+        left_out: channels ``OUT.IN`` the fit left out: their cells are greyed and labelled.
 
     Magnitude is ``20 log10 |H|`` (dB); phase is in degrees wrapped to [-180, 180].
     A cell where no curve has data is shaded and marked "no data".
@@ -340,5 +394,6 @@ def plot_bode(
         quantity=quantity,
         units=units,
         channels=channels,
+        left_out=left_out,
     )
     return save_png(fig, path)

@@ -1,9 +1,13 @@
 """Gather a results folder into one self-contained, offline HTML page: :func:`build_report`.
 
 Looks (in the folder and its sub-folders) for ``fit.json``, ``sensitivity.json``,
-``diagnosis.json``, ``modes.json`` and PNG plots; each part that is present becomes a
-section, each missing one a short note. PNGs are embedded as base64 data URIs; the page has
-no scripts and no external references; links to mode animations are relative.
+``diagnosis.json``, ``modes.json`` and PNG plots. The page opens with the answer (the fit's
+headline and the diagnosis's verdict, :mod:`.headline`), then one section per command with
+its tables and its own plots. A PNG belongs to the command whose run manifest lists it
+(:mod:`bondid.results`), else to the one result file in its folder, else to the words of its
+name. PNGs are embedded as base64 data URIs; the page (jinja2 templates under
+``templates/``) has no scripts and no external references; links to mode animations are
+relative.
 """
 
 from __future__ import annotations
@@ -19,7 +23,10 @@ from typing import Any
 from ..atomic import write_text_atomic
 from ..exceptions import ConfigError
 from . import sections
-from .html import esc, note, page, png_figure
+from .blocks import Block, Section, note, warn
+from .headline import diagnosis_headline, fit_headline
+from .html import png_figure, render
+from .sensitivity_section import sensitivity_section
 
 RESULT_FILES = ("fit.json", "sensitivity.json", "diagnosis.json", "modes.json", "fleet.json")
 #: in a fleet's results folder (fleet.json at the top), the per-machine results are not
@@ -27,15 +34,29 @@ RESULT_FILES = ("fit.json", "sensitivity.json", "diagnosis.json", "modes.json", 
 FLEET_MACHINES = "machines"
 REPORT_NAME = "report.html"
 
-# (section, words in a PNG's file name that put it there), first match wins
+#: the section of each command's results (from its run manifest's ``command``)
+_COMMAND_SECTION = {
+    "bondid.fit": "fit",
+    "bondid.sensitivity": "sensitivity",
+    "bondid.diagnose": "diagnosis",
+    "bondid.fleet": "fleet",
+    "bondid.modes": "modes",
+    "bondid.simulate": "other",
+}
+_FILE_SECTION = {
+    "fit.json": "fit",
+    "sensitivity.json": "sensitivity",
+    "diagnosis.json": "diagnosis",
+    "modes.json": "modes",
+    "fleet.json": "fleet",
+}
+# (section, words in a PNG's file name that put it there), first match wins: the last resort
 _FIGURE_GROUPS = (
     ("fleet", ("fleet",)),
+    ("diagnosis", ("residual", "diagnos", "gap", "candidate")),
     ("fit", ("bode", "conver", "cost")),
     ("sensitivity", ("sensitiv", "heat", "sweep")),
-    ("diagnosis", ("residual", "diagnos", "gap", "candidate")),
 )
-
-
 _SINGLE = {
     "fit": "fit.json",
     "sensitivity": "sensitivity.json",
@@ -56,6 +77,35 @@ class Found:
         return not self.json_paths and not any(self.figures.values())
 
 
+def _manifest_owners(folder: Path) -> dict[str, str]:
+    """``{file name: section}`` from the run manifests in ``folder``."""
+    owners: dict[str, str] = {}
+    for m in folder.glob("*.manifest.json"):
+        try:
+            doc = json.loads(m.read_text(encoding="utf-8"))
+            section = _COMMAND_SECTION.get(str(doc.get("command")))
+            names = [str(f["name"]) for f in doc.get("files", [])]
+        except (OSError, ValueError, KeyError, TypeError, AttributeError):
+            continue
+        if section is not None:
+            owners.update(dict.fromkeys(names, section))
+    return owners
+
+
+def _figure_section(p: Path, owners: dict[Path, dict[str, str]], files: list[Path]) -> str:
+    """The section a PNG belongs to (module docstring)."""
+    folder = p.parent
+    if folder not in owners:
+        owners[folder] = _manifest_owners(folder)
+    if p.name in owners[folder]:
+        return owners[folder][p.name]
+    here = {_FILE_SECTION[f.name] for f in files if f.parent == folder and f.name in _FILE_SECTION}
+    if len(here) == 1:
+        return here.pop()
+    name = p.name.lower()
+    return next((g for g, words in _FIGURE_GROUPS if any(w in name for w in words)), "other")
+
+
 def scan(results: Path) -> Found:
     """Find the result files under ``results`` (shallowest first; hidden folders skipped)."""
     found = Found()
@@ -70,15 +120,12 @@ def scan(results: Path) -> Found:
         ),
         key=lambda p: (len(p.relative_to(results).parts), p.as_posix()),
     )
+    owners: dict[Path, dict[str, str]] = {}
     for p in files:
         if p.name in RESULT_FILES and p.name not in found.json_paths:
             found.json_paths[p.name] = p
         elif p.suffix.lower() == ".png":
-            name = p.name.lower()
-            group = next(
-                (g for g, words in _FIGURE_GROUPS if any(w in name for w in words)), "other"
-            )
-            found.figures.setdefault(group, []).append(p)
+            found.figures.setdefault(_figure_section(p, owners, files), []).append(p)
     return found
 
 
@@ -89,19 +136,24 @@ def _load(path: Path) -> tuple[Any, str | None]:
         return None, f"could not read {path.name}: {exc}"
 
 
-# (section key and title, its result file, its renderer, what to run when it is missing);
-# the key also names the section's figure group
-_SECTIONS: tuple[tuple[str, str, str, Callable[[Any], str], str], ...] = (
+# (section key and title, its result file, its renderer, what to run when it is missing)
+_SECTIONS: tuple[tuple[str, str, str, Callable[[Any], list[Block]], str], ...] = (
     ("fit", "Fit", "fit.json", sections.fit_section, "run python -m bondid.fit"),
     (
-        "sensitivity", "Sensitivity", "sensitivity.json", sections.sensitivity_section,
-        "run python -m bondid.sensitivity",
-    ),
-    (
-        "diagnosis", "Diagnosis", "diagnosis.json", sections.diagnosis_section,
+        "diagnosis",
+        "Diagnosis",
+        "diagnosis.json",
+        sections.diagnosis_section,
         "run python -m bondid.diagnose",
     ),
-)  # fmt: skip
+    (
+        "sensitivity",
+        "Sensitivity",
+        "sensitivity.json",
+        sensitivity_section,
+        "run python -m bondid.sensitivity",
+    ),
+)
 
 
 def build_report_html(results: Path, out_dir: Path) -> tuple[str, Found]:
@@ -118,77 +170,73 @@ def build_report_html(results: Path, out_dir: Path) -> tuple[str, Found]:
         )
     pg = _Page(results, found)
     if "fleet.json" in found.json_paths:
-        hint = "run python -m bondid.fleet"
-        body = pg.json_part("fleet.json", sections.fleet_section, hint) + pg.figures("fleet")
-        pg.section("fleet", "Fleet", body)
-    for key, title, name, render, hint in _SECTIONS:
-        pg.section(key, title, pg.json_part(name, render, hint) + pg.figures(key))
+        pg.add("fleet", "Fleet", "fleet.json", sections.fleet_section, "run python -m bondid.fleet")
+    for key, title, name, render_fn, hint in _SECTIONS:
+        pg.add(key, title, name, render_fn, hint)
     modes_path = found.json_paths.get("modes.json")
     modes_dir = modes_path.parent if modes_path is not None else results
-    pg.section(
+    pg.add(
         "modes",
         "Modes",
-        pg.json_part(
-            "modes.json",
-            lambda d: sections.modes_section(d, modes_dir, out_dir),
-            "run python -m bondid.modes --out DIR",
-        ),
+        "modes.json",
+        lambda d: sections.modes_section(d, modes_dir, out_dir),
+        "run python -m bondid.modes --out DIR",
     )
     if found.figures.get("other"):
-        pg.section("plots", "Other plots", pg.figures("other"))
-    return page(f"bondid report — {results.resolve().name}", pg.html()), found
+        pg.sections.append(Section("plots", "Other plots", pg.figures("other")))
+    now = dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z")
+    text = render(
+        "report.html.j2",
+        title=f"bondid report — {results.resolve().name}",
+        folder=str(results),
+        made=now,
+        files=[p.relative_to(results).as_posix() for p in found.json_paths.values()],
+        fit=fit_headline(pg.data.get("fit.json")),
+        diagnosis=diagnosis_headline(pg.data.get("diagnosis.json")),
+        sections=pg.sections,
+    )
+    return text, found
 
 
 @dataclass
 class _Page:
-    """The report page being assembled: its sections and the navigation bar linking them."""
+    """The report page being assembled: its sections and the result files read."""
 
     results: Path
     found: Found
-    parts: list[str] = field(default_factory=list)
-    nav: list[str] = field(default_factory=list)
+    sections: list[Section] = field(default_factory=list)
+    data: dict[str, Any] = field(default_factory=dict)
 
-    def section(self, key: str, title: str, body: str) -> None:
-        """Add a section (on a fleet's page, only those whose result file is there)."""
+    def add(
+        self, key: str, title: str, name: str, render_fn: Callable[[Any], list[Block]], hint: str
+    ) -> None:
+        """Add the section of result file ``name`` and of the figures of group ``key`` (on a
+        fleet's page, only those whose result file is there)."""
         fleet_page = "fleet.json" in self.found.json_paths
         if fleet_page and key in _SINGLE and _SINGLE[key] not in self.found.json_paths:
             return  # a fleet's page: no "not found" notes for single-machine results
-        self.nav.append(f'<a href="#{key}">{esc(title)}</a>')
-        self.parts.append(f'<section id="{key}"><h2>{esc(title)}</h2>{body}</section>')
+        path = self.found.json_paths.get(name)
+        source = None
+        if path is None:
+            blocks = [note(f"{name} not found — {hint}")]
+        else:
+            data, err = _load(path)
+            if err is not None:
+                print(f"warning: {err}", file=sys.stderr)
+                blocks = [warn(err)]
+            else:
+                self.data[name] = data
+                source = path.relative_to(self.results).as_posix()
+                blocks = render_fn(data)
+        self.sections.append(Section(key, title, blocks + self.figures(key), source))
 
-    def figures(self, group: str) -> str:
-        """The PNGs of figure group ``group``, embedded."""
-        return "".join(
+    def figures(self, group: str) -> list[Block]:
+        """The PNGs of figure group ``group``, embedded (one block, or none)."""
+        figs = [
             png_figure(p, p.relative_to(self.results).as_posix())
             for p in self.found.figures.get(group, [])
-        )
-
-    def json_part(self, name: str, render: Callable[[Any], str], hint: str) -> str:
-        """Result file ``name`` rendered, or a note that it is missing or unreadable."""
-        path = self.found.json_paths.get(name)
-        if path is None:
-            return note(f"{name} not found — {hint}")
-        data, err = _load(path)
-        if err is not None:
-            print(f"warning: {err}", file=sys.stderr)
-            return f'<p class="warn">{esc(err)}</p>'
-        source = esc(path.relative_to(self.results).as_posix())
-        return f'<p class="note">from {source}</p>' + render(data)
-
-    def html(self) -> str:
-        """The page body: heading, navigation bar, then the sections."""
-        now = dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z")
-        results = self.results
-        listed = ", ".join(
-            esc(p.relative_to(results).as_posix()) for p in self.found.json_paths.values()
-        )
-        head = (
-            f"<h1>bondid report — {esc(results.resolve().name)}</h1>"
-            f"<p>Results folder <code>{esc(results)}</code>, report made {esc(now)}."
-            f" Result files: {listed or 'none (plots only)'}.</p>"
-            f"<nav>{''.join(self.nav)}</nav>"
-        )
-        return head + "".join(self.parts)
+        ]
+        return [Block("figures", figures=figs)] if figs else []
 
 
 def build_report(results: str | Path, out_dir: str | Path | None = None) -> Path:

@@ -49,12 +49,15 @@ def _parser() -> argparse.ArgumentParser:
         "the one-at-a-time sweep of the seed report (Algorithm 1).",
     )
     cli.add_model_args(p)
+    from ..fit.operating_points import add_operating_point_arg
+
+    add_operating_point_arg(p)
     p.add_argument("--free", nargs="+", default=["all"], help="parameters: names, globs, groups")
     p.add_argument("--fixed", nargs="+", default=[], help="parameters to leave out (wins)")
     p.add_argument("--band", action="append", type=cli.parse_band, default=None,
                    help="F_LO:F_HI in Hz (repeatable): analysis bands, and only these frequencies"
                    " are used; default: automatic bands around the modes")  # fmt: skip
-    p.add_argument("--channels", nargs="+", default=None, help="channels OUT.IN to use")
+    cli.add_channels_arg(p)
     p.add_argument("--cost", default="complex_log", help="residual kind (default complex_log)")
     p.add_argument(
         "--max-rel-std", type=float, default=0.1,
@@ -75,7 +78,7 @@ def _run(args: argparse.Namespace) -> int:
     """Load the model and data, analyse, print the summary and write the results (``--out``)."""
     from .. import cli
     from ..cost import CostOptions
-    from ..cost.selection import informative_only
+    from ..cost.selection import channels_by_file, informative_only
     from ..data.for_model import load_datasets
     from ..results import open_results
     from ..validation import check_inputs, check_selection, load_model
@@ -95,8 +98,11 @@ def _run(args: argparse.Namespace) -> int:
     datasets = load_datasets(
         doc, args.data, drop_nan=args.drop_nan, channel_map=cli.uff_channel_map(args)
     )
+    from ..fit.operating_points import given_operating_points, operating_points_of
+
+    warnings += given_operating_points(doc, datasets, operating_points_of(args))
     warnings += check_inputs(doc, datasets, args.data)
-    channels = cli.split_names(args.channels) or None
+    channels = cli.split_names([args.channels or ""]) or None
     check_selection(datasets, bands=args.band, channels=channels)
     options = CostOptions(kind=args.cost, bands=args.band, channels=channels)
     options, left_out, note = informative_only(datasets, options)
@@ -121,7 +127,9 @@ def _run(args: argparse.Namespace) -> int:
             cost_name=options.name, n_residuals=setup.problem.n_residuals, timing=timing,
         )  # fmt: skip
         content["warnings"] = warnings
-        content["channels_left_out"] = left_out
+        content["channels_left_out"], content["channels_by_file"] = channels_by_file(
+            datasets, options, left_out
+        )
         output.write_json(res.path("sensitivity.json"), content)
         pngs = output.write_plots(res.tmp, local, sweep, title=doc.name)
         res.commit(warnings=warnings, main="sensitivity.json")

@@ -213,7 +213,7 @@ def write_plots(
                 sweep.costs,
                 param_names=sweep.names,
                 path=out_dir / PNG_NAMES["sweep"],
-                title=f"{title}: cost, one parameter at a time (Algorithm 1)",
+                title=f"{title}: cost, each parameter scaled alone (the seed report's Algorithm 1)",
             )
         )
         written.append(
@@ -222,12 +222,17 @@ def write_plots(
                 sweep.direction_costs,
                 param_names=sweep.names,
                 path=out_dir / PNG_NAMES["sweep_directions"],
-                title=f"{title}: cost per response direction (Algorithm 1)",
+                title=f"{title}: cost per response direction, each parameter scaled alone",
                 direction_names=[f"response {d}" for d in sweep.directions],
                 top=10,
             )
         )
     return written
+
+
+def _rel_std(v: float) -> str:
+    """A relative std (a fraction) in %, or "not determined" when it is infinite or NaN."""
+    return f"{100 * v:.3g}\u00a0%" if np.isfinite(v) else "not\u00a0determined"
 
 
 def summary_lines(
@@ -242,7 +247,10 @@ def summary_lines(
     unit = "per 100 % change"
     unit_r = "dB" if cost_kind == "complex_log" or cost_kind == "log_magnitude" else ""
     lines = [f"nominal cost {local.cost:.4g}; Jacobian {local.jacobian_s:.2f} s"]
-    lines.append(f"top parameters per band (RMS residual change {unit}):")
+    lines.append(
+        f"top parameters per band (RMS residual change {unit}; R = a band around resonances,"
+        " A = around anti-resonances, at the frequencies given):"
+    )
     for k, b in enumerate(local.bands):
         tops = ", ".join(f"{n} {v:.3g}" for n, v in local.top(k, top) if np.isfinite(v))
         lines.append(f"  {b.label:<30s} {tops or '(no data in band)'}")
@@ -256,28 +264,36 @@ def summary_lines(
     noise_src = "estimated from the data" if ident.noise_estimated else "given"
     lines.append(
         f"identifiable combinations: {ident.n_identifiable} of {len(ident.names)} "
-        f"(expected relative std ≤ {ident.max_rel_std:g}; noise {ident.noise_residual:.3g} "
+        f"(expected relative std ≤ {_rel_std(ident.max_rel_std)}; noise {ident.noise_residual:.3g} "
         f"{unit_r} per residual part, {noise_src})"
     )
-    lines.append(f"recommended subset ({len(ident.subset)}), expected relative std:")
-    items = [f"{n} {v:.2%}" for n, v in sorted(ident.subset_std.items(), key=lambda t: t[1])]
+    lines.append(
+        f"recommended subset ({len(ident.subset)}), expected std in % of the parameter's"
+        " reference value, the subset freed together:"
+    )
+    items = [f"{n} {_rel_std(v)}" for n, v in sorted(ident.subset_std.items(), key=lambda t: t[1])]
     lines += textwrap.wrap(", ".join(items), width=96, initial_indent="  ", subsequent_indent="  ")
     left = [n for n in ident.names if n not in ident.subset_std]
     if left:
-        lines.append(f"not recommended ({len(left)}), std if freed alone:")
+        lines.append(
+            f"not recommended ({len(left)}), expected std in % if freed alone"
+            " (not determined = the data do not see it):"
+        )
         idx = {n: i for i, n in enumerate(ident.names)}
-        items = [f"{n} {ident.std_alone[idx[n]]:.3g}" for n in left]
+        items = [f"{n} {_rel_std(ident.std_alone[idx[n]])}" for n in left]
         lines += textwrap.wrap(
             ", ".join(items), width=96, initial_indent="  ", subsequent_indent="  "
         )
     weak = [c for c in ident.combinations if not c.pinned][-3:]
     if weak:
         lines.append("least determined combinations:")
-        lines += [f"  std {c.std:.3g}: {c.label}" for c in reversed(weak)]
+        lines += [f"  std {_rel_std(c.std)}: {c.label}" for c in reversed(weak)]
     if sweep is not None:
         order = np.argsort(-np.nan_to_num(sweep.spread(), nan=-1.0))[:5]
         lines.append(
-            f"sweep ({len(sweep.names)} parameters × {sweep.scales.size} scales, "
+            "sweep (the seed report's Algorithm 1: each parameter scaled alone from"
+            f" {100 * sweep.scales.min():.0f} % to {100 * sweep.scales.max():.0f} %, the others"
+            f" held; {len(sweep.names)} parameters × {sweep.scales.size} scales, "
             f"{sweep.workers} processes, {sweep.wall_s:.1f} s); largest cost range: "
             + ", ".join(f"{sweep.names[i]} {sweep.spread()[i]:.3g}" for i in order)
         )

@@ -4,9 +4,9 @@ Every number of the model that enters the dynamics must lie in its physical rang
 (:mod:`bondid.ranges`): masses, principal moments of inertia, coordinates of joint, CoM and
 geometry origins, geometry sizes, spring stiffnesses and references, dampings, joint limits
 (and ``lower <= upper``). A value outside is refused (:class:`ModelError`, exit 2) naming
-the file, the link or joint, the item and the range, before any computation: a spring of
-1e300 used to run (and be reported as a "negative stiffness" after round-off), an origin of
-1e300 m failed deep inside the linearisation with a numerical warning instead.
+the file, the link or joint, the item and the range, before any computation: unchecked, a
+spring of 1e300 runs (and is reported as a "negative stiffness" after round-off), and an
+origin of 1e300 m fails deep inside the linearisation with a numerical warning instead.
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 Before any work: a channel named twice (``--channels x.x,x.x``), a channel the data do not
 hold, and a band holding no frequency line of any data file are refused
 (:class:`ConfigError`, exit 2) naming the option, the item and what would be valid. Without
-this, a band beside the data ended deep in the cost with "no data to fit" and no option
+this, a band beside the data ends deep in the cost with "no data to fit" and no option
 named.
 """
 
