@@ -286,3 +286,7 @@ def test_report_refuses_a_link_out_of_the_folder_and_a_fifo(run_cmd, tmp_path):
     os.mkfifo(res / "bode_x.png")
     code, _, err = run_cmd("report", res)
     assert code == 2 and "not a regular file" in only_line(err)
+    (res / "bode_x.png").unlink()
+    os.mkfifo(res / "sensitivity.manifest.json")  # the report reads every manifest
+    code, _, err = run_cmd("report", res)
+    assert code == 2 and "not a regular file" in only_line(err)

@@ -236,6 +236,8 @@ def _report_special(kind: str) -> Argv:
         (b.out / "fit.json").write_text('{"status": "x", "parameters": []}')
         if kind == "fifo":
             os.mkfifo(b.out / "bode_x.png")
+        elif kind == "manifest_fifo":
+            os.mkfifo(b.out / "diagnose.manifest.json")
         else:
             (b.out / "bode_x.png").symlink_to(b.root / "sibling" / "victim.txt")
         return [str(b.out)]
@@ -255,6 +257,7 @@ REPORT: list[tuple[str, Argv]] = [
     ("fleet_machines_text", _report_json("fleet.json", '{"machines": "m"}')),
     ("png_fifo", _report_special("fifo")),
     ("png_link_out", _report_special("link")),
+    ("manifest_fifo", _report_special("manifest_fifo")),
     ("folder_missing", lambda b: [str(b.root / "nope")]),
     ("folder_is_file", lambda b: [str(b.data)]),
 ]

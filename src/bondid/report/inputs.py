@@ -2,8 +2,8 @@
 
 * :func:`check_folder` — the folder is a folder; no commit into it was interrupted (unless
   the report writes into it and so restores the previous run first, :mod:`bondid.journal`);
-  every file the report would read is a regular file inside the folder (a FIFO would block
-  the report, a link may point anywhere).
+  every file the report would read (result files, manifests, PNGs) is a regular file inside
+  the folder (a FIFO would block the report, a link may point anywhere).
 * :func:`check_result_json` — each result file that parses as JSON has the shape its command
   writes (:data:`SCHEMAS`): ``fit.json`` = ``[1, 2, 3]`` or a ``modes`` that is a number is
   refused (:class:`~bondid.exceptions.DataError`, exit 2) naming the file and the key. A file
@@ -196,7 +196,8 @@ def check_folder(results: Path, *, restoring: bool) -> None:
                 " restore the previous results first"
             )
     for p in _visible(results):
-        if p.name not in SCHEMAS and p.suffix.lower() != ".png":
+        name = p.name.lower()
+        if not (p.name in SCHEMAS or name.endswith((".manifest.json", ".png"))):
             continue
         st = os.lstat(p)
         if stat.S_ISLNK(st.st_mode):
