@@ -39,9 +39,18 @@ def usage() -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """List the commands, or run one as ``python -m bondid.COMMAND`` would."""
+    if argv is None:  # a Ctrl-C while the command loads: no traceback (bondid.interrupt)
+        from .interrupt import stop_quietly_until_run
+
+        stop_quietly_until_run()
     args = list(sys.argv[1:] if argv is None else argv)
     if not args or args[0] in ("-h", "--help", "help"):
         print(usage())
+        return 0
+    if args[0] == "--version":
+        from .cli import version_text
+
+        print(version_text())
         return 0
     names = [c for c, _ in COMMANDS]
     if args[0] not in names:

@@ -57,9 +57,11 @@ def refuse_overwrite(
     output: str | os.PathLike[str], inputs: Iterable[str | os.PathLike[str]]
 ) -> None:
     """Raise :class:`ConfigError` if ``output`` is one of the ``inputs`` (same file)."""
-    out = Path(output).resolve()
+    from .outcheck import _same
+
+    out = Path(output)
     for item in inputs:
-        if Path(item).resolve() == out:
+        if _same(Path(item), out):
             raise ConfigError(
                 f"{output}: refusing to overwrite an input file; choose another output path"
             )

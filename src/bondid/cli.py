@@ -9,7 +9,9 @@ runs its body through :func:`run`, and reports progress with
 from __future__ import annotations
 
 import argparse
+import errno
 import math
+import os
 import signal
 import sys
 from collections.abc import Callable, Sequence
@@ -24,15 +26,88 @@ __all__ = ["EXIT_BAD_INPUT", "EXIT_FAILED", "EXIT_OK", "Progress"]
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
 
+#: the largest magnitude an integer option takes (what the solvers' C ``int`` holds): a
+#: larger value wrapped round to 0 iterations once
+MAX_INT_OPTION = 2**31 - 1
+
+
+def _bounded_int(text: str) -> int:
+    """``type=int`` of every bondid option: an integer of at most :data:`MAX_INT_OPTION`."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if abs(value) > MAX_INT_OPTION:
+        raise argparse.ArgumentTypeError(
+            f"{text} is out of range; valid: an integer from -{MAX_INT_OPTION} to {MAX_INT_OPTION}"
+        )
+    return value
+
+
+def _number(text: str) -> float:
+    """``type=float`` of every bondid option (NaN is refused after parsing, naming the
+    option: :meth:`_Parser.parse_known_args`; each option checks its own range, some take
+    ±inf)."""
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+
+
 class _Parser(argparse.ArgumentParser):
+    """argparse with bondid's conventions: errors in one line (exit 2), ``--version``,
+    integer options bounded (:func:`_bounded_int`) and float options never NaN."""
+
     def error(self, message: str) -> NoReturn:  # argparse exits with 2 as well
-        self.print_usage(sys.stderr)
-        print(f"{self.prog}: bad input: {message}", file=sys.stderr)
+        text = " ".join(message.split())
+        print(f"{self.prog}: bad input: {text}; see {self.prog} --help", file=sys.stderr)
         raise SystemExit(EXIT_BAD_INPUT)
+
+    def parse_known_args(self, args: Any = None, namespace: Any = None) -> Any:
+        ns, rest = super().parse_known_args(args, namespace)
+        for action in self._actions:
+            if action.type is not _number or not action.option_strings:
+                continue
+            value = getattr(ns, action.dest, None)
+            for v in value if isinstance(value, list) else [value]:
+                if isinstance(v, float) and math.isnan(v):
+                    self.error(f"{action.option_strings[0]} {v}: not a number; valid: a number")
+        return ns, rest
+
+    def add_argument(self, *args: Any, **kwargs: Any) -> argparse.Action:
+        kwargs["type"] = _TYPES.get(kwargs.get("type"), kwargs.get("type"))
+        if kwargs["type"] is None:
+            del kwargs["type"]
+        return super().add_argument(*args, **kwargs)
+
+    def add_argument_group(self, *args: Any, **kwargs: Any) -> Any:
+        group = super().add_argument_group(*args, **kwargs)
+        plain = group.add_argument
+
+        def add(*a: Any, **kw: Any) -> argparse.Action:
+            kw["type"] = _TYPES.get(kw.get("type"), kw.get("type"))
+            if kw["type"] is None:
+                del kw["type"]
+            return plain(*a, **kw)
+
+        group.add_argument = add  # type: ignore[method-assign]
+        return group
+
+
+_TYPES: dict[Any, Any] = {int: _bounded_int, float: _number}
+
+
+def version_text() -> str:
+    """``bondid X.Y.Z`` (the installed package's version)."""
+    from . import __version__
+
+    return f"bondid {__version__}"
 
 
 def make_parser(prog: str, description: str) -> argparse.ArgumentParser:
-    return _Parser(prog=f"python -m bondid.{prog}", description=description)
+    p = _Parser(prog=f"python -m bondid.{prog}", description=description)
+    p.add_argument("--version", action="version", version=version_text())
+    return p
 
 
 def add_model_args(
@@ -134,12 +209,16 @@ def add_package_path_arg(p: argparse.ArgumentParser) -> None:
 
 def parse_band(text: str) -> tuple[float, float]:
     """``"F_LO:F_HI"`` (Hz) → (f_lo, f_hi); raises ``argparse.ArgumentTypeError``."""
+    from .ranges import FREQUENCY
+
     try:
         lo, hi = (float(x) for x in text.split(":"))
     except ValueError as exc:
         raise argparse.ArgumentTypeError(f"band {text!r} is not F_LO:F_HI in Hz") from exc
-    if not 0 <= lo < hi:
-        raise argparse.ArgumentTypeError(f"band {text!r}: need 0 ≤ F_LO < F_HI")
+    if not (0 <= lo < hi and hi in FREQUENCY):
+        raise argparse.ArgumentTypeError(
+            f"band {text!r}: need 0 ≤ F_LO < F_HI ≤ {FREQUENCY.hi:g} Hz"
+        )
     return lo, hi
 
 
@@ -150,10 +229,12 @@ def parse_freq(text: str) -> tuple[float, float, int]:
         lo, hi, n_f = float(lo_s), float(hi_s), float(n_s)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(f"--freq {text!r} is not F_LO:F_HI:N") from exc
-    if not (0 < lo < hi < math.inf) or not (2 <= n_f <= MAX_FREQ) or n_f != int(n_f):
+    from .ranges import FREQUENCY
+
+    if not (0 < lo < hi <= FREQUENCY.hi) or not (2 <= n_f <= MAX_FREQ) or n_f != int(n_f):
         raise argparse.ArgumentTypeError(
-            f"--freq {text!r}: need 0 < F_LO < F_HI (finite, Hz) and an integer N from 2 to"
-            f" {MAX_FREQ}"
+            f"--freq {text!r}: need 0 < F_LO < F_HI ≤ {FREQUENCY.hi:g} Hz and an integer N"
+            f" from 2 to {MAX_FREQ}"
         )
     return lo, hi, int(n_f)
 
@@ -164,15 +245,26 @@ EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
 MAX_FREQ = 100_000
 
 
-def run(body: Callable[[], int | None]) -> int:
+def run(body: Callable[[], int | None], args: argparse.Namespace | None = None) -> int:
     """Run a command body, mapping bondid errors onto the spec's exit codes.
 
+    With the parsed ``args``, their input files and output paths are checked first
+    (:func:`bondid.paths.check_path_options`: regular, readable files; no link loops).
     Ctrl-C (SIGINT) prints ``interrupted`` and returns 130, SIGTERM ``terminated`` and 143;
     worker processes are stopped and no partial result is left (:mod:`bondid.interrupt`,
     :mod:`bondid.results`).
     """
     from . import interrupt, results
     from .warnlines import one_line_warnings
+
+    if args is not None:
+        from .paths import check_path_options
+
+        first = body
+
+        def body() -> int | None:
+            check_path_options(args)
+            return first()
 
     previous = interrupt.install()
     try:
@@ -195,7 +287,12 @@ def parse_and_run(
         args = parser.parse_args(argv)
     except SystemExit as exc:
         return exc.code if isinstance(exc.code, int) else EXIT_BAD_INPUT
-    return run(lambda: body(args))
+    return run(lambda: body(args), args)
+
+
+def one_line(text: object) -> str:
+    """``text`` folded into one line (a library's multi-line message inside ours)."""
+    return " ".join(str(text).split())
 
 
 def _run(body: Callable[[], int | None]) -> int:
@@ -207,11 +304,33 @@ def _run(body: Callable[[], int | None]) -> int:
     except ComputationError as exc:
         status = getattr(exc, "status", None)
         extra = f" (solver status: {status})" if status else ""
-        print(f"error: {exc}{extra}", file=sys.stderr)
+        print(f"error: {one_line(exc)}{extra}", file=sys.stderr)
         return EXIT_FAILED
     except BondidError as exc:
-        print(f"bad input: {exc}", file=sys.stderr)
+        print(f"bad input: {one_line(exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except OSError as exc:
+        print(f"error: {os_error_line(exc)}", file=sys.stderr)
+        return EXIT_FAILED
+    except RecursionError:
+        print(
+            "error: the input is nested too deeply for the computation (Python's recursion"
+            " limit was reached); please report the input",
+            file=sys.stderr,
+        )
+        return EXIT_FAILED
+    except MemoryError:
+        print("error: out of memory; use fewer frequencies or channels", file=sys.stderr)
+        return EXIT_FAILED
+    except Exception as exc:
+        if os.environ.get("BONDID_TRACEBACK"):
+            raise
+        print(
+            f"error: internal error ({type(exc).__name__}: {one_line(exc)}); this is a bug,"
+            " please report it (BONDID_TRACEBACK=1 shows where it happened)",
+            file=sys.stderr,
+        )
+        return EXIT_FAILED
     except KeyboardInterrupt:
         from . import interrupt
 
@@ -219,6 +338,24 @@ def _run(body: Callable[[], int | None]) -> int:
         print("terminated" if signum == signal.SIGTERM else "interrupted", file=sys.stderr)
         return 128 + signum
     return EXIT_OK if code is None else int(code)
+
+
+def os_error_line(exc: OSError) -> str:
+    """One line for a file-system failure of the run: a full disk (or quota) names the
+    results folder being written and says the previous results are intact (the staged run
+    is abandoned, :mod:`bondid.results`)."""
+    from .results import open_targets
+
+    targets = open_targets()
+    where = str(targets[0]) if targets else str(exc.filename or "the results")
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        return f"no space left writing {where}; the previous results are intact"
+    if exc.errno == errno.EROFS:
+        return f"cannot write {where} (read-only file system); the previous results are intact"
+    if exc.errno in (errno.EACCES, errno.EPERM):
+        return f"permission denied: {exc.filename or where}; the previous results are intact"
+    name = f" {exc.filename}" if exc.filename else ""
+    return f"file system error{name}: {one_line(exc.strerror or exc)} (writing {where})"
 
 
 class _JoinNames(argparse.Action):
@@ -253,6 +390,21 @@ def check_workers(value: int, option: str = "--workers") -> int:
     if value is None or int(value) < 1:
         raise ConfigError(f"{option} {value}: give an integer >= 1 (1 = no worker processes)")
     return int(value)
+
+
+def check_number(
+    value: float | None, option: str, *, low: float = -math.inf, low_open: bool = False
+) -> float | None:
+    """The same rule for a float option in every command: finite and at least ``low``
+    (above it with ``low_open``); None (not given) passes."""
+    from .exceptions import ConfigError
+
+    if value is None:
+        return None
+    if not (math.isfinite(value) and (value > low if low_open else value >= low)):
+        sign = ">" if low_open else ">="
+        raise ConfigError(f"{option} {value}: give a finite number {sign} {low:g}")
+    return value
 
 
 def warn_lines(warnings: Sequence[str]) -> list[str]:

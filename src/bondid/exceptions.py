@@ -27,6 +27,11 @@ class DataError(BondidError, ValueError):
     """A measured-data file or array is malformed (columns, NaN, frequencies, quantity, ...)."""
 
 
+class ManifestError(DataError):
+    """A results folder's manifest is malformed, lists a name its command never writes, or
+    disagrees with the files beside it (the folder holds no complete run)."""
+
+
 class ChannelError(DataError):
     """A channel is missing, unknown or inconsistent with the model's inputs and outputs."""
 

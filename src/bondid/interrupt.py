@@ -115,6 +115,22 @@ def _handler(signum: int, frame: Any) -> None:
     raise KeyboardInterrupt
 
 
+def stop_quietly_until_run() -> None:
+    """For a command-line process, first thing (before its heavy imports): a SIGINT or
+    SIGTERM that arrives before :func:`install` ends the process at once with
+    ``interrupted`` / ``terminated`` and exit code 130 / 143, as a run would (nothing is
+    written yet), instead of a ``KeyboardInterrupt`` traceback from inside an import."""
+
+    def early(signum: int, frame: Any) -> None:
+        word = b"terminated\n" if signum == signal.SIGTERM else b"interrupted\n"
+        with contextlib.suppress(OSError):
+            os.write(2, word)
+        os._exit(128 + int(signum))
+
+    for sig in _SIGNALS:
+        signal.signal(sig, early)
+
+
 def install(grace: float | None = None) -> Any:
     """Record every SIGINT and SIGTERM (then raise ``KeyboardInterrupt`` as Python does on
     SIGINT) and arm the watchdog (``grace`` s, default :data:`GRACE_S`, see the module);
@@ -151,11 +167,26 @@ def exit_process(code: int) -> None:
     otherwise join threads and child processes that a stop cut short (a hang seen once in
     CI). Other codes exit normally (``SystemExit``)."""
     if code in (128 + signal.SIGINT, 128 + signal.SIGTERM):
+        _release_semaphores()
         for stream in (sys.stdout, sys.stderr):
             with contextlib.suppress(Exception):
                 stream.flush()
         os._exit(code)
     raise SystemExit(code)
+
+
+def _release_semaphores() -> None:
+    """Unlink the named semaphores this process created for spawned processes (a Dask
+    cluster's, a pool's), as the interpreter's exit would: after ``os._exit`` the resource
+    tracker otherwise unlinks them itself and warns of "leaked semaphore objects"."""
+    with contextlib.suppress(Exception):
+        from multiprocessing import synchronize, util
+
+        registry = getattr(util, "_finalizer_registry", {})
+        for key, fin in list(registry.items()):
+            if getattr(fin, "_callback", None) is getattr(synchronize.SemLock, "_cleanup", 0):
+                fin()
+                registry.pop(key, None)
 
 
 def requested() -> bool:

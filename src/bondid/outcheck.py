@@ -17,7 +17,7 @@ from .exceptions import ConfigError
 def _same(a: Path, b: Path) -> bool:
     try:
         return a.resolve() == b.resolve() or (a.exists() and b.exists() and a.samefile(b))
-    except OSError:
+    except (OSError, RuntimeError):  # (RuntimeError: a loop of symbolic links)
         return False
 
 

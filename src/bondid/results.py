@@ -14,17 +14,22 @@ work:
 4. **Stage**: the command writes into :attr:`Results.tmp`, a hidden folder
    ``.<name>.bondid-tmp-<pid>-<random>`` next to ``--out`` (same file system).
 5. **Commit** (:meth:`Results.commit`): a new ``--out`` folder is the staging folder renamed
-   (one atomic step). Into an existing folder, the command's previous manifest is removed
-   first, the files are moved in, the previous run's files that this run did not write are
-   removed, and the manifest ``<command>.manifest.json`` comes last. A reader checks that the
-   manifest exists and lists every file (:func:`read_manifest`); without it the folder holds
-   no complete run of that command.
+   (one atomic step). Into an existing folder the files are swapped all or nothing
+   (:mod:`bondid.journal`): the previous run's manifest and files are set aside until the new
+   files and, last, the new manifest ``<command>.manifest.json`` are in place. A reader
+   checks that the manifest exists and lists every file (:func:`read_manifest`); without it
+   the folder holds no complete run of that command.
+
+The previous run's manifest is data, never trusted (:mod:`bondid.manifest`): it is checked
+when the folder is opened, and a malformed one, or one naming anything but a plain file name
+of the command's results, refuses the run (exit 2) before any work, with nothing touched.
 
 On any failure or interrupt before the commit the staging folder is removed and ``--out`` is
-untouched; a SIGKILL leaves at most the hidden staging folder next to ``--out``, which the
-next run cleans. A command whose ``--out`` is one file (``bondid.simulate``) stages that file
-(and any extra file, e.g. its plot) the same way and moves each into place at the end; no
-manifest.
+untouched; a SIGKILL leaves at most the hidden staging folder next to ``--out`` (which the
+next run cleans) or, during a commit, the undo folder inside it (which the next run into the
+folder uses to put the previous run back, :func:`bondid.journal.recover`). A command whose
+``--out`` is one file (``bondid.simulate``) stages that file (and any extra file, e.g. its
+plot) the same way and moves each into place at the end; no manifest.
 """
 
 from __future__ import annotations
@@ -33,9 +38,9 @@ import contextlib
 import datetime as dt
 import errno
 import fnmatch
-import hashlib
 import json
 import os
+import re
 import secrets
 import shutil
 import threading
@@ -43,13 +48,29 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
-from .exceptions import ConfigError, DataError
+from .exceptions import ConfigError
 from .interrupt import signals_deferred
+from .journal import move, pending, recover, replace_files
+from .manifest import (
+    MANIFEST_FORMAT,
+    manifest_name,
+    read_manifest,
+    sha256,
+    valid_name,
+)
 from .outcheck import _same, check_out
+from .paths import check_output_path
 
-__all__ = ["Results", "check_out", "close_all", "open_results", "read_manifest"]
+__all__ = [
+    "MANIFEST_FORMAT",
+    "Results",
+    "check_out",
+    "close_all",
+    "manifest_name",
+    "open_results",
+    "read_manifest",
+]
 
-MANIFEST_FORMAT = "bondid-manifest/1"
 _OPEN: list[Results] = []
 _AT_FORK: list[bool] = [False]
 
@@ -65,11 +86,6 @@ def _forget_runs_in_child() -> None:
                 os.close(run._lock_fd)
             run._lock_fd = None
     _OPEN.clear()
-
-
-def manifest_name(command: str) -> str:
-    """``fit`` → ``fit.manifest.json``."""
-    return f"{command}.manifest.json"
 
 
 class Results:
@@ -90,6 +106,9 @@ class Results:
         self._lock_fd: int | None = None
         self.tmp = self.parent / f".{out.name}.bondid-tmp-{os.getpid()}-{secrets.token_hex(4)}"
         self._extra: dict[str, Path] = {}
+        self._old: dict[str, Any] | None = None
+        #: interrupted commits into this folder found at the start, and what became of them
+        self.recovered: dict[str, str] = {}
         self.committed = False
         self.thread = threading.get_ident()  # close_all() abandons the runs of its own thread
 
@@ -99,7 +118,15 @@ class Results:
 
         path = self.parent / f".{self.out.name}.bondid-lock"
         while True:
-            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+            try:  # never through a link: the lock file is truncated and written below
+                fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o666)
+            except OSError as exc:
+                if exc.errno != errno.ELOOP:
+                    raise
+                raise ConfigError(
+                    f"--out {self.out}: {path} is a symbolic link, not bondid's lock file;"
+                    " remove it or choose another output path"
+                ) from None
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError as exc:
@@ -125,18 +152,35 @@ class Results:
         self._lock_fd, self._lock_path = fd, path
 
     def _clean_stale(self) -> None:
-        for d in self.parent.glob(f".{self.out.name}.bondid-tmp-*"):
-            shutil.rmtree(d, ignore_errors=True)
+        """Remove what killed runs into the same ``--out`` left: their staging folders (only
+        the lock holder can own one, so any other is stale), and the hidden temporary files
+        of :mod:`bondid.atomic` for this command's output names. Only names a run produces
+        are matched; a symbolic link is never followed."""
+        stale = re.compile(rf"^\.{re.escape(self.out.name)}\.bondid-tmp-\d+-[0-9a-f]{{8}}$")
+        for d in self.parent.iterdir():
+            if stale.match(d.name) and d.is_dir() and not d.is_symlink():
+                shutil.rmtree(d, ignore_errors=True)
         if not self.file and self.out.is_dir():
             for f in self.out.iterdir():
-                if f.is_file() and _atomic_temp(f.name, self.patterns):
+                if f.is_file() and not f.is_symlink() and _atomic_temp(f.name, self.patterns):
                     with contextlib.suppress(OSError):
                         f.unlink()
 
+    def _read_previous(self) -> None:
+        """Finish or undo interrupted commits into the folder, then read (and check) the
+        previous run's manifest: a malformed one refuses the run (ManifestError)."""
+        if self.file or not self.out.is_dir():
+            return
+        for command in pending(self.out):
+            self.recovered[command] = recover(self.out, command)
+        self._old = read_manifest(self.out, self.command, verify=False, patterns=self.patterns)
+
     def open(self) -> Results:
+        check_output_path(self.out, "--out")
         self.parent.mkdir(parents=True, exist_ok=True)
         self._lock()
         try:
+            self._read_previous()
             self._clean_stale()
             self.tmp.mkdir()
         except BaseException:
@@ -159,9 +203,14 @@ class Results:
 
     # -- commit -------------------------------------------------------------------------
     def _files(self) -> list[Path]:
+        """The staged result files (hidden temporary files of a failed write excluded)."""
         extra = set(self._extra)
         return sorted(
-            (f for f in self.tmp.rglob("*") if f.is_file() and str(f) not in extra),
+            (
+                f
+                for f in self.tmp.rglob("*")
+                if f.is_file() and str(f) not in extra and not f.name.startswith(".")
+            ),
             key=lambda f: f.as_posix(),
         )
 
@@ -175,6 +224,9 @@ class Results:
         Returns:
             The final paths of the files written (manifest excluded).
         """
+        from . import interrupt
+
+        interrupt.check()  # an interrupt a library swallowed: the run ends here, uncommitted
         files = self._files()
         for f in files:  # last guard: never replace an input
             dest = self.out if self.file else self.out / f.relative_to(self.tmp)
@@ -189,7 +241,7 @@ class Results:
             else:
                 written = self._commit_dir(files, warnings, main)
             for staged, target in self._extra.items():
-                _move(Path(staged), target)
+                move(Path(staged), target)
                 written.append(target)
         self.committed = True
         self.close()
@@ -198,20 +250,26 @@ class Results:
     def _commit_file(self, files: list[Path]) -> list[Path]:
         if len(files) != 1:
             raise RuntimeError(f"{self.out}: staged {len(files)} files for a one-file output")
-        _move(files[0], self.out)
+        move(files[0], self.out)
         return [self.out]
 
     def _commit_dir(
         self, files: list[Path], warnings: Sequence[str], main: str | None
     ) -> list[Path]:
         names = [f.relative_to(self.tmp).as_posix() for f in files]
+        for n in names:
+            if not valid_name(n, self.patterns):
+                raise RuntimeError(
+                    f"{self.out}: bondid.{self.command} staged {n!r}, not one of its result"
+                    f" names ({', '.join(self.patterns)})"
+                )
         manifest = {
             "format": MANIFEST_FORMAT,
             "command": f"bondid.{self.command}",
             "complete": True,
             "finished": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
             "files": [
-                {"name": n, "bytes": f.stat().st_size, "sha256": _sha256(f)}
+                {"name": n, "bytes": f.stat().st_size, "sha256": sha256(f)}
                 for n, f in zip(names, files, strict=True)
             ],
             "warnings": list(warnings),
@@ -223,19 +281,13 @@ class Results:
                 os.rename(self.tmp, self.out)  # the whole run appears in one step
                 return [self.out / n for n in names]
         self.out.mkdir(parents=True, exist_ok=True)
-        old = read_manifest(self.out, self.command, verify=False)
-        with contextlib.suppress(FileNotFoundError):
-            (self.out / mname).unlink()  # from here on, no complete run until the new manifest
+        old = [] if self._old is None else list(self._old["files_by_name"])
         order = sorted(names, key=lambda n: n != main)
-        for n in order:
-            (self.out / n).parent.mkdir(parents=True, exist_ok=True)
-            _move(self.tmp / n, self.out / n)
-        for n in (old or {}).get("files_by_name", {}):
-            stale = self.out / n
-            if n not in names and not any(_same(stale, i) for i in self.inputs):
-                with contextlib.suppress(OSError):
-                    stale.unlink()
-        _move(self.tmp / mname, self.out / mname)
+        replace_files(
+            self.out, self.tmp, self.command, order, mname,
+            drop=[n for n in old if n not in names],
+            keep=lambda p: any(_same(p, i) for i in self.inputs),
+        )  # fmt: skip
         return [self.out / n for n in names]
 
     # -- clean up -----------------------------------------------------------------------
@@ -263,10 +315,19 @@ def open_results(
 
     Raises:
         ConfigError: an unusable ``--out`` or a concurrent run into it.
+        ManifestError: the folder's previous manifest of this command is malformed or names
+            a file the command never writes (nothing was touched).
     """
     ins = [Path(i) for i in inputs]
+    check_output_path(out, "--out")
     p = check_out(out, ins, patterns=patterns, file=file)
     return Results(p, command, ins, file=file, patterns=patterns).open()
+
+
+def open_targets(thread_id: int | None = None) -> list[Path]:
+    """The ``--out`` targets of the uncommitted runs of this thread (or of ``thread_id``)."""
+    me = threading.get_ident() if thread_id is None else thread_id
+    return [r.out for r in _OPEN if r.thread == me]
 
 
 def close_all(thread_id: int | None = None) -> None:
@@ -277,46 +338,6 @@ def close_all(thread_id: int | None = None) -> None:
     for r in list(_OPEN):
         if r.thread == me:
             r.close()
-
-
-def read_manifest(
-    folder: str | os.PathLike[str], command: str, *, verify: bool = True
-) -> dict[str, Any] | None:
-    """The manifest of ``command``'s last complete run in ``folder`` (None if there is none).
-
-    With ``verify``, every listed file must exist with its size and SHA-256.
-
-    Raises:
-        DataError: the manifest is unreadable, or (``verify``) a listed file is missing or
-            differs.
-    """
-    path = Path(folder) / manifest_name(command)
-    if not path.exists():
-        return None
-    try:
-        m = json.loads(path.read_text(encoding="utf-8"))
-        by_name = {f["name"]: f for f in m["files"]}
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise DataError(f"{path}: unreadable manifest ({exc})") from exc
-    m["files_by_name"] = by_name
-    if verify:
-        for n, f in by_name.items():
-            p = Path(folder) / n
-            if (
-                not p.is_file()
-                or p.stat().st_size != f.get("bytes")
-                or _sha256(p) != f.get("sha256")
-            ):
-                raise DataError(f"{path}: {n} is missing or differs from the run that wrote it")
-    return m
-
-
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def _atomic_temp(name: str, patterns: Sequence[str]) -> bool:
@@ -336,16 +357,3 @@ def _atomic_temp(name: str, patterns: Sequence[str]) -> bool:
         for b, r in cand
         if b
     )
-
-
-def _move(src: Path, dst: Path) -> None:
-    """``os.replace``, or copy + replace across file systems."""
-    try:
-        os.replace(src, dst)
-    except OSError as exc:
-        if exc.errno != errno.EXDEV:
-            raise
-        tmp = dst.with_name(f".{dst.name}.{secrets.token_hex(4)}")
-        shutil.copy2(src, tmp)
-        os.replace(tmp, dst)
-        src.unlink()

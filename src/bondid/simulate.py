@@ -115,7 +115,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from . import cli
 
     args = _parser().parse_args(argv)
-    return cli.run(lambda: _run(args))
+    return cli.run(lambda: _run(args), args)
 
 
 def _parser() -> argparse.ArgumentParser:

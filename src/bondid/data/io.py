@@ -46,10 +46,11 @@ def read_frf(
     Raises:
         DataError: missing file, unknown suffix or malformed content (names the file).
     """
+    from ..paths import check_input_file
+
     p = Path(path)
     kind = _kind(p)
-    if not p.exists():
-        raise DataError(f"{p}: no such file; check the path")
+    check_input_file(p, "data file", DataError)  # a FIFO would block, a folder is no file
     if kind == "csv":
         from .csv_format import read_csv
 

@@ -52,8 +52,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 #: the names ``bondid.diagnose`` may write under ``--out``
 OUT_PATTERNS = (
-    "diagnosis.json", "refit.urdf", "augmented.urdf", "augmented_all.urdf", "residual_map.png",
-    "bode_*.png",
+    "diagnosis.json", "refit.urdf", "augmented.urdf", "augmented_all.urdf", "final.urdf",
+    "residual_map.png", "bode_*.png",
 )  # fmt: skip
 
 
@@ -77,7 +77,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         from ..data.for_model import load_datasets
         from ..exceptions import ConfigError
         from ..results import open_results
-        from ..validation import check_inputs, load_model
+        from ..validation import check_inputs, check_selection, load_model
         from .pipeline import Settings, diagnose
         from .report import gaps, to_json_dict, write_outputs, write_plots
         from .summary import summary
@@ -99,6 +99,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         warnings += given_operating_points(doc, data, operating_points_of(args))
         warnings += check_inputs(doc, data, args.data)
+        channels = cli.split_names([args.channels]) if args.channels else None
+        check_selection(data, bands=args.band, channels=channels)
         if not args.quiet:  # at once, not only after a run of minutes (the summary repeats them)
             for line in cli.warn_lines(warnings):
                 print(line, file=sys.stderr, flush=True)
@@ -106,7 +108,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             effects=cli.split_names([args.effects]) if args.effects else None,
             free=cli.split_names(args.free) if args.free else None,
             bands=args.band,
-            channels=cli.split_names([args.channels]) if args.channels else None,
+            channels=channels,
             n_points=args.points,
             workers=args.workers,
             scheduler=args.scheduler,
@@ -137,7 +139,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"wrote {', '.join(str(p) for p in written)}")
         return 0
 
-    return cli.run(body)
+    return cli.run(body, args)
 
 
 if __name__ == "__main__":

@@ -229,7 +229,7 @@ def _load(args: argparse.Namespace, s: StudySettings) -> dict[str, Any]:
     """Model, data, names, bounds and the results folder of a fit command (checked)."""
     from ..data.for_model import load_datasets
     from ..results import open_results
-    from ..validation import check_inputs, load_model
+    from ..validation import check_inputs, check_selection, load_model
     from .model_setup import prepare_model, uff_map
     from .operating_points import given_operating_points
     from .outputs import check_out_dir
@@ -242,6 +242,8 @@ def _load(args: argparse.Namespace, s: StudySettings) -> dict[str, Any]:
     raw = load_datasets(doc, s.data, drop_nan=args.drop_nan, channel_map=uff_map(s, args.uff_map))
     warnings += given_operating_points(doc, raw, s.operating_points)
     warnings += check_inputs(doc, raw, s.data)
+    check_selection(raw, bands=s.bands, channels=s.channels, band_option=_where(s, "--band"),
+                    channel_option=_where(s, "--channels"))  # fmt: skip
     datasets = [ds if ds.quantity == "receptance" else ds.to_quantity("receptance") for ds in raw]
     if args.out is not None:
         check_out_dir(args.out, inputs, datasets)
@@ -257,6 +259,11 @@ def _load(args: argparse.Namespace, s: StudySettings) -> dict[str, Any]:
         "options": options, "names": names, "lower": lower, "upper": upper,
         "left_out": left_out, "quantities": [ds.quantity for ds in raw],
     }  # fmt: skip
+
+
+def _where(s: StudySettings, option: str) -> str:
+    """The option's name, or with a study file "STUDY / --option" (either may set it)."""
+    return option if s.source is None else f"{s.source} / {option}"
 
 
 def _search(s: StudySettings, w: dict[str, Any], quiet: bool) -> Any:

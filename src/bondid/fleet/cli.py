@@ -10,16 +10,15 @@ Exit codes: 0 every machine succeeded, 1 any failed, 2 bad input.
 from __future__ import annotations
 
 import argparse
-import contextlib
-import fcntl
 import hashlib
 import json
 import re
 import sys
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from .. import interrupt
 from ..cli import (
     EXIT_FAILED,
     EXIT_OK,
@@ -33,6 +32,7 @@ from ..exceptions import ComputationError, ConfigError
 from ..fit.defaults import add_prior_arg, check_prior
 from .machines import Machine
 
+#: the lock file of earlier versions inside OUT (removed when found)
 LOCK_NAME = ".fleet.lock"
 _BOUND = re.compile(r"^[^=\s]+=([0-9.eE+-]+|[0-9.eE+-]+:[0-9.eE+-]+)$")
 #: fit options passed through unchanged: (option, takes a list, help)
@@ -169,6 +169,7 @@ def check_options(args: argparse.Namespace) -> None:
         if getattr(args, opt) is not None and not args.diagnose:
             raise ConfigError(f"--{opt.replace('_', '-')}: only with --diagnose")
     doc = UrdfDocument.load(args.model)
+    interrupt.check()  # a Ctrl-C that a library swallowed in its import (trimesh does)
     free = [n for n in split_names(args.free) if n != "auto"]
     if free:
         select_parameters(doc, free, split_names(args.fixed))
@@ -178,24 +179,6 @@ def check_options(args: argparse.Namespace) -> None:
         raise ConfigError(f"--out {args.out}: must not be inside --machines {args.machines}")
     if args.out.exists() and not args.out.is_dir():
         raise ConfigError(f"--out {args.out}: exists and is not a folder")
-
-
-@contextlib.contextmanager
-def fleet_lock(out: Path) -> Iterator[None]:
-    """Hold ``OUT/.fleet.lock`` (one fleet run per results folder at a time)."""
-    out.mkdir(parents=True, exist_ok=True)
-    with open(out / LOCK_NAME, "a+") as fh:
-        try:
-            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            raise ConfigError(
-                f"--out {out}: another bondid.fleet run is writing this folder; wait for it or"
-                " choose another --out"
-            ) from None
-        try:
-            yield
-        finally:
-            fcntl.flock(fh, fcntl.LOCK_UN)
 
 
 def _settings_hash(fit: Sequence[str], diag: Sequence[str] | None) -> str:
@@ -254,46 +237,54 @@ def _summary(statuses: Sequence[dict[str, Any]], stats: Any, n_skipped: int) -> 
 
 
 def _body(args: argparse.Namespace) -> int:
+    from ..manifest import RESULT_PATTERNS
+    from ..results import open_results
     from .aggregate import aggregate
     from .cluster import open_client, scheduler_address
     from .machines import discover
-    from .outputs import write_fleet_outputs
+    from .outputs import FLEET_JSON, write_fleet_outputs
     from .runner import run_jobs
     from .state import clean_stale
 
     check_options(args)
+    interrupt.check()  # a Ctrl-C that a library swallowed in its import (trimesh does)
     machines = discover(args.machines, args.model)
     fit, diag = fit_argv(args), diagnose_argv(args)
     machines_dir = args.out / "machines"
-    with fleet_lock(args.out):
-        clean_stale(machines_dir)
-        jobs, done = plan(machines, machines_dir, fit, diag)
-        if done:
-            print(f"skipping {len(done)} of {len(machines)} machines already done", flush=True)
-        results = {str(st.get("machine")): st for st in done}
-        if jobs:
-            address = scheduler_address(args.scheduler)
-            try:
-                with open_client(address, args.workers or 2) as client:
-                    for st in run_jobs(client, jobs, retries=args.retries, quiet=args.quiet):
-                        results[str(st.get("machine"))] = st
-            except (OSError, TimeoutError) as exc:  # the scheduler went away mid-run
-                raise ComputationError(
-                    f"Dask scheduler {address or '(local cluster)'}: lost ({exc}); the machines"
-                    " finished so far are saved: re-run the same command to resume"
-                ) from None
-            clean_stale(machines_dir)  # what killed workers left (every task has ended)
-        statuses = [results[m.id] for m in machines if m.id in results]
-        stats = aggregate(statuses, diagnose=args.diagnose)
-        header = {
-            "command": "bondid.fleet",
-            "model": str(args.model),
-            "machines_dir": str(args.machines),
-            "fit_args": fit,
-            "diagnose_args": diag,
-            "skipped": sorted(str(st.get("machine")) for st in done),
-        }
-        written = write_fleet_outputs(args.out, statuses, stats, header)
+    # the lock of --out (one bondid run into it at a time) and the staging of the fleet's
+    # own files; the machines' results go straight to OUT/machines/<id> (each complete or
+    # absent), so that an interrupted fleet resumes where it stopped
+    res = open_results(args.out, "fleet", [args.model], patterns=RESULT_PATTERNS["fleet"])
+    (args.out / LOCK_NAME).unlink(missing_ok=True)  # left by earlier versions
+    clean_stale(machines_dir)
+    jobs, done = plan(machines, machines_dir, fit, diag)
+    if done:
+        print(f"skipping {len(done)} of {len(machines)} machines already done", flush=True)
+    results = {str(st.get("machine")): st for st in done}
+    if jobs:
+        address = scheduler_address(args.scheduler)
+        try:
+            with open_client(address, args.workers or 2) as client:
+                for st in run_jobs(client, jobs, retries=args.retries, quiet=args.quiet):
+                    results[str(st.get("machine"))] = st
+        except (OSError, TimeoutError) as exc:  # the scheduler went away mid-run
+            raise ComputationError(
+                f"Dask scheduler {address or '(local cluster)'}: lost ({exc}); the machines"
+                " finished so far are saved: re-run the same command to resume"
+            ) from None
+        clean_stale(machines_dir)  # what killed workers left (every task has ended)
+    statuses = [results[m.id] for m in machines if m.id in results]
+    stats = aggregate(statuses, diagnose=args.diagnose)
+    header = {
+        "command": "bondid.fleet",
+        "model": str(args.model),
+        "machines_dir": str(args.machines),
+        "fit_args": fit,
+        "diagnose_args": diag,
+        "skipped": sorted(str(st.get("machine")) for st in done),
+    }
+    write_fleet_outputs(res.tmp, statuses, stats, header)
+    written = res.commit(main=FLEET_JSON)
     print(_summary(statuses, stats, len(done)))
     print(f"results: {args.out} ({', '.join(p.name for p in written)}, machines/)")
     return EXIT_OK if all(st.get("status") == "ok" for st in statuses) else EXIT_FAILED

@@ -47,7 +47,7 @@ def clean_stale(machines_dir: Path) -> int:
     """Remove work-in-progress and replaced folders left by an earlier run; returns the count.
 
     Call only when no fleet worker writes into ``machines_dir`` (at the start of a run, which
-    holds the fleet lock).
+    holds the lock of ``--out``).
     """
     n = 0
     if not machines_dir.is_dir():

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import copy
 import os
+import sys
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,6 +32,7 @@ from .points import (
     point_from_element,
 )
 from .preserve import LostPart, lost_parts, restore
+from .structure import check_structure
 
 MOVABLE_TYPES = ("revolute", "continuous", "prismatic")
 _YOURDFPY_TAGS = ("link", "joint", "material")
@@ -79,7 +81,10 @@ class UrdfDocument:
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> UrdfDocument:
         """Read a URDF file. Raises :class:`ModelError` naming the file on failure."""
+        from ..paths import check_input_file
+
         p = Path(path)
+        check_input_file(p, "URDF file", ModelError)  # a FIFO would block, a folder is no file
         try:
             text = p.read_text(encoding="utf-8")
         except OSError as exc:
@@ -93,9 +98,10 @@ class UrdfDocument:
     @classmethod
     def from_string(cls, xml: str, source: str | None = None) -> UrdfDocument:
         """Parse URDF text; ``source`` names it in error messages."""
-        import yourdfpy
+        yourdfpy = _import_yourdfpy()
 
         where = source or "<URDF string>"
+        check_structure(xml, where)  # before any tree: depth and chain limits
         try:
             root = ET.fromstring(xml)
         except ET.ParseError as exc:
@@ -124,6 +130,18 @@ class UrdfDocument:
 
     def _check(self) -> None:
         where = self.source or "<URDF string>"
+        for j in self.robot.joints:  # yourdfpy keeps <dynamics> values as text
+            dyn = getattr(j, "dynamics", None)
+            for attr in ("damping", "friction"):
+                value = getattr(dyn, attr, None)
+                if isinstance(value, str):
+                    try:
+                        setattr(dyn, attr, float(value))
+                    except ValueError:
+                        raise ModelError(
+                            f"{where}: joint {j.name!r}: <dynamics {attr}={value!r}> is not a"
+                            " number; valid: a number >= 0, or leave the attribute out"
+                        ) from None
         links = {lk.name for lk in self.robot.links}
         for j in self.robot.joints:
             for end in (j.parent, j.child):
@@ -373,12 +391,39 @@ class UrdfDocument:
         """The Pinocchio model of this document (built from memory, no file written)."""
         import pinocchio as pin
 
+        from .native_messages import captured_native_stderr
+
+        text = self.to_string()
         try:
-            return pin.buildModelFromXML(self.to_string())
+            with captured_native_stderr() as said:  # urdfdom prints its reasons on fd 2
+                model = pin.buildModelFromXML(text)
         except Exception as exc:
+            why = "; ".join([*said.messages(), " ".join(str(exc).split())])
             raise ModelError(
-                f"{self.source or '<URDF>'}: Pinocchio could not build the model ({exc})"
+                f"{self.source or '<URDF>'}: Pinocchio could not build the model ({why})"
             ) from exc
+        if said.text.strip():  # warnings of a model that was built: pass them on
+            print(f"{self.source or '<URDF>'}: urdfdom: {said.one_line()}", file=sys.stderr)
+        return model
+
+
+def _import_yourdfpy() -> Any:
+    """``import yourdfpy``, interruptible. trimesh (which yourdfpy imports) wraps its own
+    imports of SciPy, networkx and others in ``except BaseException``: a Ctrl-C landing
+    there is swallowed and the command goes on for seconds. So those are imported first,
+    where an interrupt goes through, and the rest of the import runs with the interrupt
+    held until it ends (:func:`bondid.interrupt.signals_deferred`, a fraction of a second)."""
+    import contextlib
+    import importlib
+
+    from ..interrupt import signals_deferred
+
+    for name in ("scipy.sparse", "scipy.spatial", "scipy.optimize", "networkx"):
+        with contextlib.suppress(ImportError):
+            importlib.import_module(name)
+    with signals_deferred():
+        import yourdfpy
+    return yourdfpy
 
 
 def _writable(core: ET.Element) -> ET.Element:

@@ -98,8 +98,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     def body() -> int:
         from ..linear import parse_operating_point
 
-        if not args.amplitude > 0:
-            raise ConfigError(f"--amplitude {args.amplitude}: must be > 0 (fraction of size)")
+        if not 0 < args.amplitude < float("inf"):
+            raise ConfigError(
+                f"--amplitude {args.amplitude}: must be a finite number > 0 (fraction of size)"
+            )
         op = parse_operating_point(" ".join(args.q or []), "--q")
         res = None
         if args.out is not None:
@@ -130,7 +132,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             _serve(args, doc, result, fitted, index)
         return 0
 
-    return run(body)
+    return run(body, args)
 
 
 def _scene(args, doc, result: ModalResult, fitted, index: int):

@@ -30,15 +30,26 @@ def main(argv: Sequence[str] | None = None) -> int:
         p.error("give the results folder (RESULTS_DIR or --out DIR)")
 
     def body() -> int:
+        from ..paths import check_output_path
         from ..results import open_results
-        from .build import REPORT_NAME, build_report_html, check_results_dir, manifest_warnings
+        from .build import REPORT_NAME, build_report_html
+        from .inputs import check_folder, check_results, manifest_warnings, with_warnings
 
         results = Path(args.results or args.out)
-        check_results_dir(results)
+        check_output_path(results, "RESULTS_DIR")
         out = Path(args.out) if args.out is not None else results
+        same = out.absolute() == results.absolute()
+        check_folder(results, restoring=same)
         res = open_results(out, "report", [], patterns=(REPORT_NAME,))
+        for command, what in res.recovered.items():
+            print(f"note: {results}: an interrupted commit of bondid.{command} was {what}"
+                  f" ({'its results kept' if what == 'done' else 'the previous results restored'})",
+                  file=sys.stderr)  # fmt: skip
+        check_folder(results, restoring=False)
+        check_results(results)
         warnings = manifest_warnings(results)
         text, _ = build_report_html(results, out)
+        text = with_warnings(text, warnings)
         res.path(REPORT_NAME).write_text(text, encoding="utf-8")
         res.commit(warnings=warnings, main=REPORT_NAME)
         path = out / REPORT_NAME
@@ -48,7 +59,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"wrote {path} ({path.stat().st_size / 1024:.0f} KiB)")
         return 0
 
-    return run(body)
+    return run(body, args)
 
 
 if __name__ == "__main__":

@@ -37,7 +37,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from .. import cli
 
     args = _parser().parse_args(argv)
-    return cli.run(lambda: _run(args))
+    return cli.run(lambda: _run(args), args)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -81,13 +81,15 @@ def _run(args: argparse.Namespace) -> int:
     from ..cost.selection import channels_by_file, informative_only
     from ..data.for_model import load_datasets
     from ..results import open_results
-    from ..validation import check_inputs, load_model
+    from ..validation import check_inputs, check_selection, load_model
     from . import output
     from ._common import make_setup
     from .local import linearise_cost
 
     t_start = time.perf_counter()
     cli.check_workers(args.workers)
+    cli.check_number(args.max_rel_std, "--max-rel-std", low=0.0, low_open=True)
+    cli.check_number(args.noise, "--noise", low=0.0)
     res = None
     if args.out is not None:
         names = [*output.PNG_NAMES.values(), "sensitivity.json"]
@@ -101,6 +103,7 @@ def _run(args: argparse.Namespace) -> int:
     warnings += given_operating_points(doc, datasets, operating_points_of(args))
     warnings += check_inputs(doc, datasets, args.data)
     channels = cli.split_names([args.channels or ""]) or None
+    check_selection(datasets, bands=args.band, channels=channels)
     options = CostOptions(kind=args.cost, bands=args.band, channels=channels)
     options, left_out, note = informative_only(datasets, options)
     if note:

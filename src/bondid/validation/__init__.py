@@ -3,6 +3,8 @@
 * :func:`load_model` — read the URDF and check it can be a machine (:mod:`.model`).
 * :func:`check_inputs` — the data (:mod:`.data`) and the operating points
   (:mod:`.operating_point`) for the model.
+* :func:`check_selection` — the channels and bands a command is told to use, against the
+  data (:mod:`.selection`).
 
 Errors are :class:`~bondid.exceptions.ModelError` / :class:`~bondid.exceptions.DataError`
 (exit 2) naming the file, the item and what would be valid; suspicious but possible inputs
@@ -19,8 +21,16 @@ from ..model.document import UrdfDocument
 from .data import check_data
 from .model import check_model
 from .operating_point import check_operating_point
+from .selection import check_selection
 
-__all__ = ["check_data", "check_inputs", "check_model", "check_operating_point", "load_model"]
+__all__ = [
+    "check_data",
+    "check_inputs",
+    "check_model",
+    "check_operating_point",
+    "check_selection",
+    "load_model",
+]
 
 
 def load_model(

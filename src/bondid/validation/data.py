@@ -4,7 +4,8 @@ Errors (:class:`DataError`, exit 2) name the file, the data row (frequency line,
 the CSV reader counts them) and the column:
 
 * the same file given twice (same path, or identical content);
-* fewer than :data:`MIN_FREQUENCIES` frequencies (one frequency cannot be fitted);
+* fewer than :data:`MIN_FREQUENCIES` frequencies (one frequency cannot be fitted), a
+  frequency above :data:`bondid.ranges.FREQUENCY`;
 * a non-finite value, a non-positive magnitude (an exact ``0+0j`` cell);
 * a cell more than :data:`CELL_DECADES` decades away from its channel's median magnitude (a
   1e300 or 1e-300 typed into one cell);
@@ -30,6 +31,7 @@ import numpy as np
 from ..data.measurement import FrfData
 from ..exceptions import DataError
 from ..model.document import UrdfDocument
+from ..ranges import FREQUENCY
 
 #: fewest frequencies a data set may have
 MIN_FREQUENCIES = 2
@@ -72,6 +74,12 @@ def check_values(ds: FrfData) -> list[str]:
         raise DataError(
             f"{where}: {n_f} frequency line(s); valid: at least {MIN_FREQUENCIES} (an FRF is"
             " fitted over a band)"
+        )
+    top = int(np.argmax(ds.freq_hz))
+    if ds.freq_hz[top] not in FREQUENCY:
+        raise DataError(
+            f"{where}: {_row(ds, top)}: frequency {float(ds.freq_hz[top])!r} Hz; valid:"
+            f" {FREQUENCY.text()}"
         )
     warnings = list(ds.notes)
     if n_f < FEW_FREQUENCIES:

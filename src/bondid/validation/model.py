@@ -6,6 +6,8 @@ Errors (:class:`ModelError`, exit 2) name the file, the link or joint and what w
 * actuators: no ``<transmission>`` at all, two on one joint, one on a fixed joint;
 * joints: a zero or non-finite axis on a moving joint; a spring (``<gazebo reference>``) on a
   fixed joint; a negative or non-finite stiffness or damping;
+* magnitudes: every mass, inertia, coordinate, size, spring, damper and joint limit within
+  its physical range, and ``lower <= upper`` (:mod:`.magnitudes`);
 * bodies: a negative or non-finite mass; an ``<inertial>`` with zero mass on a moving body; a
   negative principal moment of inertia; the triangle inequality ``I₁ + I₂ ≥ I₃`` violated
   (relative tolerance :data:`TRIANGLE_TOL`); a moving joint that moves no mass at all (its
@@ -26,6 +28,7 @@ import numpy as np
 from ..exceptions import BondidError, ModelError
 from ..model.document import MOVABLE_TYPES, UrdfDocument, rotation_and_translation
 from ..model.parameters import carries_mass
+from .magnitudes import check_magnitudes
 
 #: relative tolerance of the triangle inequality (of the trace of the inertia)
 TRIANGLE_TOL = 1e-9
@@ -51,6 +54,7 @@ def check_model(doc: UrdfDocument) -> list[str]:
     _check_transmissions(doc, where)
     _check_joints(doc, where)
     _check_bodies(doc, where)
+    check_magnitudes(doc, where)
     _check_moved_mass(doc, where)
     _check_meshes(doc, where)
     doc.build_pinocchio_model()  # raises ModelError naming the file
@@ -188,10 +192,17 @@ def _check_moved_mass(doc: UrdfDocument, where: str) -> None:
     for j in doc.robot.joints:
         children.setdefault(j.parent, []).append(j.child)
 
-    def mass_below(link: str) -> float:
-        lk = doc.link(link)
-        m = float(lk.inertial.mass or 0.0) if lk.inertial is not None else 0.0
-        return m + sum(mass_below(c) for c in children.get(link, []))
+    def mass_below(link: str) -> float:  # a walk, not a recursion: chains may be long
+        total, stack, seen = 0.0, [link], set()
+        while stack:
+            n = stack.pop()
+            if n in seen:
+                continue
+            seen.add(n)
+            lk = doc.link(n)
+            total += float(lk.inertial.mass or 0.0) if lk.inertial is not None else 0.0
+            stack.extend(children.get(n, []))
+        return total
 
     for j in doc.robot.joints:
         if j.type in MOVABLE_TYPES and mass_below(j.child) <= 0:

@@ -1,7 +1,8 @@
 """Warnings about an operating point: outside the joint limits, or unstable there.
 
-:func:`check_operating_point` returns readable warnings (never raises for these): the run
-goes on, and every command prints them and stores them under ``warnings`` in its JSON.
+:func:`check_operating_point` returns readable warnings (it raises only for a value outside
+any physical range): the run goes on, and every command prints them and stores them under
+``warnings`` in its JSON.
 """
 
 from __future__ import annotations
@@ -10,8 +11,9 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from ..exceptions import BondidError
+from ..exceptions import BondidError, OperatingPointError
 from ..model.document import UrdfDocument
+from ..ranges import POSITION
 
 #: an eigenvalue with Re λ > this fraction of |λ| (or > 1e-9 s⁻¹ for λ ≈ 0) counts as unstable
 UNSTABLE_TOL = 1e-9
@@ -60,8 +62,22 @@ def stability_warnings(doc: UrdfDocument, op: Mapping[str, float], what: str) ->
     ]
 
 
+def check_range(op: Mapping[str, float], what: str) -> None:
+    """Raise :class:`OperatingPointError` for a joint value outside :data:`POSITION`."""
+    for name, value in op.items():
+        if value not in POSITION:
+            raise OperatingPointError(
+                f"{what}: {name} = {value!r}; valid: {POSITION.text()} (within the joint's limits)"
+            )
+
+
 def check_operating_point(
     doc: UrdfDocument, op: Mapping[str, float], what: str = "operating point"
 ) -> list[str]:
-    """Limit and stability warnings for one operating point (``what`` names its origin)."""
+    """Limit and stability warnings for one operating point (``what`` names its origin).
+
+    Raises:
+        OperatingPointError: a value outside any physical range (:func:`check_range`).
+    """
+    check_range(op, what)
     return limit_warnings(doc, op, what) + stability_warnings(doc, op, what)
