@@ -10,10 +10,12 @@ per file:
    :data:`PROMINENCE_DB`, and with an estimated signal-to-noise ratio of at least
    :data:`PEAK_SNR_DB` at a peak and :data:`DIP_SNR_DB` at a dip (a dip lost in the noise
    floor carries nothing). Around each, the lines within :data:`WIDTHS` half-power
-   half-widths (the width where the smoothed magnitude is 3 dB from the extremum; on a
-   lightly damped mode ``f₀ (1 ± WIDTHS·ζ)``). When these bands hold more than
-   :data:`FEATURE_SHARE` of the budget, every band is thinned by the same stride (each
-   extremum line kept);
+   half-widths (the width where the smoothed magnitude is 3 dB from the extremum, kept
+   within :data:`MIN_HALF_REL` … :data:`MAX_HALF_REL` of the frequency; on a lightly damped
+   mode ``f₀ (1 ± WIDTHS·ζ)``). When these bands hold more than
+   :data:`FEATURE_SHARE` of the budget, the lines within one half-width come first, then
+   the rest of the bands, each tier thinned where it must be, widest runs first (narrow
+   bands stay whole; each extremum line is kept);
 2. **a log-spaced subset elsewhere**: the lines nearest to a log-spaced grid filling the rest
    of the budget, the first and last line included.
 
@@ -55,16 +57,23 @@ PROMINENCE_DB = 6.0
 #: estimated SNR [dB] at a peak / at a dip for it to count
 PEAK_SNR_DB = 10.0
 DIP_SNR_DB = 0.0
-#: the lines kept around a feature: within this many half-power half-widths of it
+#: the lines kept around a feature: within this many half-power half-widths of it, the
+#: half-width taken within MIN_HALF_REL … MAX_HALF_REL of its frequency (the 3 dB width of a
+#: dip next to a resonance comes out narrower than its damping says, and the dip between two
+#: modes of a cross channel is broad without being a zero)
 WIDTHS = 3.0
+MIN_HALF_REL = 0.005
+MAX_HALF_REL = 0.05
 _HALF_POWER_DB = 10.0 * math.log10(2.0)
 
 #: how the rule is described in the results files
 RULE = (
-    f"kept every line within {WIDTHS:g} half-power half-widths of each resonance and"
+    f"kept every line within {WIDTHS:g} half-power half-widths (taken within"
+    f" {MIN_HALF_REL:.1%}..{MAX_HALF_REL:.0%} of the frequency) of each resonance and"
     f" anti-resonance (peaks/dips of the smoothed |H| of every used channel, prominence >="
     f" {PROMINENCE_DB:g} dB, estimated SNR >= {PEAK_SNR_DB:g} dB at a peak, >= {DIP_SNR_DB:g} dB"
-    f" at a dip; at most {FEATURE_SHARE:.0%} of the budget, thinned by a common stride beyond)"
+    f" at a dip; at most {FEATURE_SHARE:.0%} of the budget: beyond, the lines within one"
+    " half-width first, the widest bands thinned first)"
     " and the lines nearest a log-spaced grid elsewhere; the weights come from the noise"
     " estimated on all lines"
 )
@@ -203,17 +212,18 @@ class LineReduction:
             "files": [f.to_json_dict() for f in self.files],
         }
 
-    def summary_line(self) -> str:
-        """One line for a command's summary."""
+    def summary_line(self, verb: str = "fitted", figures: bool = True) -> str:
+        """One line for a command's summary (``verb``: what the command did on the lines;
+        ``figures``: say that the figures are on all lines)."""
         kept = ", ".join(f"{f.n_kept}/{f.n_lines}" for f in self.files)
         if not self.reduced:
             return f"lines: all used ({kept}; --lines {self.setting})"
         n_res = sum(f.kind == "resonance" for r in self.files for f in r.features)
         n_anti = sum(f.kind == "anti-resonance" for r in self.files for f in r.features)
+        tail = "; figures on all lines" if figures else ""
         return (
-            f"lines: fitted on {kept} per file (--lines {self.setting}: every line near"
-            f" {n_res} resonance and {n_anti} anti-resonance finds, log-spaced elsewhere);"
-            " figures on all lines"
+            f"lines: {verb} on {kept} per file (--lines {self.setting}: every line near"
+            f" {n_res} resonance and {n_anti} anti-resonance finds, log-spaced elsewhere){tail}"
         )
 
 
@@ -271,7 +281,8 @@ def channel_features(
                 y, [p], rel_height=_HALF_POWER_DB / prom, prominence_data=data
             )
             f_l, f_r = _at(freq_hz, float(left[0])), _at(freq_hz, float(right[0]))
-            half = 0.5 * (f_r - f_l)
+            f0 = float(freq_hz[p])
+            half = min(max(0.5 * (f_r - f_l), MIN_HALF_REL * f0), MAX_HALF_REL * f0)
             lo = int(np.searchsorted(freq_hz, freq_hz[p] - WIDTHS * half, side="left"))
             hi = int(np.searchsorted(freq_hz, freq_hz[p] + WIDTHS * half, side="right")) - 1
             out.append(Feature(kind, channel, int(p), float(freq_hz[p]), half, float(prom),
@@ -293,21 +304,62 @@ def _log_spaced(freq_hz: np.ndarray, count: int) -> np.ndarray:
     return np.asarray(np.unique(nearest))
 
 
-def _feature_lines(features: Sequence[Feature], n: int, cap: int) -> np.ndarray:
-    """Sorted lines within the features' bands; thinned by one common stride (each
-    extremum and its neighbours kept) when they hold more than ``cap``."""
-    band = np.zeros(n + 1, int)
-    for f in features:
-        band[f.lo] += 1
-        band[f.hi + 1] -= 1
-    inside = np.flatnonzero(np.cumsum(band)[:n] > 0)
-    if inside.size <= cap:
-        return inside
+def _mask(spans: Sequence[tuple[int, int]], n: int) -> np.ndarray:
+    """Boolean ``(n,)``: the lines inside any inclusive span ``(lo, hi)``."""
+    edge = np.zeros(n + 1, int)
+    for lo, hi in spans:
+        edge[lo] += 1
+        edge[hi + 1] -= 1
+    return np.asarray(np.cumsum(edge)[:n] > 0)
+
+
+def _thinned(inside: np.ndarray, room: int) -> np.ndarray:
+    """At most ``room`` lines of the mask ``inside`` ``(n,)``: every run of consecutive lines
+    keeps at most ``c`` of them, evenly spread, ``c`` the largest that fits (water-filling:
+    the narrow runs stay whole, the widest are thinned)."""
+    step = np.diff(np.concatenate([[0], inside.astype(int), [0]]))
+    starts, stops = np.flatnonzero(step == 1), np.flatnonzero(step == -1)
+    sizes = stops - starts
+    if int(sizes.sum()) <= room:
+        return np.flatnonzero(inside)
+    srt = np.sort(sizes)
+    below = np.concatenate([[0], np.cumsum(srt)])
+    c = 1
+    for k in range(srt.size):
+        c_k = (room - below[k]) // (srt.size - k)
+        if c_k < srt[k]:
+            c = max(int(c_k), 1)
+            break
+    parts = [np.zeros(0, int)]
+    for a, m in zip(starts, sizes, strict=True):
+        take = np.arange(m) if m <= c else np.unique(np.round(np.linspace(0, m - 1, c)))
+        parts.append(a + take.astype(int))
+    return np.concatenate(parts)
+
+
+def _feature_lines(features: Sequence[Feature], freq_hz: np.ndarray, cap: int) -> np.ndarray:
+    """Sorted lines within the features' bands, at most ``cap`` (and each extremum with its
+    neighbours). Beyond the cap the lines within one half-width of a feature (its core) come
+    first, then those out to :data:`WIDTHS` half-widths; each tier thinned, when it must be,
+    widest runs first (:func:`_thinned`)."""
+    n = freq_hz.size
+    band = _mask([(f.lo, f.hi) for f in features], n)
+    if int(band.sum()) <= cap:
+        return np.flatnonzero(band)
     centres = np.unique(np.clip(
         np.array([f.index + d for f in features for d in (-1, 0, 1)], int), 0, n - 1
     ))  # fmt: skip
-    stride = math.ceil(inside.size / max(cap - centres.size, 1))
-    return np.asarray(np.union1d(inside[::stride], centres))
+    core_spans = [
+        (int(np.searchsorted(freq_hz, f.f_hz - f.half_width_hz)),
+         int(np.searchsorted(freq_hz, f.f_hz + f.half_width_hz, side="right")) - 1)
+        for f in features
+    ]  # fmt: skip
+    core = _mask([(lo, max(lo, hi)) for lo, hi in core_spans], n) & band
+    core[centres] = False
+    kept = np.union1d(centres, _thinned(core, max(cap - centres.size, 0)))
+    shoulder = band.copy()
+    shoulder[kept] = False
+    return np.asarray(np.union1d(kept, _thinned(shoulder, max(cap - kept.size, 0))))
 
 
 def select_lines(ds: FrfData, budget: int, channels: Sequence[str] | None = None) -> FileReduction:
@@ -334,7 +386,7 @@ def select_lines(ds: FrfData, budget: int, channels: Sequence[str] | None = None
             name = f"{o}.{i}"
             if pres[a, b] and (wanted is None or name in wanted):
                 features += channel_features(ds.freq_hz, ds.H[a, b], est.snr_db[a, b], name)
-    near = _feature_lines(features, n, int(FEATURE_SHARE * budget))
+    near = _feature_lines(features, ds.freq_hz, int(FEATURE_SHARE * budget))
     # the log grid's lines may fall on the features' lines: refine it while the budget allows
     count = budget - near.size
     kept = np.union1d(near, _log_spaced(ds.freq_hz, count))
