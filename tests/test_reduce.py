@@ -156,3 +156,19 @@ def test_fit_on_reduced_lines_matches_the_fit_on_all_lines(tmp_path: Path) -> No
     # the figures are on all lines in both: the same points, the same noise level
     assert red["db_rms"]["noise_level"] == pytest.approx(full["db_rms"]["noise_level"], rel=1e-9)
     assert red["db_rms"]["final"] == pytest.approx(full["db_rms"]["final"], rel=0.02)
+
+
+def test_lines_in_the_study_file_and_on_the_command_line() -> None:
+    from bondid.fit.cli import build_parser, resolve_settings
+    from bondid.fit.study import study_from_dict
+
+    assert study_from_dict({"cost": {"lines": 800}}).lines == "800"
+    assert study_from_dict({"cost": {"lines": "all"}}).lines == "all"
+    assert study_from_dict({}).lines == "auto"
+    with pytest.raises(ConfigError, match=r"s\.toml: cost\.lines"):
+        study_from_dict({"cost": {"lines": "some"}}, where="s.toml")
+    args = build_parser().parse_args(["--model", "m.urdf", "--data", "d.csv", "--lines", "1200"])
+    assert resolve_settings(args).lines == "1200"
+    bad = build_parser().parse_args(["--model", "m.urdf", "--data", "d.csv", "--lines", "5"])
+    with pytest.raises(ConfigError, match="--lines '5'"):
+        resolve_settings(bad)
