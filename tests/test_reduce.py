@@ -172,3 +172,16 @@ def test_lines_in_the_study_file_and_on_the_command_line() -> None:
     bad = build_parser().parse_args(["--model", "m.urdf", "--data", "d.csv", "--lines", "5"])
     with pytest.raises(ConfigError, match="--lines '5'"):
         resolve_settings(bad)
+
+
+def test_the_budget_goes_to_the_lines_of_the_bands_used() -> None:
+    ds = _dense(20000)
+    bands = [(30.0, 50.0), (90.0, 140.0)]
+    (red,), info = reduce_datasets([ds], "400", bands=bands)
+    f = red.freq_hz
+    inside = ((f >= 30.0) & (f <= 50.0)) | ((f >= 90.0) & (f <= 140.0))
+    assert inside.all() and 300 < f.size <= 400
+    assert ((f >= 30.0) & (f <= 50.0)).sum() > 100  # each band gets its share, not 1/40 of it
+    assert {round(x.f_hz) for x in info.files[0].features} >= {40, 101, 127}
+    (whole,), info = reduce_datasets([ds], "auto", bands=[(30.0, 50.0)])  # ~1500 lines: kept
+    assert whole is ds and not info.reduced

@@ -362,21 +362,40 @@ def _feature_lines(features: Sequence[Feature], freq_hz: np.ndarray, cap: int) -
     return np.asarray(np.union1d(kept, _thinned(shoulder, max(cap - kept.size, 0))))
 
 
-def select_lines(ds: FrfData, budget: int, channels: Sequence[str] | None = None) -> FileReduction:
-    """At most ``budget`` lines of ``ds`` (module docstring); every line when it has no
-    more.
+def band_mask(freq_hz: np.ndarray, bands: Sequence[tuple[float, float]] | None) -> np.ndarray:
+    """Boolean ``(n,)``: the lines inside any of ``bands`` (Hz, inclusive; None: all)."""
+    if not bands:
+        return np.ones(freq_hz.size, bool)
+    m = np.zeros(freq_hz.size, bool)
+    for lo, hi in bands:
+        m |= (freq_hz >= lo) & (freq_hz <= hi)
+    return m
+
+
+def select_lines(
+    ds: FrfData,
+    budget: int,
+    channels: Sequence[str] | None = None,
+    bands: Sequence[tuple[float, float]] | None = None,
+) -> FileReduction:
+    """At most ``budget`` lines of ``ds`` (module docstring) inside ``bands``; every line
+    there when they are no more.
 
     Args:
         ds: the data set (frequencies ``(n_freq,)`` Hz).
         budget: the most lines to keep (``≥`` :data:`MIN_LINES`).
         channels: the channels ``OUT.IN`` whose features count (default: every present one).
+        bands: the bands a cost uses (Hz; None = all): the budget goes to the lines in them
+            (lines outside would be dropped by the cost anyway).
 
     Returns:
         :class:`FileReduction` with the kept lines.
     """
     n = ds.freq_hz.size
-    if n <= budget:
-        return FileReduction(ds.source, n, np.arange(n))
+    within = band_mask(ds.freq_hz, bands)
+    pool = np.flatnonzero(within)
+    if pool.size <= budget:
+        return FileReduction(ds.source, n, pool, reduced=pool.size < n)
     est = noise_estimate(ds)
     pres = ds.present
     wanted = None if channels is None else set(channels)
@@ -385,21 +404,27 @@ def select_lines(ds: FrfData, budget: int, channels: Sequence[str] | None = None
         for b, i in enumerate(ds.inputs):
             name = f"{o}.{i}"
             if pres[a, b] and (wanted is None or name in wanted):
-                features += channel_features(ds.freq_hz, ds.H[a, b], est.snr_db[a, b], name)
+                found = channel_features(ds.freq_hz, ds.H[a, b], est.snr_db[a, b], name)
+                features += [f for f in found if within[f.index]]
     near = _feature_lines(features, ds.freq_hz, int(FEATURE_SHARE * budget))
+    near = near[within[near]]
+
+    def grid(count: int) -> np.ndarray:
+        return np.asarray(np.union1d(near, pool[_log_spaced(ds.freq_hz[pool], count)]))
+
     # the log grid's lines may fall on the features' lines: refine it while the budget allows
     count = budget - near.size
-    kept = np.union1d(near, _log_spaced(ds.freq_hz, count))
+    kept = grid(count)
     for _ in range(8):
         short = budget - kept.size
         if short <= 0:
             break
         count += short
-        trial = np.union1d(near, _log_spaced(ds.freq_hz, count))
+        trial = grid(count)
         if trial.size > budget:
             break
         kept = trial
-    kept = np.union1d(kept, [0, n - 1])
+    kept = np.union1d(kept, [pool[0], pool[-1]])
     features.sort(key=lambda f: (f.f_hz, f.kind))
     return FileReduction(ds.source, n, kept, tuple(features), int(near.size), True)
 
@@ -424,6 +449,7 @@ def reduce_datasets(
     datasets: Sequence[FrfData],
     setting: LinesSetting | str | None = None,
     channels: Sequence[str] | None = None,
+    bands: Sequence[tuple[float, float]] | None = None,
 ) -> tuple[list[FrfData], LineReduction]:
     """The data sets a fit uses under ``--lines`` ``setting``, and what was kept.
 
@@ -431,6 +457,8 @@ def reduce_datasets(
         datasets: the full data sets (any number of lines each).
         setting: :class:`LinesSetting` or its text (default ``auto``).
         channels: the channels whose resonances count (default: every present one).
+        bands: the bands the cost uses (Hz; None = all): the budget counts and keeps the
+            lines inside them.
 
     Returns:
         ``(reduced data sets, LineReduction)``; a data set that keeps every line is returned
@@ -440,12 +468,12 @@ def reduce_datasets(
     out, files = [], []
     for ds in datasets:
         n = ds.freq_hz.size
-        budget = st.budget(n)
+        budget = st.budget(int(band_mask(ds.freq_hz, bands).sum()))
         if budget is None:
             out.append(ds)
             files.append(FileReduction(ds.source, n, np.arange(n)))
             continue
-        red = select_lines(ds, budget, channels)
+        red = select_lines(ds, budget, channels, bands)
         out.append(subset_lines(ds, red.kept) if red.reduced else ds)
         files.append(red)
     return out, LineReduction(st, tuple(files))

@@ -258,7 +258,7 @@ def _load(args: argparse.Namespace, s: StudySettings) -> dict[str, Any]:
     if note:
         warnings.append(note)
     # the fit's cost runs on the reduced lines; the reported figures on all of them
-    fit_datasets, lines = reduce_datasets(datasets, s.lines, options.channels)
+    fit_datasets, lines = reduce_datasets(datasets, s.lines, options.channels, options.bands)
     names = resolve_names(doc, fit_datasets, s, options)
     lower, upper = resolve_bounds(doc, names, s, max(float(d.freq_hz[-1]) for d in datasets))
     warnings += start_outside_bounds(doc, names, lower, upper)

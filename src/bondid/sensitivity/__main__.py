@@ -116,7 +116,7 @@ def _run(args: argparse.Namespace) -> int:
     if note:
         warnings.append(note)
     # the analysis runs on the lines a fit with the same --lines uses
-    datasets, reduction = reduce_datasets(datasets, lines_setting, options.channels)
+    datasets, reduction = reduce_datasets(datasets, lines_setting, options.channels, options.bands)
     setup = make_setup(doc, datasets, options, cli.split_names(args.free),
                        cli.split_names(args.fixed))  # fmt: skip
     lin = linearise_cost(setup)
