@@ -185,3 +185,11 @@ def test_the_budget_goes_to_the_lines_of_the_bands_used() -> None:
     assert {round(x.f_hz) for x in info.files[0].features} >= {40, 101, 127}
     (whole,), info = reduce_datasets([ds], "auto", bands=[(30.0, 50.0)])  # ~1500 lines: kept
     assert whole is ds and not info.reduced
+
+
+def test_a_tight_budget_is_kept_with_every_extremum() -> None:
+    ds = _dense(20000)
+    for budget in (MIN_LINES, 300):
+        red = select_lines(ds, budget)
+        assert red.n_kept <= budget and red.feature_lines <= budget
+        assert {f.index for f in red.features} <= set(red.kept.tolist())

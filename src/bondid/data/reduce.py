@@ -317,11 +317,16 @@ def _thinned(inside: np.ndarray, room: int) -> np.ndarray:
     """At most ``room`` lines of the mask ``inside`` ``(n,)``: every run of consecutive lines
     keeps at most ``c`` of them, evenly spread, ``c`` the largest that fits (water-filling:
     the narrow runs stay whole, the widest are thinned)."""
+    lines = np.flatnonzero(inside)
+    if lines.size <= room:
+        return lines
+    if room <= 0:
+        return np.zeros(0, int)
     step = np.diff(np.concatenate([[0], inside.astype(int), [0]]))
     starts, stops = np.flatnonzero(step == 1), np.flatnonzero(step == -1)
     sizes = stops - starts
-    if int(sizes.sum()) <= room:
-        return np.flatnonzero(inside)
+    if room < sizes.size:  # fewer lines than runs: evenly over all of them
+        return lines[np.unique(np.round(np.linspace(0, lines.size - 1, room)).astype(int))]
     srt = np.sort(sizes)
     below = np.concatenate([[0], np.cumsum(srt)])
     c = 1
@@ -356,10 +361,10 @@ def _feature_lines(features: Sequence[Feature], freq_hz: np.ndarray, cap: int) -
     ]  # fmt: skip
     core = _mask([(lo, max(lo, hi)) for lo, hi in core_spans], n) & band
     core[centres] = False
-    kept = np.union1d(centres, _thinned(core, max(cap - centres.size, 0)))
-    shoulder = band.copy()
-    shoulder[kept] = False
-    return np.asarray(np.union1d(kept, _thinned(shoulder, max(cap - kept.size, 0))))
+    kept = np.union1d(centres, _thinned(core, cap - centres.size))
+    shoulder = band & ~core
+    shoulder[centres] = False
+    return np.asarray(np.union1d(kept, _thinned(shoulder, cap - kept.size)))
 
 
 def band_mask(freq_hz: np.ndarray, bands: Sequence[tuple[float, float]] | None) -> np.ndarray:
