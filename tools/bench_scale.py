@@ -36,6 +36,8 @@ MODEL = ROOT / "urdf" / "bonder.urdf"
 TRUTH = ROOT / "data" / "truth" / "bonder_truth.urdf"
 OPERATING_POINTS = {"q0": [], "q1": ["x=0.05", "y=-0.03", "z=0.1"]}
 COMMANDS = ("simulate", "fit", "fit_all", "sensitivity", "diagnose")
+#: the main result file of each command (a run that wrote none failed)
+RESULTS = ("fit.json", "sensitivity.json", "diagnosis.json")
 #: commands run by this tree only (the baseline has no such option)
 A_ONLY = ("fit_all",)
 
@@ -211,9 +213,9 @@ def table(rows: list[dict[str, Any]]) -> str:
             v = _fmt(x[key], ".0f" if key == "peak_mib" else ".1f")
             if x["timed_out"]:
                 return f">{v} (time limit)"
-            return v if x["exit"] in (0, 1) else f"{v} (exit {x['exit']})"
+            return v if x.get("results", True) else f"{v} (failed, exit {x['exit']})"
 
-        ok = a and b and not b["timed_out"] and b["exit"] in (0, 1)
+        ok = a and b and not b["timed_out"] and b.get("results", True)
         tr = _fmt(a["wall_s"] / b["wall_s"], ".2f") if ok else "—"
         pr = _fmt(a["peak_mib"] / b["peak_mib"], ".2f") if ok else "—"
         out.append(
@@ -390,6 +392,8 @@ def main(argv: list[str] | None = None) -> int:
                         av = command_argv(cmd, size, files, out)
                     r = run_one(srcs[side], av, args.out / f"{tag}.log", args.timeout, mem)
                     r["tag"] = tag
+                    made = [args.out / f"{tag}.csv"] + [out / n for n in RESULTS]
+                    r["results"] = any(m.is_file() for m in made)
                     runs[side].append(r)
                     print(
                         f"{tag}: {r['wall_s']:.1f} s, {r['peak_mib']:.0f} MiB, exit"
