@@ -325,59 +325,106 @@ class FrfProblem:
             if b.flat is None and not gains and theta is None:
                 self._grid_rows(b, affine, (dpi, dk, dd), rb, Jb)
                 return
-            H, dH = frf_and_jacobian(affine, b.freq_hz, dpi, dk, dd)
             mod = self.modifier
-            mixed = theta is not None and mod is not None and mod.mixing is not None
-            if mixed and theta is not None:  # the mixing needs every channel: whole grid
-                H, dH = self._mixed(b, affine, theta, dtheta, H, dH, gains, dgains)
-            Hs = H[b.rows, b.cols, b.fidx]
-            flat = np.arange(Hs.size) if b.flat is None else b.flat
-            dHs = dH.reshape(-1, n_p)[flat]
-            if gains and not mixed:
-                dHs = dHs + _gain_columns(affine, gains, dgains, b.rows, b.cols, Hs)
-            if theta is not None:
-                Hs, dHs = self._modified(b, theta, dtheta, Hs, dHs)
-            res = residual(self.options.kind, Hs, b.Hm, b.scale)
-            rb[:], weight = self._weighted(b, res)
-            residual_jacobian(self.options.kind, Hs, b.Hm, dHs, b.scale, weight, out=Jb)
+            if theta is not None and mod is not None and mod.mixing is not None:
+                self._mixed_rows(b, affine, (dpi, dk, dd), (gains, dgains), (theta, dtheta), rb, Jb)
+                return
+            G = None if theta is None else self._modifier_at(b, theta)
+            self._point_rows(b, affine, (dpi, dk, dd), (gains, dgains), (G, dtheta), rb, Jb)
 
         thread_map(one, range(len(self.blocks)), parallel=self.threaded)
         return r, J
 
-    def _mixed(
-        self, b: DataSelection, affine: AffineModel, theta: np.ndarray,
-        dtheta: np.ndarray | None, H: np.ndarray, dH: np.ndarray, gains: _Gains,
-        dgains: dict[str, np.ndarray],
-    ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-        """The modifier's mixing ``L H R`` of a data set's whole grid ``H`` ``(n_out, n_in,
-        n_fu)`` and its derivative ``(…, size)`` (the free gains' columns included first)."""
+    def _mixed_rows(
+        self,
+        b: DataSelection,
+        affine: AffineModel,
+        derivatives: tuple[np.ndarray, np.ndarray, np.ndarray],
+        gains: tuple[_Gains, dict[str, np.ndarray]],
+        modifier: tuple[np.ndarray, np.ndarray | None],
+        r: np.ndarray,
+        J: np.ndarray,
+    ) -> None:
+        """Residuals and Jacobian rows, written into ``r`` ``(k·n_sel,)`` and ``J`` ``(k,
+        n_sel, n_p)``, under a modifier that mixes channels (``L H R``): every channel of the
+        data set's grid enters every mixed one, so the whole grid and its derivatives are
+        formed at once. ``modifier`` = ``(θ, ∂θ/∂x or None)``."""
         assert self.modifier is not None
-        if gains:
+        theta, dtheta = modifier
+        H, dH = frf_and_jacobian(affine, b.freq_hz, *derivatives)
+        if gains[0]:
             no, ni, nf = H.shape
             rows = np.repeat(np.arange(no), ni * nf)
             cols = np.tile(np.repeat(np.arange(ni), nf), no)
-            dg = _gain_columns(affine, gains, dgains, rows, cols, H.reshape(-1))
+            dg = _gain_columns(affine, gains[0], gains[1], rows, cols, H.reshape(-1))
             dH = dH + dg.reshape(dH.shape)
-        return self.modifier.mixed_with_jacobian(
+        H, dH = self.modifier.mixed_with_jacobian(
             theta, dtheta, b.affine.outputs, b.affine.inputs, H, dH
         )
+        at = (b.rows, b.cols, b.fidx)
+        Hs, dHs = H[at], dH[at]
+        Hs, dHs = self._modified(self._modifier_at(b, theta), at, dtheta, Hs, dHs)
+        res = residual(self.options.kind, Hs, b.Hm, b.scale)
+        rb, weight = self._weighted(b, res)
+        r[:] = rb
+        J[:] = residual_jacobian(self.options.kind, Hs, b.Hm, dHs, b.scale, weight)
 
     def _modified(
         self,
-        b: DataSelection,
-        theta: np.ndarray,
+        G: tuple[np.ndarray, np.ndarray],
+        at: tuple[np.ndarray, np.ndarray, np.ndarray],
         dtheta: np.ndarray | None,
         Hs: np.ndarray,
         dHs: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """``G ⊙ Hs`` ``(n_sel,)`` and its derivative ``G ∂Hs/∂x + Hs ∂G/∂θ ∂θ/∂x``
-        ``(n_sel, size)`` (module :mod:`bondid.cost.modifier`)."""
-        G, dG = self._modifier_at(b, theta)
-        Gs, dGs = G[b.rows, b.cols, b.fidx], dG[b.rows, b.cols, b.fidx]
+        """``G ⊙ Hs`` ``(n,)`` and its derivative ``G ∂Hs/∂x + Hs ∂G/∂θ ∂θ/∂x`` ``(n, size)``
+        (module :mod:`bondid.cost.modifier`) at the points ``at`` = ``(rows, cols, fidx)``
+        of the modifier's ``G`` ``(n_out, n_in, n_fu)`` and ``∂G/∂θ`` ``(…, n_θ)``."""
+        Gs, dGs = G[0][at], G[1][at]
         out = Gs[:, None] * dHs
         if dtheta is not None:
             out = out + Hs[:, None] * (dGs @ dtheta)
         return Gs * Hs, out
+
+    def _point_rows(
+        self,
+        b: DataSelection,
+        affine: AffineModel,
+        derivatives: tuple[np.ndarray, np.ndarray, np.ndarray],
+        gains: tuple[_Gains, dict[str, np.ndarray]],
+        modifier: tuple[tuple[np.ndarray, np.ndarray] | None, np.ndarray | None],
+        r: np.ndarray,
+        J: np.ndarray,
+    ) -> None:
+        """Residuals and Jacobian rows of any selection (channel subsets, free gains, an FRF
+        modifier), written into ``r`` ``(k·n_sel,)`` and ``J`` ``(k, n_sel, n_p)`` one block
+        of frequencies at a time: the model's derivatives are never held for every frequency
+        at once (``(n_out, n_in, n_f, n_p)`` complex would grow with the lines times the
+        parameters). ``gains`` = ``(free gains, their d/dx)``, ``modifier`` = ``((G, ∂G/∂θ)
+        or None, ∂θ/∂x or None)``."""
+        kind, k = self.options.kind, parts(self.options.kind)
+        rk = r.reshape(k, -1)
+        order = np.argsort(b.fidx, kind="stable")
+        fsorted = b.fidx[order]
+        G, dtheta = modifier
+        for sl, H, dH in jacobian_blocks(affine, b.freq_hz, *derivatives):
+            lo, hi = np.searchsorted(fsorted, [sl.start, sl.stop])
+            pts = order[lo:hi]
+            if pts.size == 0:
+                continue
+            rows, cols, fidx = b.rows[pts], b.cols[pts], b.fidx[pts]
+            at = (rows, cols, fidx - sl.start)
+            Hs = H[at]
+            dHs = dH[0][at] + 1j * dH[1][at]
+            if gains[0]:
+                dHs = dHs + _gain_columns(affine, gains[0], gains[1], rows, cols, Hs)
+            if G is not None:
+                Hs, dHs = self._modified(G, (rows, cols, fidx), dtheta, Hs, dHs)
+            res = residual(kind, Hs, b.Hm[pts], b.scale[pts])
+            sw = np.sqrt(b.weight[pts]) * self._norm
+            rt, drt = robust(res, self.options.norm, self.options.l1_delta)
+            rk[:, pts] = rt * sw
+            J[:, pts] = residual_jacobian(kind, Hs, b.Hm[pts], dHs, b.scale[pts], drt * sw)
 
     def _grid_rows(
         self,

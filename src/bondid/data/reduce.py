@@ -1,0 +1,503 @@
+"""Fewer frequency lines for fitting dense data, said in the output.
+
+An analyser writes 10⁴–10⁵ lines per channel; a fit's cost and exact Jacobian grow with every
+line, while most lines of a dense grid repeat what their neighbours say. The reduction keeps,
+per file:
+
+1. **every line near each resonance and anti-resonance found in the data**: peaks and dips
+   of each used channel's magnitude in dB, smoothed over a few lines (±:data:`SMOOTH_REL` of
+   the frequency, at most ±:data:`SMOOTH_MAX` lines), with a prominence of at least
+   :data:`PROMINENCE_DB`, and with an estimated signal-to-noise ratio of at least
+   :data:`PEAK_SNR_DB` at a peak and :data:`DIP_SNR_DB` at a dip (a dip lost in the noise
+   floor carries nothing). Around each, the lines within :data:`WIDTHS` half-power
+   half-widths (the width where the smoothed magnitude is 3 dB from the extremum, kept
+   within :data:`MIN_HALF_REL` … :data:`MAX_HALF_REL` of the frequency; on a lightly damped
+   mode ``f₀ (1 ± WIDTHS·ζ)``). When these bands hold more than
+   :data:`FEATURE_SHARE` of the budget, the lines within one half-width come first, then
+   the rest of the bands, each tier thinned where it must be, widest runs first (narrow
+   bands stay whole; each extremum line is kept);
+2. **a log-spaced subset elsewhere**: the lines nearest to a log-spaced grid filling the rest
+   of the budget, the first and last line included.
+
+Lines are dropped, never averaged: a kept line is the measured value with its own weight,
+and the weights (the information weights of :mod:`bondid.data.weights`) come from the noise
+estimated on the full grid, attached to the reduced data set (on the thinned grid the
+estimate would see signal change between lines as scatter).
+
+The figures a command reports (``db_rms``, the noise level, modes) are computed on all lines;
+only the fit's cost and its Jacobian use the reduced set.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from ..exceptions import ConfigError
+from .measurement import FrfData
+from .weights import attach_noise_estimate, noise_estimate
+
+#: ``--lines auto`` reduces files with more lines than this ...
+AUTO_ABOVE = 4000
+#: ... to at most this many lines per file
+AUTO_LINES = 3000
+#: the smallest ``--lines N``
+MIN_LINES = 100
+#: at most this share of the budget on the lines near resonances and anti-resonances
+FEATURE_SHARE = 0.6
+#: smoothing of the magnitude before the search: ±SMOOTH_REL × f, at most ±SMOOTH_MAX lines
+SMOOTH_REL = 2e-3
+SMOOTH_MAX = 16
+#: the prominence [dB] of a peak or dip of the smoothed magnitude that counts
+PROMINENCE_DB = 6.0
+#: estimated SNR [dB] at a peak / at a dip for it to count
+PEAK_SNR_DB = 10.0
+DIP_SNR_DB = 0.0
+#: the lines kept around a feature: within this many half-power half-widths of it, the
+#: half-width taken within MIN_HALF_REL … MAX_HALF_REL of its frequency (the 3 dB width of a
+#: dip next to a resonance comes out narrower than its damping says, and the dip between two
+#: modes of a cross channel is broad without being a zero)
+WIDTHS = 3.0
+MIN_HALF_REL = 0.005
+MAX_HALF_REL = 0.05
+_HALF_POWER_DB = 10.0 * math.log10(2.0)
+
+#: how the rule is described in the results files
+RULE = (
+    f"kept every line within {WIDTHS:g} half-power half-widths (taken within"
+    f" {MIN_HALF_REL:.1%}..{MAX_HALF_REL:.0%} of the frequency) of each resonance and"
+    f" anti-resonance (peaks/dips of the smoothed |H| of every used channel, prominence >="
+    f" {PROMINENCE_DB:g} dB, estimated SNR >= {PEAK_SNR_DB:g} dB at a peak, >= {DIP_SNR_DB:g} dB"
+    f" at a dip; at most {FEATURE_SHARE:.0%} of the budget: beyond, the lines within one"
+    " half-width first, the widest bands thinned first)"
+    " and the lines nearest a log-spaced grid elsewhere; the weights come from the noise"
+    " estimated on all lines"
+)
+
+
+@dataclass(frozen=True)
+class LinesSetting:
+    """``--lines``: ``"auto"``, ``"all"`` or at most ``n`` lines per file (``mode "max"``)."""
+
+    mode: str = "auto"
+    n: int | None = None
+
+    def __str__(self) -> str:
+        return str(self.n) if self.mode == "max" else self.mode
+
+    def budget(self, n_lines: int) -> int | None:
+        """The most lines a file of ``n_lines`` keeps (None: all of them)."""
+        if self.mode == "all":
+            return None
+        if self.mode == "auto":
+            return AUTO_LINES if n_lines > AUTO_ABOVE else None
+        assert self.n is not None
+        return self.n if n_lines > self.n else None
+
+
+def parse_lines(value: str | int | None, where: str = "--lines") -> LinesSetting:
+    """``auto``, ``all`` or an integer ``N ≥`` :data:`MIN_LINES` (None: ``auto``); else
+    :class:`ConfigError` naming ``where``."""
+    if value is None:
+        return LinesSetting()
+    text = str(value).strip().lower()
+    if text in ("auto", "all"):
+        return LinesSetting(text)
+    try:
+        n = int(text)
+    except ValueError:
+        n = -1
+    if isinstance(value, bool) or n < MIN_LINES or str(n) != text.lstrip("+"):
+        raise ConfigError(
+            f"{where} {value!r}: valid: auto (reduce files above {AUTO_ABOVE} lines to"
+            f" {AUTO_LINES}), all, or a line count per file >= {MIN_LINES}"
+        )
+    return LinesSetting("max", n)
+
+
+@dataclass(frozen=True)
+class Feature:
+    """A resonance (``kind "resonance"``) or anti-resonance found in one channel.
+
+    Attributes:
+        kind: ``"resonance"`` or ``"anti-resonance"``.
+        channel: ``OUT.IN``.
+        index: the line of the extremum (index into the file's frequencies).
+        f_hz: its frequency [Hz].
+        half_width_hz: the half-power half-width [Hz].
+        prominence_db: of the smoothed magnitude [dB].
+        lo, hi: the lines kept around it, ``lo ≤ index ≤ hi`` (inclusive).
+    """
+
+    kind: str
+    channel: str
+    index: int
+    f_hz: float
+    half_width_hz: float
+    prominence_db: float
+    lo: int
+    hi: int
+
+
+@dataclass(frozen=True)
+class FileReduction:
+    """What the reduction kept of one file.
+
+    Attributes:
+        file: the file (None for data built in memory).
+        n_lines: its lines.
+        kept: ``(n_kept,)`` sorted indices of the kept lines (all of them when not reduced).
+        features: the resonances and anti-resonances found (empty when not reduced).
+        feature_lines: how many kept lines lie near a feature.
+        reduced: whether lines were dropped.
+    """
+
+    file: str | None
+    n_lines: int
+    kept: np.ndarray
+    features: tuple[Feature, ...] = ()
+    feature_lines: int = 0
+    reduced: bool = False
+
+    @property
+    def n_kept(self) -> int:
+        return int(self.kept.size)
+
+    def to_json_dict(self) -> dict[str, Any]:
+        return {
+            "file": self.file,
+            "lines": self.n_lines,
+            "kept": self.n_kept,
+            "reduced": self.reduced,
+            "resonances": sum(f.kind == "resonance" for f in self.features),
+            "anti_resonances": sum(f.kind == "anti-resonance" for f in self.features),
+            "feature_lines": self.feature_lines,
+        }
+
+
+@dataclass(frozen=True)
+class LineReduction:
+    """The reduction of every file of a command (:func:`reduce_datasets`).
+
+    Attributes:
+        setting: the ``--lines`` setting.
+        files: one :class:`FileReduction` per file, in order.
+    """
+
+    setting: LinesSetting
+    files: tuple[FileReduction, ...]
+
+    @property
+    def reduced(self) -> bool:
+        return any(f.reduced for f in self.files)
+
+    def kept_per_file(self) -> list[int]:
+        return [f.n_kept for f in self.files]
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """``{"setting", "reduced", "rule", "auto_above", "auto_lines", "lines", "kept",
+        "files": [...]}`` for the results files (``lines``/``kept``: totals over files)."""
+        return {
+            "setting": str(self.setting),
+            "reduced": self.reduced,
+            "rule": RULE if self.reduced else "all lines",
+            "auto_above": AUTO_ABOVE,
+            "auto_lines": AUTO_LINES,
+            "lines": sum(f.n_lines for f in self.files),
+            "kept": sum(f.n_kept for f in self.files),
+            "files": [f.to_json_dict() for f in self.files],
+        }
+
+    def summary_line(self, verb: str = "fitted", figures: bool = True) -> str:
+        """One line for a command's summary (``verb``: what the command did on the lines;
+        ``figures``: say that the figures are on all lines)."""
+        kept = ", ".join(f"{f.n_kept}/{f.n_lines}" for f in self.files)
+        if not self.reduced:
+            return f"lines: all used ({kept}; --lines {self.setting})"
+        n_res = sum(f.kind == "resonance" for r in self.files for f in r.features)
+        n_anti = sum(f.kind == "anti-resonance" for r in self.files for f in r.features)
+        tail = "; figures on all lines" if figures else ""
+        return (
+            f"lines: {verb} on {kept} per file (--lines {self.setting}: every line near"
+            f" {n_res} resonance and {n_anti} anti-resonance finds, log-spaced elsewhere){tail}"
+        )
+
+
+def _smoothed_db(freq_hz: np.ndarray, H: np.ndarray) -> np.ndarray:
+    """``10 log10 |H|²`` ``(n,)`` averaged over ±:data:`SMOOTH_REL` of each frequency (at
+    most ±:data:`SMOOTH_MAX` lines; a running sum, linear in the lines)."""
+    db = 10.0 * np.log10(np.maximum(np.abs(H) ** 2, 1e-300))
+    n = db.size
+    k = np.arange(n)
+    lf = np.log(freq_hz)
+    lo = np.maximum(np.searchsorted(lf, lf + math.log1p(-SMOOTH_REL)), k - SMOOTH_MAX)
+    hi = np.minimum(np.searchsorted(lf, lf + math.log1p(SMOOTH_REL), side="right"),
+                    k + SMOOTH_MAX + 1)  # fmt: skip
+    csum = np.concatenate([[0.0], np.cumsum(db - db.mean())])
+    return np.asarray((csum[hi] - csum[lo]) / (hi - lo) + db.mean())
+
+
+def _at(freq_hz: np.ndarray, pos: float) -> float:
+    """Frequency at a fractional line position (linear between lines)."""
+    return float(np.interp(pos, np.arange(freq_hz.size), freq_hz))
+
+
+def channel_features(
+    freq_hz: np.ndarray, H: np.ndarray, snr_db: np.ndarray, channel: str = ""
+) -> list[Feature]:
+    """The resonances and anti-resonances of one channel (module docstring, step 1).
+
+    Args:
+        freq_hz: ``(n,)`` Hz, increasing.
+        H: complex ``(n,)``.
+        snr_db: estimated SNR per line ``(n,)`` [dB] (NaN: unknown, counts as enough).
+        channel: its name, for the result.
+
+    Returns:
+        The features, lowest frequency first.
+    """
+    from scipy.signal import find_peaks, peak_widths
+
+    n = freq_hz.size
+    if n < 5:
+        return []
+    x = _smoothed_db(freq_hz, H)
+    snr = np.where(np.isnan(snr_db), np.inf, snr_db)
+    out: list[Feature] = []
+    for sign, kind, need in ((1.0, "resonance", PEAK_SNR_DB), (-1.0, "anti-resonance", DIP_SNR_DB)):
+        y = sign * x
+        peaks, props = find_peaks(y, prominence=PROMINENCE_DB)
+        for p, prom, lb, rb in zip(
+            peaks, props["prominences"], props["left_bases"], props["right_bases"], strict=True
+        ):
+            if snr[p] < need:
+                continue
+            data = (np.array([prom]), np.array([lb]), np.array([rb]))
+            _, _, left, right = peak_widths(
+                y, [p], rel_height=_HALF_POWER_DB / prom, prominence_data=data
+            )
+            f_l, f_r = _at(freq_hz, float(left[0])), _at(freq_hz, float(right[0]))
+            f0 = float(freq_hz[p])
+            half = min(max(0.5 * (f_r - f_l), MIN_HALF_REL * f0), MAX_HALF_REL * f0)
+            lo = int(np.searchsorted(freq_hz, freq_hz[p] - WIDTHS * half, side="left"))
+            hi = int(np.searchsorted(freq_hz, freq_hz[p] + WIDTHS * half, side="right")) - 1
+            out.append(Feature(kind, channel, int(p), float(freq_hz[p]), half, float(prom),
+                               min(lo, int(p)), max(hi, int(p))))  # fmt: skip
+    out.sort(key=lambda f: f.index)
+    return out
+
+
+def _log_spaced(freq_hz: np.ndarray, count: int) -> np.ndarray:
+    """The lines nearest to ``count`` log-spaced frequencies over the file's range (unique,
+    sorted; linear in the lines)."""
+    if count <= 0:
+        return np.zeros(0, int)
+    lf = np.log(freq_hz)
+    target = np.linspace(lf[0], lf[-1], count)
+    right = np.clip(np.searchsorted(lf, target), 1, lf.size - 1)
+    left = right - 1
+    nearest = np.where(target - lf[left] <= lf[right] - target, left, right)
+    return np.asarray(np.unique(nearest))
+
+
+def _mask(spans: Sequence[tuple[int, int]], n: int) -> np.ndarray:
+    """Boolean ``(n,)``: the lines inside any inclusive span ``(lo, hi)``."""
+    edge = np.zeros(n + 1, int)
+    for lo, hi in spans:
+        edge[lo] += 1
+        edge[hi + 1] -= 1
+    return np.asarray(np.cumsum(edge)[:n] > 0)
+
+
+def _thinned(inside: np.ndarray, room: int) -> np.ndarray:
+    """At most ``room`` lines of the mask ``inside`` ``(n,)``: every run of consecutive lines
+    keeps at most ``c`` of them, evenly spread, ``c`` the largest that fits (water-filling:
+    the narrow runs stay whole, the widest are thinned)."""
+    lines = np.flatnonzero(inside)
+    if lines.size <= room:
+        return lines
+    if room <= 0:
+        return np.zeros(0, int)
+    step = np.diff(np.concatenate([[0], inside.astype(int), [0]]))
+    starts, stops = np.flatnonzero(step == 1), np.flatnonzero(step == -1)
+    sizes = stops - starts
+    if room < sizes.size:  # fewer lines than runs: evenly over all of them
+        return lines[np.unique(np.round(np.linspace(0, lines.size - 1, room)).astype(int))]
+    srt = np.sort(sizes)
+    below = np.concatenate([[0], np.cumsum(srt)])
+    c = 1
+    for k in range(srt.size):
+        c_k = (room - below[k]) // (srt.size - k)
+        if c_k < srt[k]:
+            c = max(int(c_k), 1)
+            break
+    parts = [np.zeros(0, int)]
+    for a, m in zip(starts, sizes, strict=True):
+        take = np.arange(m) if m <= c else np.unique(np.round(np.linspace(0, m - 1, c)))
+        parts.append(a + take.astype(int))
+    return np.concatenate(parts)
+
+
+def _feature_lines(features: Sequence[Feature], freq_hz: np.ndarray, cap: int) -> np.ndarray:
+    """Sorted lines within the features' bands, at most ``cap`` (and each extremum with its
+    neighbours). Beyond the cap the lines within one half-width of a feature (its core) come
+    first, then those out to :data:`WIDTHS` half-widths; each tier thinned, when it must be,
+    widest runs first (:func:`_thinned`)."""
+    n = freq_hz.size
+    band = _mask([(f.lo, f.hi) for f in features], n)
+    if int(band.sum()) <= cap:
+        return np.flatnonzero(band)
+    centres = np.unique(np.clip(
+        np.array([f.index + d for f in features for d in (-1, 0, 1)], int), 0, n - 1
+    ))  # fmt: skip
+    core_spans = [
+        (int(np.searchsorted(freq_hz, f.f_hz - f.half_width_hz)),
+         int(np.searchsorted(freq_hz, f.f_hz + f.half_width_hz, side="right")) - 1)
+        for f in features
+    ]  # fmt: skip
+    core = _mask([(lo, max(lo, hi)) for lo, hi in core_spans], n) & band
+    core[centres] = False
+    kept = np.union1d(centres, _thinned(core, cap - centres.size))
+    shoulder = band & ~core
+    shoulder[centres] = False
+    return np.asarray(np.union1d(kept, _thinned(shoulder, cap - kept.size)))
+
+
+def band_mask(freq_hz: np.ndarray, bands: Sequence[tuple[float, float]] | None) -> np.ndarray:
+    """Boolean ``(n,)``: the lines inside any of ``bands`` (Hz, inclusive; None: all)."""
+    if not bands:
+        return np.ones(freq_hz.size, bool)
+    m = np.zeros(freq_hz.size, bool)
+    for lo, hi in bands:
+        m |= (freq_hz >= lo) & (freq_hz <= hi)
+    return m
+
+
+def select_lines(
+    ds: FrfData,
+    budget: int,
+    channels: Sequence[str] | None = None,
+    bands: Sequence[tuple[float, float]] | None = None,
+) -> FileReduction:
+    """At most ``budget`` lines of ``ds`` (module docstring) inside ``bands``; every line
+    there when they are no more.
+
+    Args:
+        ds: the data set (frequencies ``(n_freq,)`` Hz).
+        budget: the most lines to keep (``≥`` :data:`MIN_LINES`).
+        channels: the channels ``OUT.IN`` whose features count (default: every present one).
+        bands: the bands a cost uses (Hz; None = all): the budget goes to the lines in them
+            (lines outside would be dropped by the cost anyway).
+
+    Returns:
+        :class:`FileReduction` with the kept lines.
+    """
+    n = ds.freq_hz.size
+    within = band_mask(ds.freq_hz, bands)
+    pool = np.flatnonzero(within)
+    if pool.size <= budget:
+        return FileReduction(ds.source, n, pool, reduced=pool.size < n)
+    est = noise_estimate(ds)
+    pres = ds.present
+    wanted = None if channels is None else set(channels)
+    features: list[Feature] = []
+    for a, o in enumerate(ds.outputs):
+        for b, i in enumerate(ds.inputs):
+            name = f"{o}.{i}"
+            if pres[a, b] and (wanted is None or name in wanted):
+                found = channel_features(ds.freq_hz, ds.H[a, b], est.snr_db[a, b], name)
+                features += [f for f in found if within[f.index]]
+    near = _feature_lines(features, ds.freq_hz, int(FEATURE_SHARE * budget))
+    near = near[within[near]]
+
+    def grid(count: int) -> np.ndarray:
+        return np.asarray(np.union1d(near, pool[_log_spaced(ds.freq_hz[pool], count)]))
+
+    # the log grid's lines may fall on the features' lines: refine it while the budget allows
+    count = budget - near.size
+    kept = grid(count)
+    for _ in range(8):
+        short = budget - kept.size
+        if short <= 0:
+            break
+        count += short
+        trial = grid(count)
+        if trial.size > budget:
+            break
+        kept = trial
+    kept = np.union1d(kept, [pool[0], pool[-1]])
+    features.sort(key=lambda f: (f.f_hz, f.kind))
+    return FileReduction(ds.source, n, kept, tuple(features), int(near.size), True)
+
+
+def subset_lines(ds: FrfData, kept: np.ndarray) -> FrfData:
+    """``ds`` at the lines ``kept`` ``(n_kept,)`` (sorted indices), carrying the noise
+    estimated on all of its lines (so its information weights are those of the full grid)."""
+    idx = np.asarray(kept, int)
+    est = noise_estimate(ds)
+    out = replace(
+        ds,
+        freq_hz=ds.freq_hz[idx],
+        H=ds.H[:, :, idx],
+        coherence=None if ds.coherence is None else ds.coherence[:, :, idx],
+        operating_point=dict(ds.operating_point),
+    )
+    attach_noise_estimate(out, est.at(idx))
+    return out
+
+
+def reduce_datasets(
+    datasets: Sequence[FrfData],
+    setting: LinesSetting | str | None = None,
+    channels: Sequence[str] | None = None,
+    bands: Sequence[tuple[float, float]] | None = None,
+) -> tuple[list[FrfData], LineReduction]:
+    """The data sets a fit uses under ``--lines`` ``setting``, and what was kept.
+
+    Args:
+        datasets: the full data sets (any number of lines each).
+        setting: :class:`LinesSetting` or its text (default ``auto``).
+        channels: the channels whose resonances count (default: every present one).
+        bands: the bands the cost uses (Hz; None = all): the budget counts and keeps the
+            lines inside them.
+
+    Returns:
+        ``(reduced data sets, LineReduction)``; a data set that keeps every line is returned
+        as it is.
+    """
+    st = setting if isinstance(setting, LinesSetting) else parse_lines(setting)
+    out, files = [], []
+    for ds in datasets:
+        n = ds.freq_hz.size
+        budget = st.budget(int(band_mask(ds.freq_hz, bands).sum()))
+        if budget is None:
+            out.append(ds)
+            files.append(FileReduction(ds.source, n, np.arange(n)))
+            continue
+        red = select_lines(ds, budget, channels, bands)
+        out.append(subset_lines(ds, red.kept) if red.reduced else ds)
+        files.append(red)
+    return out, LineReduction(st, tuple(files))
+
+
+def reduce_to(ds: FrfData, n_points: int, channels: Sequence[str] | None = None) -> FrfData:
+    """``ds`` with at most ``n_points`` lines (:func:`select_lines`; all when it has no
+    more), carrying the noise estimated on all lines: a drop-in for a plain log-spaced
+    decimation that keeps the lines near every resonance and anti-resonance. Linear in the
+    lines."""
+    if ds.freq_hz.size <= n_points:
+        return ds
+    return subset_lines(ds, select_lines(ds, n_points, channels).kept)
+
+
+def decimate_log(ds: FrfData, n_points: int) -> FrfData:
+    """At most ``n_points`` lines of ``ds``, the nearest to a log-spaced grid (all when it has
+    no more), carrying the noise estimated on all lines. Linear in the lines (a nearest-line
+    search by matrix of grid × lines grows as their product)."""
+    if ds.freq_hz.size <= n_points:
+        return ds
+    return subset_lines(ds, _log_spaced(ds.freq_hz, n_points))
