@@ -42,6 +42,10 @@ Every section and key is optional::
     [gains]                                  # transducer gains (fixed unless --free names them)
     "gain.in.motor" = 0.35
 
+    [ties]                                   # --tie: joint parameters sharing one value
+    damping = "*.damping"                    # a tie's name = names or globs of one kind
+    inner = ["j2.stiffness", "j3.stiffness"]
+
     [search]
     multistart = 8                           # --multistart
     seed = 0                                 # --seed
@@ -98,7 +102,7 @@ STAGES = ("stiffness", "damping", "inertia")
 
 _TOP_KEYS = (
     "model", "data", "parameters", "bounds", "cost", "search", "points", "gains", "points_file",
-    "package_path", "floating_base", "uff_map",
+    "package_path", "floating_base", "uff_map", "ties",
 )  # fmt: skip
 _SECTION_KEYS = {
     "parameters": ("free", "fixed", "prior"),
@@ -158,6 +162,8 @@ class StudySettings:
         package_path: folders searched first for ``package://`` meshes.
         floating_base: add a floating joint above the root (a free-free structure).
         uff_map: channel name -> (node, direction) of UFF58 records.
+        ties: tie name -> the names and globs of its joint parameters (one value each tie;
+            :mod:`bondid.model.ties`).
     """
 
     model: Path | None = None
@@ -191,6 +197,7 @@ class StudySettings:
     package_path: list[Path] = field(default_factory=list)
     floating_base: bool = False
     uff_map: dict[str, tuple[int, int]] = field(default_factory=dict)
+    ties: dict[str, list[str]] = field(default_factory=dict)
 
     def to_json_dict(self) -> dict[str, Any]:
         """The settings as plain JSON values (paths as strings)."""
@@ -226,6 +233,7 @@ class StudySettings:
             "package_path": [str(p) for p in self.package_path],
             "floating_base": self.floating_base,
             "uff_map": {k: list(v) for k, v in self.uff_map.items()},
+            "ties": {k: list(v) for k, v in self.ties.items()},
         }
 
 
@@ -284,6 +292,10 @@ def study_from_dict(
     read_model_keys(doc, s, where, base)
 
     _read_parameters(doc, s, where)
+    for name, items in check_table(doc.get("ties", {}), where, "ties").items():
+        s.ties[str(name)] = check_names(items, where, f"ties.{name}")
+        if not s.ties[str(name)]:
+            raise config_error(where, f"ties.{name}", "empty; give names or globs")
     _read_cost(doc, s, where)
     _read_search(doc, s, where)
     return s

@@ -40,6 +40,7 @@ import numpy as np
 
 from ..exceptions import ParameterError
 from .document import UrdfDocument, rotation_and_translation
+from .ties import TIEABLE, Tie, followers, model_ties, set_tie
 
 COM_AXES = ("x", "y", "z")
 INERTIA_COMPONENTS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
@@ -243,7 +244,8 @@ def select_parameters(
     """Resolve names, glob patterns and groups into parameter names (model order).
 
     ``free`` and ``fixed`` items may be comma- or space-separated strings. ``fixed`` wins.
-    A pattern that matches nothing raises :class:`ParameterError`.
+    A pattern that matches nothing raises :class:`ParameterError`. Of a tie declared in the
+    model (:mod:`.ties`) only the first chosen member is returned: the others follow it.
     """
     all_names = parameter_names(doc)
 
@@ -264,4 +266,50 @@ def select_parameters(
         return out
 
     chosen = expand(free) - expand(fixed)
-    return [n for n in all_names if n in chosen]
+    ordered = [n for n in all_names if n in chosen]
+    tied = followers(model_ties(doc), ordered)
+    return [n for n in ordered if n not in tied]
+
+
+def declare_tie(doc: UrdfDocument, name: str, items: Iterable[str], where: str) -> Tie:
+    """Tie the joint parameters that ``items`` (names and globs, comma- or space-separated)
+    match into one value, in ``doc`` (:mod:`.ties`); every member is set to the first one's
+    value (model order).
+
+    Raises:
+        ParameterError: a pattern matches nothing, fewer than two parameters, a parameter
+            that is not a joint stiffness or damping, members of two kinds, or a member
+            already in another tie (the message names ``where``).
+    """
+    infos = {p.name: p for p in parameter_infos(doc)}
+    hits: set[str] = set()
+    for item in items:
+        for token in item.replace(",", " ").split():
+            found = [n for n in infos if fnmatch.fnmatchcase(n, token)]
+            if not found:
+                raise ParameterError(
+                    f"{where}: tie {name!r}: {token!r} matches no parameter of"
+                    f" {doc.source or '<URDF>'}; give joint stiffness or damping names or globs"
+                    " (*.damping, seg*.stiffness)"
+                )
+            hits.update(found)
+    members = [n for n in infos if n in hits]
+    kinds = {infos[n].kind for n in members}
+    if len(members) < 2 or not kinds <= set(TIEABLE) or len(kinds) != 1:
+        raise ParameterError(
+            f"{where}: tie {name!r} holds {', '.join(members)}; valid: two or more joint"
+            f" parameters of one kind ({' or '.join(TIEABLE)})"
+        )
+    for other in model_ties(doc):
+        shared = set(other.members) & set(members)
+        if other.name != name and shared:
+            raise ParameterError(
+                f"{where}: tie {name!r}: {', '.join(sorted(shared))} already in tie"
+                f" {other.name!r}; a parameter can be in one tie only"
+            )
+    value = get_parameter(doc, members[0])
+    for m in members[1:]:
+        set_parameter(doc, m, value)
+    tie = Tie(name, tuple(members))
+    set_tie(doc, tie)
+    return tie
