@@ -4,8 +4,9 @@
 point, so one linearisation per pose) and the cost options together. Its decision vector ``x``
 is whatever a *parameter model* (:class:`ParameterModel`) maps onto the physical values ``(π
 (nb,10), k (nv,), d (nv,))`` with exact derivatives, and optionally onto free transducer gains
-``gain.in.X`` / ``gain.out.Y`` (``H = g_out · H_model · g_in``). Which points are used is
-decided by :mod:`bondid.cost.selection`.
+``gain.in.X`` / ``gain.out.Y`` (``H = g_out · H_model · g_in``) and the mixes of points with a
+second component (:mod:`.mixing`). Which points are used is decided by
+:mod:`bondid.cost.selection`.
 
 The residual vector is scaled so that ``cost = ‖r‖²`` is the weighted mean square over the
 selected complex points (for ``complex_log`` that is ``db_rms²``).
@@ -28,6 +29,7 @@ from ..frf.jacobian import frf_and_jacobian, jacobian_blocks
 from ..linear.affine import AffineModel, build_affine_model, model_inputs, model_outputs
 from ..model.document import UrdfDocument
 from ..threads import thread_map
+from .mixing import free_mixes, mix_columns, mix_rows, mixed_affine
 from .modifier import FrfModifier
 from .residuals import (
     check_kind,
@@ -112,11 +114,6 @@ def _block_affine(b: DataSelection, values: _Values, gains: _Gains) -> AffineMod
     return affine.with_gains(*_gain_arrays(affine, gains)) if gains else affine
 
 
-def _block_frf(b: DataSelection, values: _Values, gains: _Gains | None = None) -> np.ndarray:
-    """Model FRF ``(n_out, n_in_model, n_fu)`` of a data set at parameter ``values``."""
-    return _block_affine(b, values, gains or {}).linear_model().frf(b.freq_hz)
-
-
 def _gain_columns(
     affine: AffineModel, gains: _Gains, dgains: dict[str, np.ndarray], rows: np.ndarray,
     cols: np.ndarray, Hs: np.ndarray,
@@ -186,6 +183,15 @@ class FrfProblem:
         self._norm = 1.0 / np.sqrt(total)
         #: whether the data sets are evaluated on parallel threads (each large enough)
         self.threaded = min(b.Hm.size for b in self.blocks) >= THREADED_MIN_POINTS
+        self._mix_rows: list | None = None  # per data set, built when a mix is free
+
+    def _mixed(self, i: int, affine: AffineModel, mixes: dict[str, float]) -> AffineModel:
+        """``affine`` (data set ``i``'s) with the free ``mixes`` of its points set."""
+        if not mixes:
+            return affine
+        if self._mix_rows is None:
+            self._mix_rows = [mix_rows(self.doc, b.affine) for b in self.blocks]
+        return mixed_affine(affine, self._mix_rows[i], mixes)
 
     # -- the same linearisations, other selections or values ---------------------------------
     @property
@@ -207,11 +213,13 @@ class FrfProblem:
         values at ``x`` (``doc``: the model document holding those values). The affine bases
         and the data selections are shared: nothing is linearised or selected again."""
         values, gains = pmodel.values(x), _free_gains(pmodel, x)
+        mixes = free_mixes(pmodel, x)[0]
         out = copy.copy(self)
         out.doc = doc
         out.modifier_theta = self._theta(pmodel, x)[0]
         out.blocks = [
-            dataclasses.replace(b, affine=_block_affine(b, values, gains)) for b in self.blocks
+            dataclasses.replace(b, affine=self._mixed(i, _block_affine(b, values, gains), mixes))
+            for i, b in enumerate(self.blocks)
         ]
         return out
 
@@ -247,13 +255,15 @@ class FrfProblem:
         """Model FRF at each data set's used frequencies, ``(n_out, n_in_model, n_fu)`` each
         (receptance; :func:`bondid.frf.aligned.model_frf` gives it in a data set's layout)."""
         values, gains = pmodel.values(x), _free_gains(pmodel, x)
+        mixes = free_mixes(pmodel, x)[0]
         theta = self._theta(pmodel, x)[0]
 
-        def one(b: DataSelection) -> np.ndarray:
-            H = _block_frf(b, values, gains)
+        def one(i: int) -> np.ndarray:
+            b = self.blocks[i]
+            H = self._mixed(i, _block_affine(b, values, gains), mixes).linear_model().frf(b.freq_hz)
             return H if theta is None else H * self._modifier_at(b, theta)[0]
 
-        return thread_map(one, self.blocks, parallel=self.threaded)
+        return thread_map(one, range(len(self.blocks)), parallel=self.threaded)
 
     def _theta(
         self, pmodel: ParameterModel, x: np.ndarray
@@ -306,6 +316,7 @@ class FrfProblem:
         """
         values, gains = pmodel.values(x), _free_gains(pmodel, x)
         dgains = _free_gain_jacobian(pmodel, x) if gains else {}
+        mixes, dmixes = free_mixes(pmodel, x)
         dpi, dk, dd = pmodel.jacobian(x)
         theta, dtheta = self._theta(pmodel, x)
         n_p, k = dpi.shape[2], parts(self.options.kind)
@@ -318,8 +329,8 @@ class FrfProblem:
             b = self.blocks[i]
             rb = r[start[i] : start[i + 1]]
             Jb = J[start[i] : start[i + 1]].reshape(k, b.Hm.size, n_p)
-            affine = _block_affine(b, values, gains)
-            if b.flat is None and not gains and theta is None:
+            affine = self._mixed(i, _block_affine(b, values, gains), mixes)
+            if b.flat is None and not gains and not mixes and theta is None:
                 self._grid_rows(b, affine, (dpi, dk, dd), rb, Jb)
                 return
             H, dH = frf_and_jacobian(affine, b.freq_hz, dpi, dk, dd)
@@ -328,6 +339,10 @@ class FrfProblem:
             dHs = dH.reshape(-1, n_p)[flat]
             if gains:
                 dHs = dHs + _gain_columns(affine, gains, dgains, b.rows, b.cols, Hs)
+            if mixes:
+                assert self._mix_rows is not None
+                sel = (b.rows, b.cols, b.fidx)
+                dHs = dHs + mix_columns(affine, self._mix_rows[i], dmixes, b.freq_hz, sel)
             if theta is not None:
                 Hs, dHs = self._modified(b, theta, dtheta, Hs, dHs)
             res = residual(self.options.kind, Hs, b.Hm, b.scale)

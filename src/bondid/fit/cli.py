@@ -45,6 +45,7 @@ _KIND_GLOB = {
     "stiffness": "*.stiffness",
     "damping": "*.damping",
     "gain": "gain.*",
+    "mix": "mix.*",
 }
 
 

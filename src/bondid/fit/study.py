@@ -96,7 +96,7 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..modes.bands import Span as Band
 
 #: Parameter kinds a bound key may name (besides names and globs).
-KINDS = ("mass", "com", "inertia", "stiffness", "damping", "gain")
+KINDS = ("mass", "com", "inertia", "stiffness", "damping", "gain", "mix")
 #: Stages of the staged fit, in the order they run.
 STAGES = ("stiffness", "damping", "inertia")
 

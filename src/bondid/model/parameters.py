@@ -11,7 +11,11 @@ name                           meaning                                      unit
 ``JOINT.stiffness``            Gazebo joint spring                          N/m, N·m/rad
 ``JOINT.damping``              joint viscous damper                         N·s/m, N·m·s/rad
 ``gain.in.X``, ``gain.out.Y``  transducer gain of input X / output Y         file unit per SI
+``mix.P``                      share of point P's second component          per its kinds
 =============================  ==========================================  ===============
+
+A mix is a parameter only for a point declared with a second component (a patch driving
+bending and torsion: :mod:`bondid.model.points`); it belongs to the group ``mixes`` only.
 
 A gain is a parameter only where the model declares it (``<transducer_gain>``, from a study's
 ``[gains]`` table or ``--points`` file; see :mod:`bondid.model.points`); it belongs to the
@@ -24,7 +28,8 @@ stores the inertial with ``rpy = 0``.
 Groups: ``inertial`` (the 10 parameters of every moving link with an ``<inertial>``),
 ``parasitic`` (stiffness and damping of every movable joint without a transmission),
 ``joints`` (stiffness and damping of every movable joint), ``all`` (``inertial`` + ``joints``),
-``gains`` (the declared transducer gains), ``default`` (``inertial`` + every joint stiffness
+``gains`` (the declared transducer gains), ``mixes`` (the points' mixes), ``default``
+(``inertial`` + every joint stiffness
 and damping whose model value is not 0: ``python -m bondid.fit``'s default free set; a 0 the
 model sets, no spring on a driven axis, is a modelling decision, not an uncertain number).
 """
@@ -33,13 +38,14 @@ from __future__ import annotations
 
 import fnmatch
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from ..exceptions import ParameterError
 from .document import UrdfDocument, rotation_and_translation
+from .points import MIX_PREFIX
 from .ties import TIEABLE, Tie, followers, model_ties, set_tie
 
 COM_AXES = ("x", "y", "z")
@@ -53,7 +59,7 @@ INERTIA_ENTRY = {
     "iyz": (1, 2),
     "izz": (2, 2),
 }
-GROUPS = ("inertial", "parasitic", "joints", "all", "gains", "default")
+GROUPS = ("inertial", "parasitic", "joints", "all", "gains", "mixes", "default")
 
 
 @dataclass(frozen=True)
@@ -112,6 +118,9 @@ def parameter_infos(doc: UrdfDocument) -> list[ParameterInfo]:
         out.append(ParameterInfo(f"{j.name}.damping", "damping", j.name, None, du))
     for name in doc.gains:
         out.append(ParameterInfo(name, "gain", name, None, "1"))
+    for pt in doc.points:
+        if pt.mixed:
+            out.append(ParameterInfo(f"{MIX_PREFIX}{pt.name}", "mix", pt.name, None, "1"))
     return out
 
 
@@ -161,6 +170,8 @@ def get_parameter(doc: UrdfDocument, name: str) -> float:
     info = _info(doc, name)
     if info.kind == "gain":
         return doc.gains[name]
+    if info.kind == "mix":
+        return next(p.mix for p in doc.points if p.name == info.owner)
     if info.kind == "stiffness":
         return doc.stiffness(info.owner)
     if info.kind == "damping":
@@ -186,6 +197,10 @@ def set_parameter(doc: UrdfDocument, name: str, value: float) -> None:
         if value == 0:
             raise ParameterError(f"{name}: a gain of 0 cuts the channel; valid: ≠ 0")
         doc.set_gain(name, value)
+        return
+    if info.kind == "mix":
+        point = next(p for p in doc.points if p.name == info.owner)
+        doc.set_point(replace(point, mix=value))
         return
     if info.kind == "stiffness":
         doc.set_stiffness(info.owner, value)
@@ -226,9 +241,11 @@ def group_members(doc: UrdfDocument, group: str) -> list[str]:
     if group == "joints":
         return [p.name for p in infos if p.kind in joint_kinds]
     if group == "all":
-        return [p.name for p in infos if p.kind != "gain"]
+        return [p.name for p in infos if p.kind not in ("gain", "mix")]
     if group == "gains":
         return [p.name for p in infos if p.kind == "gain"]
+    if group == "mixes":
+        return [p.name for p in infos if p.kind == "mix"]
     if group == "default":
         return [
             p.name

@@ -104,6 +104,13 @@ class TiedParameters:
         jac = self.map.gain_jacobian(self.T @ np.asarray(x, dtype=float))
         return {k: v @ self.T for k, v in jac.items()}
 
+    def mix_values(self, x: np.ndarray) -> dict[str, float]:
+        return self.map.mix_values(self.T @ np.asarray(x, dtype=float))
+
+    def mix_jacobian(self, x: np.ndarray) -> dict[str, np.ndarray]:
+        jac = self.map.mix_jacobian(self.T @ np.asarray(x, dtype=float))
+        return {k: v @ self.T for k, v in jac.items()}
+
 
 def fitted_document(
     doc: UrdfDocument, layout: Layout, z: np.ndarray, p: np.ndarray
@@ -125,4 +132,6 @@ def fitted_document(
         set_parameter(out, jv.name, max(float(v), 0.0))
     for gv in layout.gains:
         set_parameter(out, gv.name, float(p[gv.name_index]))
+    for mv in layout.mixes:
+        set_parameter(out, mv.name, float(p[mv.name_index]))
     return out
