@@ -152,11 +152,12 @@ def test_exit_code_and_advice(capsys):
 
 def test_status_line_says_how_it_converged_and_the_runs_time():
     extra = {"multistart": {"n_runs": 4, "iterations_all": 900}}
-    line = status_line(_result(status=STALLED, iterations=120), 11.46, extra)
+    line = status_line(_result(status=STALLED, iterations=120, wall_s=9.04), 11.46, extra)
     assert line.startswith("bondid.fit: converged: the cost stopped falling (Converged_Stalled)")
     assert "120 iterations in the kept search, 900 in all 4 runs" in line
-    assert line.endswith("11.5 s")
-    assert "NOT converged" in status_line(_result(status=ITERATION_LIMIT, success=False), 1, {})
+    assert line.endswith("9.0 s fitting, 11.5 s in all")
+    limit = _result(status=ITERATION_LIMIT, success=False, wall_s=1.0)
+    assert "NOT converged" in status_line(limit, 1.0, {})
 
 
 def test_one_fallback_note_when_the_kept_search_is_a_fallback_start():
@@ -177,7 +178,7 @@ def test_one_fallback_note_when_the_kept_search_is_a_fallback_start():
 def test_summary_initial_column_is_the_models_value():
     """A kept fallback start is reported as the start, not as the model's "initial"."""
     res = _result(
-        names=["k"], initial=np.array([100.0]), fitted=np.array([110.0]),
+        wall_s=2.0, names=["k"], initial=np.array([100.0]), fitted=np.array([110.0]),
         std=np.array([1.0]), start=np.array([900.0]), cost_start=7.0, cost_initial=5.0,
         cost_final=1.0, cost_name="complex_log_l2", active_constraints=[], notes=[],
     )  # fmt: skip

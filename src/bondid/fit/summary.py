@@ -26,7 +26,9 @@ def _fmt(v: float) -> str:
 
 
 def status_line(result: Any, wall_s: float, extra: dict[str, Any]) -> str:
-    """The summary's first line: converged or not, how, iterations and the run's time."""
+    """The summary's first line: converged or not, how, iterations, the search's time
+    (``result.wall_s``: every run) and the command's (``wall_s``: reading, the search,
+    the results written)."""
     ms = extra.get("multistart") or {}
     its = f"{result.iterations} iterations"
     total = ms.get("iterations_all")
@@ -40,7 +42,7 @@ def status_line(result: Any, wall_s: float, extra: dict[str, Any]) -> str:
         how = f"FAILED ({result.solver_status or 'failed'})"
     else:
         how = f"NOT converged ({result.status})"
-    return f"bondid.fit: {how}, {its}, {wall_s:.1f} s"
+    return f"bondid.fit: {how}, {its}; {result.wall_s:.1f} s fitting, {wall_s:.1f} s in all"
 
 
 def merged_notes(notes: list[str], best_start: int) -> list[str]:
