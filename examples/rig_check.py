@@ -14,8 +14,11 @@ the peaks of the channels' summed magnitude (in the file's quantity) that stand 
 channel where it is highest). The model's are its modes (:mod:`bondid.modes`) at the data's
 operating point, each data resonance paired with the nearest one. With ``--truth`` (a JSON
 list of frequencies under any key ending in ``_hz``, as the examples' generators write) the
-fitted modes are also compared with the generator's own. Writes ``RESULTS/check.json`` and
-``RESULTS/resonances.png``; prints a one-line row for the docs' table.
+fitted modes are also compared with the generator's own; with ``--truth-model URDF`` (a
+generator's own model, where it has one) the db_rms that model scores on the same points with
+the same weights is reported: what an exact model reaches on these data. Writes
+``RESULTS/check.json`` and ``RESULTS/resonances.png``; prints a one-line row for the docs'
+table.
 """
 
 from __future__ import annotations
@@ -86,6 +89,23 @@ def _truth(path: Path | None, band: tuple[float, float]) -> list[float]:
     return sorted(x for x in out if band[0] <= x <= band[1])
 
 
+def exact_db_rms(truth: Path, ds, fit: dict) -> float | None:
+    """The weighted db_rms of the model in ``truth`` on the fit's points (its bands, its
+    channels, its weights)."""
+    from bondid.cost.selection import CostOptions, informative_only
+    from bondid.fit.outputs import db_rms_report
+    from bondid.model import UrdfDocument
+
+    st = fit["settings"]
+    options = CostOptions(
+        bands=st["bands"], channels=st["channels"], use_coherence=st["coherence"],
+        weighting=st["weighting"],
+    )  # fmt: skip
+    options = informative_only([ds], options)[0]
+    doc = UrdfDocument.load(truth)
+    return db_rms_report(doc, doc, [ds], options)["final"]
+
+
 def _plot(path: Path, ds, Hm: np.ndarray, peaks: list[dict], fit: dict) -> None:
     import matplotlib
 
@@ -129,6 +149,7 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("results", type=Path, help="the fit's --out folder")
     p.add_argument("--truth", type=Path, help="the generator's truth_modes.json")
+    p.add_argument("--truth-model", type=Path, help="the generator's own model (URDF)")
     p.add_argument("--prominence", type=float, default=6.0, help="peak prominence [dB]")
     a = p.parse_args(argv)
     fit = json.loads((a.results / "fit.json").read_text())
@@ -148,6 +169,8 @@ def main(argv: list[str] | None = None) -> int:
         "db_rms": db["final"], "noise_level": db["noise_level"],
         "ratio_to_noise": db["final"] / db["noise_level"] if db["noise_level"] else None,
         "data_resonances": peaks, "truth_modes": truth, "model_modes_hz": modes,
+        "exact_model_db_rms": None if a.truth_model is None else exact_db_rms(
+            a.truth_model, ds, fit),
     }  # fmt: skip
     write_text_atomic(a.results / "check.json", json.dumps(out, indent=2) + "\n")
     _plot(a.results / "resonances.png", ds, Hm, peaks, fit)
@@ -157,7 +180,9 @@ def main(argv: list[str] | None = None) -> int:
         f"{fit['status']} | search {fit['wall_s']:.1f} s | {len(peaks)} resonances, worst"
         f" {100 * worst:.2f} % (truth: {100 * worst_t:.2f} %) | db_rms {db['final']:.3f} dB,"
         f" noise {db['noise_level']:.3f} dB ({out['ratio_to_noise']:.2f}×)"
-    )
+        + ("" if out["exact_model_db_rms"] is None else
+           f" | the generator's model: {out['exact_model_db_rms']:.3f} dB")
+    )  # fmt: skip
     for r in peaks:
         print(
             f"  data {r['reference_hz']:9.3f} Hz  model {r['model_hz']:9.3f} Hz"

@@ -12,13 +12,16 @@ under its ±½-octave envelope.
 
 The fitted model (``frame.urdf``, written with ``--model``): each storey two shear springs
 (prismatic x then y), the floor and its columns as one rigid mass, handbook values 15 % off.
+Next to it ``frame_columns.urdf``: the data's own finer structure (the columns' mass at
+mid-height), from the same handbook values — the model that can express the data.
 
 Usage::
 
     python examples/storey_frame/make_frame.py examples/storey_frame/data \\
         --model examples/storey_frame/frame.urdf
 
-writes ``DIR/frame.uff`` and ``DIR/truth_modes.json``.
+writes ``DIR/frame.uff``, ``DIR/truth_modes.json`` and the finer model itself,
+``DIR/truth.urdf``.
 """
 
 from __future__ import annotations
@@ -78,19 +81,22 @@ def _points() -> str:
     return "".join(out)
 
 
-def truth_urdf() -> str:
+def truth_urdf(mass: float = 1.0, stiff: float = 1.0, damp: float = 1.0) -> str:
     """The finer model: per storey a column mass at mid-height between two half-columns
-    (each twice as stiff as the storey)."""
-    parts = ['<robot name="frame_truth"><link name="ground"/>']
+    (each twice as stiff as the storey); its masses, springs and dampers scaled by ``mass``,
+    ``stiff`` and ``damp`` (1: the truth)."""
+    parts = ['<robot name="frame_columns"><link name="ground"/>']
     parent = "ground"
+    d = 2 * DAMPING * damp
     for k in range(3):
         s = k + 1
-        parts += [_link(f"c{s}x", 0), _link(f"col{s}", COLUMN_KG), _link(f"f{s}x", 0),
-                  _link(f"floor{s}", FLOOR_KG[k])]  # fmt: skip
-        parts.append(_slide(f"lc{s}x", parent, f"c{s}x", "1 0 0", 2 * K_X[k], 2 * DAMPING))
-        parts.append(_slide(f"lc{s}y", f"c{s}x", f"col{s}", "0 1 0", 2 * K_Y[k], 2 * DAMPING))
-        parts.append(_slide(f"uc{s}x", f"col{s}", f"f{s}x", "1 0 0", 2 * K_X[k], 2 * DAMPING))
-        parts.append(_slide(f"uc{s}y", f"f{s}x", f"floor{s}", "0 1 0", 2 * K_Y[k], 2 * DAMPING))
+        kx, ky = 2 * K_X[k] * stiff, 2 * K_Y[k] * stiff
+        parts += [_link(f"c{s}x", 0), _link(f"col{s}", COLUMN_KG * mass), _link(f"f{s}x", 0),
+                  _link(f"floor{s}", FLOOR_KG[k] * mass)]  # fmt: skip
+        parts.append(_slide(f"lc{s}x", parent, f"c{s}x", "1 0 0", kx, d))
+        parts.append(_slide(f"lc{s}y", f"c{s}x", f"col{s}", "0 1 0", ky, d))
+        parts.append(_slide(f"uc{s}x", f"col{s}", f"f{s}x", "1 0 0", kx, d))
+        parts.append(_slide(f"uc{s}y", f"f{s}x", f"floor{s}", "0 1 0", ky, d))
         parent = f"floor{s}"
     parts += [_points(), "</robot>"]
     return "".join(parts)
@@ -172,12 +178,16 @@ def main(argv: list[str] | None = None) -> int:
     H = np.concatenate([A[:, :, :1], Hn], axis=2)  # the 0 Hz line: exact 0 (grounded)
     C = np.concatenate([np.zeros((len(outs), len(ins), 1)), coh], axis=2)
     write_vendor_uff(a.out / "frame.uff", f, H, C, outs, ins)
+    truth.write(a.out / "truth.urdf")
     modes = [m.f_hz for m in modal_analysis(lm).vibration_modes() if m.f_hz <= a.f_max]
     (a.out / "truth_modes.json").write_text(
         json.dumps({"modes_hz": modes, "nodes": NODES, "references": REFERENCES}, indent=2) + "\n"
     )
     if a.model is not None:
         a.model.write_text(model_urdf())
+        # the same finer model as the data's, from handbook values 15 % off
+        columns = truth_urdf(mass=0.85, stiff=1.15, damp=0.5).replace("><", ">\n<")
+        a.model.with_name("frame_columns.urdf").write_text(columns + "\n")
     print(f"{a.out / 'frame.uff'}: {len(outs)} × {len(ins)} records, {f.size} lines; modes"
           f" {', '.join(f'{v:.2f}' for v in modes)} Hz")  # fmt: skip
     return 0

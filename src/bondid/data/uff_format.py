@@ -127,9 +127,10 @@ def write_uff58(
     Args:
         data: the FRFs (``H`` ``(n_out, n_in, n_freq)`` in SI units, ``freq_hz`` in Hz).
         path: the ``.uff``/``.unv`` file to write.
-        channel_map: ``{joint: (node, direction)}`` for every joint of a written channel;
-            default: node ``k`` = k-th joint of ``outputs`` then new ``inputs``, direction 0
-            (scalar).
+        channel_map: ``{channel name: (node, direction)}`` for every name of a written
+            channel (a joint or a measurement point; one node and axis may carry a
+            response's and a reference's name); default: node ``k`` = k-th name of
+            ``outputs`` then new ``inputs``, direction 0 (scalar).
         binary: write binary 58b (exact, default) or ASCII 58 (6 significant digits of
             frequency, 12 of the values).
 
