@@ -22,6 +22,7 @@ Usage: ``python tools/blind_benchmark.py [--designs D,..] [--regimes R,..] [--ca
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import sys
@@ -76,8 +77,11 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--regimes", help=f"comma-separated, of {', '.join(REGIMES)} (default all)")
     p.add_argument("--cases", help="comma-separated case names (see --list)")
     p.add_argument("--quick", action="store_true", help="3 small cases, 300 frequencies")
-    p.add_argument("--open", action="store_true",
-                   help="the open-world cases (later causes and causes outside the library)")
+    p.add_argument(
+        "--open",
+        action="store_true",
+        help="the open-world cases (later causes and causes outside the library)",
+    )
     p.add_argument("--leave-one-out", action="store_true",
                    help="each case diagnosed without its own effect classes among the "
                    "candidates (the leave-one-class-out run)")  # fmt: skip
@@ -127,8 +131,12 @@ def main(argv: list[str] | None = None) -> int:
     done: list[dict[str, Any]] = []
 
     def one(c: Case) -> dict[str, Any]:
+        cs = s
+        if args.leave_one_out:  # the candidates without the case's own classes
+            base = tuple(args.effects.split(",")) if args.effects else None
+            cs = dataclasses.replace(s, effects=",".join(leave_one_out(c, base)))
         try:
-            r = run_case(c, s)
+            r = run_case(c, cs)
         except Exception as exc:  # one broken case must not lose the others
             truth = [[e.effect, e.location] for e in c.effects]
             r = {"case": c.name, "design": c.design, "regime": c.regime, "truth": truth,

@@ -135,7 +135,8 @@ def add_uff_map_arg(p: argparse.ArgumentParser) -> None:
         "--uff-map", action="append", default=[], metavar="NAME=NODE:DIR",
         help="UFF58 files: the channel (joint or point) of a node and direction code, e.g."
         " acc=101:+3 (±1..±3 translation x/y/z, ±4..±6 rotation); repeatable; replaces the"
-        " default map (node i = i-th transmitted joint)",
+        " default map (node i = i-th transmitted joint); two names on one node and axis: the"
+        " first names the response, the second the reference (a driving point)",
     )  # fmt: skip
 
 

@@ -4,8 +4,9 @@
 point, so one linearisation per pose) and the cost options together. Its decision vector ``x``
 is whatever a *parameter model* (:class:`ParameterModel`) maps onto the physical values ``(π
 (nb,10), k (nv,), d (nv,))`` with exact derivatives, and optionally onto free transducer gains
-``gain.in.X`` / ``gain.out.Y`` (``H = g_out · H_model · g_in``). Which points are used is
-decided by :mod:`bondid.cost.selection`.
+``gain.in.X`` / ``gain.out.Y`` (``H = g_out · H_model · g_in``) and the mixes of points with a
+second component (:mod:`.mixing`). Which points are used is decided by
+:mod:`bondid.cost.selection`.
 
 The residual vector is scaled so that ``cost = ‖r‖²`` is the weighted mean square over the
 selected complex points (for ``complex_log`` that is ``db_rms²``).
@@ -28,6 +29,7 @@ from ..frf.jacobian import frf_and_jacobian, jacobian_blocks
 from ..linear.affine import AffineModel, build_affine_model, model_inputs, model_outputs
 from ..model.document import UrdfDocument
 from ..threads import thread_map
+from .mixing import MixRows, free_mixes, mix_columns, mix_rows, mixed_affine
 from .modifier import FrfModifier
 from .residuals import (
     check_kind,
@@ -81,6 +83,7 @@ class ParameterModel(Protocol):
 
 _Values = tuple[np.ndarray, np.ndarray, np.ndarray]
 _Gains = dict[str, float]
+_Mix = tuple[MixRows, dict[str, np.ndarray]]  # a data set's mix rows and the mixes' d/dx
 
 
 def _free_gains(pmodel: ParameterModel, x: np.ndarray) -> _Gains:
@@ -110,11 +113,6 @@ def _gain_arrays(affine: AffineModel, gains: _Gains) -> tuple[np.ndarray, np.nda
 def _block_affine(b: DataSelection, values: _Values, gains: _Gains) -> AffineModel:
     affine = b.affine.with_values(*values)
     return affine.with_gains(*_gain_arrays(affine, gains)) if gains else affine
-
-
-def _block_frf(b: DataSelection, values: _Values, gains: _Gains | None = None) -> np.ndarray:
-    """Model FRF ``(n_out, n_in_model, n_fu)`` of a data set at parameter ``values``."""
-    return _block_affine(b, values, gains or {}).linear_model().frf(b.freq_hz)
 
 
 def _gain_columns(
@@ -186,6 +184,15 @@ class FrfProblem:
         self._norm = 1.0 / np.sqrt(total)
         #: whether the data sets are evaluated on parallel threads (each large enough)
         self.threaded = min(b.Hm.size for b in self.blocks) >= THREADED_MIN_POINTS
+        self._mix_rows: list | None = None  # per data set, built when a mix is free
+
+    def _mixed(self, i: int, affine: AffineModel, mixes: dict[str, float]) -> AffineModel:
+        """``affine`` (data set ``i``'s) with the free ``mixes`` of its points set."""
+        if not mixes:
+            return affine
+        if self._mix_rows is None:
+            self._mix_rows = [mix_rows(self.doc, b.affine) for b in self.blocks]
+        return mixed_affine(affine, self._mix_rows[i], mixes)
 
     # -- the same linearisations, other selections or values ---------------------------------
     @property
@@ -207,11 +214,13 @@ class FrfProblem:
         values at ``x`` (``doc``: the model document holding those values). The affine bases
         and the data selections are shared: nothing is linearised or selected again."""
         values, gains = pmodel.values(x), _free_gains(pmodel, x)
+        mixes = free_mixes(pmodel, x)[0]
         out = copy.copy(self)
         out.doc = doc
         out.modifier_theta = self._theta(pmodel, x)[0]
         out.blocks = [
-            dataclasses.replace(b, affine=_block_affine(b, values, gains)) for b in self.blocks
+            dataclasses.replace(b, affine=self._mixed(i, _block_affine(b, values, gains), mixes))
+            for i, b in enumerate(self.blocks)
         ]
         return out
 
@@ -247,16 +256,18 @@ class FrfProblem:
         """Model FRF at each data set's used frequencies, ``(n_out, n_in_model, n_fu)`` each
         (receptance; :func:`bondid.frf.aligned.model_frf` gives it in a data set's layout)."""
         values, gains = pmodel.values(x), _free_gains(pmodel, x)
+        mixes = free_mixes(pmodel, x)[0]
         theta = self._theta(pmodel, x)[0]
 
-        def one(b: DataSelection) -> np.ndarray:
-            H = _block_frf(b, values, gains)
+        def one(i: int) -> np.ndarray:
+            b = self.blocks[i]
+            H = self._mixed(i, _block_affine(b, values, gains), mixes).linear_model().frf(b.freq_hz)
             if theta is None:
                 return H
             assert self.modifier is not None
             return self.modifier.apply(theta, b.freq_hz, b.affine.outputs, b.affine.inputs, H)
 
-        return thread_map(one, self.blocks, parallel=self.threaded)
+        return thread_map(one, range(len(self.blocks)), parallel=self.threaded)
 
     def _theta(
         self, pmodel: ParameterModel, x: np.ndarray
@@ -309,6 +320,7 @@ class FrfProblem:
         """
         values, gains = pmodel.values(x), _free_gains(pmodel, x)
         dgains = _free_gain_jacobian(pmodel, x) if gains else {}
+        mixes, dmixes = free_mixes(pmodel, x)
         dpi, dk, dd = pmodel.jacobian(x)
         theta, dtheta = self._theta(pmodel, x)
         n_p, k = dpi.shape[2], parts(self.options.kind)
@@ -321,16 +333,19 @@ class FrfProblem:
             b = self.blocks[i]
             rb = r[start[i] : start[i + 1]]
             Jb = J[start[i] : start[i + 1]].reshape(k, b.Hm.size, n_p)
-            affine = _block_affine(b, values, gains)
-            if b.flat is None and not gains and theta is None:
+            affine = self._mixed(i, _block_affine(b, values, gains), mixes)
+            if b.flat is None and not gains and not mixes and theta is None:
                 self._grid_rows(b, affine, (dpi, dk, dd), rb, Jb)
                 return
+            mix = (self._mix_rows[i], dmixes) if mixes and self._mix_rows is not None else None
             mod = self.modifier
             if theta is not None and mod is not None and mod.mixing is not None:
-                self._mixed_rows(b, affine, (dpi, dk, dd), (gains, dgains), (theta, dtheta), rb, Jb)
+                self._mixed_rows(
+                    b, affine, (dpi, dk, dd), (gains, dgains), mix, (theta, dtheta), rb, Jb
+                )
                 return
             G = None if theta is None else self._modifier_at(b, theta)
-            self._point_rows(b, affine, (dpi, dk, dd), (gains, dgains), (G, dtheta), rb, Jb)
+            self._point_rows(b, affine, (dpi, dk, dd), (gains, dgains), mix, (G, dtheta), rb, Jb)
 
         thread_map(one, range(len(self.blocks)), parallel=self.threaded)
         return r, J
@@ -341,6 +356,7 @@ class FrfProblem:
         affine: AffineModel,
         derivatives: tuple[np.ndarray, np.ndarray, np.ndarray],
         gains: tuple[_Gains, dict[str, np.ndarray]],
+        mix: _Mix | None,
         modifier: tuple[np.ndarray, np.ndarray | None],
         r: np.ndarray,
         J: np.ndarray,
@@ -358,6 +374,11 @@ class FrfProblem:
             cols = np.tile(np.repeat(np.arange(ni), nf), no)
             dg = _gain_columns(affine, gains[0], gains[1], rows, cols, H.reshape(-1))
             dH = dH + dg.reshape(dH.shape)
+        if mix is not None:
+            no, ni, nf = H.shape
+            grid = tuple(a.reshape(-1) for a in np.indices((no, ni, nf)))
+            dm = mix_columns(affine, mix[0], mix[1], b.freq_hz, grid)
+            dH = dH + dm.reshape(dH.shape)
         H, dH = self.modifier.mixed_with_jacobian(
             theta, dtheta, b.affine.outputs, b.affine.inputs, H, dH
         )
@@ -392,6 +413,7 @@ class FrfProblem:
         affine: AffineModel,
         derivatives: tuple[np.ndarray, np.ndarray, np.ndarray],
         gains: tuple[_Gains, dict[str, np.ndarray]],
+        mix: _Mix | None,
         modifier: tuple[tuple[np.ndarray, np.ndarray] | None, np.ndarray | None],
         r: np.ndarray,
         J: np.ndarray,
@@ -400,7 +422,7 @@ class FrfProblem:
         modifier), written into ``r`` ``(k·n_sel,)`` and ``J`` ``(k, n_sel, n_p)`` one block
         of frequencies at a time: the model's derivatives are never held for every frequency
         at once (``(n_out, n_in, n_f, n_p)`` complex would grow with the lines times the
-        parameters). ``gains`` = ``(free gains, their d/dx)``, ``modifier`` = ``((G, ∂G/∂θ)
+        parameters). ``mix`` = the points' mix rows and the mixes' d/dx, or None; ``gains`` = ``(free gains, their d/dx)``, ``modifier`` = ``((G, ∂G/∂θ)
         or None, ∂θ/∂x or None)``."""
         kind, k = self.options.kind, parts(self.options.kind)
         rk = r.reshape(k, -1)
@@ -418,6 +440,9 @@ class FrfProblem:
             dHs = dH[0][at] + 1j * dH[1][at]
             if gains[0]:
                 dHs = dHs + _gain_columns(affine, gains[0], gains[1], rows, cols, Hs)
+            if mix is not None:
+                fsl = b.freq_hz[sl]
+                dHs = dHs + mix_columns(affine, mix[0], mix[1], fsl, (rows, cols, fidx - sl.start))
             if G is not None:
                 Hs, dHs = self._modified(G, (rows, cols, fidx), dtheta, Hs, dHs)
             res = residual(kind, Hs, b.Hm[pts], b.scale[pts])

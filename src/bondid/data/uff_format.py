@@ -2,9 +2,10 @@
 
 One type-58 record per channel (function type 4, FRF, complex double precision) and, where
 the data carry coherence, one more record per channel of function type 6 (coherence, real).
-A record's response node/direction is the output joint, its reference node/direction the
-input joint, as given by a channel map ``{joint: (node, direction)}`` (UFF direction codes:
-±1..±3 translation along x/y/z, ±4..±6 rotation about x/y/z, 0 scalar).
+A record's response node/direction is the output channel (a joint or a measurement point),
+its reference node/direction the input channel, as given by a channel map ``{channel name:
+(node, direction)}`` (UFF direction codes: ±1..±3 translation along x/y/z, ±4..±6 rotation
+about x/y/z, 0 scalar).
 
 Files are written in binary 58 ("58b"): pyuff's ASCII layout keeps only 6 significant
 digits of the frequencies (``E13.5``) and 12 of the values (``E20.11``), binary keeps every
@@ -45,6 +46,7 @@ from .uff_records import (
     ChannelMap,
     RecordSet,
     check_map,
+    role_inverses,
 )
 
 
@@ -125,9 +127,10 @@ def write_uff58(
     Args:
         data: the FRFs (``H`` ``(n_out, n_in, n_freq)`` in SI units, ``freq_hz`` in Hz).
         path: the ``.uff``/``.unv`` file to write.
-        channel_map: ``{joint: (node, direction)}`` for every joint of a written channel;
-            default: node ``k`` = k-th joint of ``outputs`` then new ``inputs``, direction 0
-            (scalar).
+        channel_map: ``{channel name: (node, direction)}`` for every name of a written
+            channel (a joint or a measurement point; one node and axis may carry a
+            response's and a reference's name); default: node ``k`` = k-th name of
+            ``outputs`` then new ``inputs``, direction 0 (scalar).
         binary: write binary 58b (exact, default) or ASCII 58 (6 significant digits of
             frequency, 12 of the values).
 
@@ -177,7 +180,7 @@ def _write_map(
     missing = [j for j in joints if j in used and j not in cmap]
     if missing:
         raise ChannelError(
-            f"{where}: channel map lacks joints {', '.join(missing)}; "
+            f"{where}: channel map lacks channel names {', '.join(missing)}; "
             f"it maps {', '.join(cmap) or 'nothing'}"
         )
     return cmap
@@ -234,7 +237,7 @@ def read_uff58(
 
     Args:
         path: the ``.uff``/``.unv`` file.
-        channel_map: ``{joint: (node, direction)}`` naming the channels by node and
+        channel_map: ``{channel name: (node, direction)}`` naming the channels by node and
             direction (a record in the opposite direction is read with its sign flipped);
             needed for files not written by bondid.
         drop_nan: drop frequencies where any record holds NaN instead of raising.
@@ -252,7 +255,7 @@ def read_uff58(
     uff, types = _open(p)
     inverse = None
     if channel_map is not None:
-        inverse = {v: k for k, v in check_map(channel_map, str(p)).items()}
+        inverse = role_inverses(check_map(channel_map, str(p)))
     found = RecordSet()
     for k, t in enumerate(types):
         if t == 58:

@@ -34,12 +34,14 @@ ChannelMap = Mapping[str, tuple[int, int]]
 
 
 def check_map(channel_map: ChannelMap, where: str) -> dict[str, tuple[int, int]]:
-    """``channel_map`` with integer entries, checked: valid names, directions in -6..6, and
-    no two joints on the same node and axis."""
+    """``channel_map`` with integer entries, checked: valid names, directions in -6..6, and at
+    most two names on one node and axis (a driving point named once as the response, e.g.
+    an accelerometer, and once as the reference, e.g. the hammer or shaker there: the first
+    given names the response, the second the reference; :func:`role_inverses`)."""
     cmap: dict[str, tuple[int, int]] = {}
-    seen: dict[tuple[int, int], str] = {}
+    seen: dict[tuple[int, int], list[str]] = {}
     for name, value in channel_map.items():
-        check_joint_name(name, f"{where}: channel map")
+        check_joint_name(name, f"{where}: channel map", "channel")
         try:
             node, direction = (int(v) for v in value)
         except (TypeError, ValueError):
@@ -51,15 +53,32 @@ def check_map(channel_map: ChannelMap, where: str) -> dict[str, tuple[int, int]]
                 f"{where}: channel map entry {name}=({node}, {direction}); node must be >= 0 "
                 f"and direction in -6..6"
             )
-        key = (node, abs(direction))
-        if key in seen:
+        names = seen.setdefault((node, abs(direction)), [])
+        if len(names) == 2:
             raise ChannelError(
-                f"{where}: channel map gives {seen[key]!r} and {name!r} the same node {node} "
-                f"and axis {abs(direction)}; give each joint its own"
+                f"{where}: channel map gives {names[0]!r}, {names[1]!r} and {name!r} the same"
+                f" node {node} and axis {abs(direction)}; at most two channel names share one"
+                " (the first names the response, the second the reference)"
             )
-        seen[key] = name
+        names.append(name)
         cmap[name] = (node, direction)
     return cmap
+
+
+#: per role (``"response"``, ``"reference"``): ``(node, axis) -> (name, signed direction)``
+RoleInverses = dict[str, dict[tuple[int, int], tuple[str, int]]]
+
+
+def role_inverses(cmap: dict[str, tuple[int, int]]) -> RoleInverses:
+    """The channel name of a record's response and of its reference by node and axis: the
+    first name given for a node and axis for the response, the last for the reference (the
+    same one when only one is given; :func:`check_map`)."""
+    out: RoleInverses = {"response": {}, "reference": {}}
+    for name, (node, d) in cmap.items():
+        key = (node, abs(d))
+        out["response"].setdefault(key, (name, d))
+        out["reference"][key] = (name, d)
+    return out
 
 
 def bondid_ids(rec: dict[str, Any]) -> tuple[str | None, str | None, list[str]]:
@@ -82,7 +101,7 @@ def bondid_ids(rec: dict[str, Any]) -> tuple[str | None, str | None, list[str]]:
 
 
 def name_channel(
-    rec: dict[str, Any], where: str, inverse: dict[tuple[int, int], str] | None
+    rec: dict[str, Any], where: str, inverse: RoleInverses | None
 ) -> tuple[str, str, float, int, int]:
     """``(out, in, sign, out_node, in_node)`` of a record, via the channel map or ID lines."""
     rn, rd = int(rec["rsp_node"]), int(rec["rsp_dir"])
@@ -90,23 +109,23 @@ def name_channel(
     if inverse is not None:
         names, sign = [], 1.0
         for role, node, d in (("response", rn, rd), ("reference", fn, fd)):
-            if (node, d) in inverse:
-                names.append(inverse[(node, d)])
-            elif (node, -d) in inverse:
-                names.append(inverse[(node, -d)])
-                sign = -sign
-            else:
-                valid = ", ".join(f"{j}=({n}, {dd})" for (n, dd), j in inverse.items())
+            hit = inverse[role].get((node, abs(d)))
+            if hit is None:
+                valid = ", ".join(f"{n}=({k[0]}, {dd})" for k, (n, dd) in inverse[role].items())
                 raise ChannelError(
                     f"{where}: {role} node {node} direction {d} is not in the channel map; "
                     f"valid: {valid}"
                 )
+            names.append(hit[0])
+            if d != 0 and hit[1] == -d:  # the record's direction opposite the map's
+                sign = -sign
         return names[0], names[1], sign, rn, fn
     _, chan, _ = bondid_ids(rec)
     if chan is None:
         raise DataError(
             f"{where} has no bondid channel name (ID line 2 'channel: OUT.IN'); "
-            f"pass channel_map={{joint: (node, direction)}} to name its channels"
+            f"pass channel_map={{channel name: (node, direction)}} (--uff-map) to name its"
+            " channels"
         )
     out, dot, inp = chan.partition(".")
     if not dot:
@@ -138,7 +157,7 @@ class RecordSet:
         rec: dict[str, Any],
         where: str,
         number: int,
-        inverse: dict[tuple[int, int], str] | None,
+        inverse: RoleInverses | None,
     ) -> None:
         """Take record ``number`` (1-based) if it is an FRF or coherence; skip other functions."""
         func = int(rec.get("func_type", 0))

@@ -59,6 +59,7 @@ from .antiresonance import antiresonance_shifts, antiresonances
 from .mode_record import INFORMED_COHERENCE, IdentifiedMode, mode_shape
 from .pairing import VISIBLE_PROMINENCE, mac_matrix, pair_modes
 
+
 def identify_modes(
     data: FrfData,
     *,

@@ -47,6 +47,7 @@ DEFAULT_REL: dict[str, float] = {
     "stiffness": 0.5,
     "damping": 0.5,
     "gain": 9.0,  # a factor 1 + r either way: 10
+    "mix": 10.0,  # a point's mix: ± r · max(|μ|, 1)
 }
 
 _DEFAULT_LENGTH = 0.1  # m, length scale of a link without geometry
@@ -192,6 +193,9 @@ def _relative_bound(
     if info.kind == "gain":  # relative r: a factor 1 + r either way (sign kept)
         a, b = sorted((v / (1.0 + r), v * (1.0 + r)))
         return a, b
+    if info.kind == "mix":  # may change sign: room around 0 as around the value
+        half = r * max(abs(v), 1.0)
+        return v - half, v + half
     if v == 0.0:  # stiffness, damping
         return 0.0, zero_value_upper(doc, info.owner, info.kind, f_max, cache)
     return max(0.0, v - r * abs(v)), v + r * abs(v)

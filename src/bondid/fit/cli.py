@@ -11,34 +11,33 @@ from __future__ import annotations
 
 import argparse
 import fnmatch
-import math
-import sys
+import time
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ..cli import (
-    EXIT_FAILED,
-    EXIT_OK,
-    Progress,
-    parse_and_run,
-    warn_lines,
-)
+from ..cli import Progress, parse_and_run, warn_lines
 from ..cost.problem import CostOptions
 from ..cost.selection import channels_by_file, informative_only
 from ..data.measurement import FrfData
-from ..data.reduce import LineReduction, reduce_datasets
+from ..data.reduce import reduce_datasets
 from ..exceptions import ConfigError, DependencyError, SolverError
 from ..model.document import UrdfDocument
-from ..model.parameters import get_parameters, parameter_infos, select_parameters
-from .headline import headline_lines, std_footer
+from ..model.parameters import (
+    declare_tie,
+    get_parameters,
+    parameter_infos,
+    select_parameters,
+)
 from .options import build_parser, resolve_settings
 from .study import (
     KINDS,
     StudySettings,
 )
+from .summary import exit_code, summary
 
 _KIND_GLOB = {
     "mass": "*.mass",
@@ -47,6 +46,7 @@ _KIND_GLOB = {
     "stiffness": "*.stiffness",
     "damping": "*.damping",
     "gain": "gain.*",
+    "mix": "mix.*",
 }
 
 
@@ -175,64 +175,6 @@ def write_failure(
     res.commit(warnings=warnings, main=FIT_JSON)
 
 
-def _fmt(v: float) -> str:
-    return "—" if not math.isfinite(v) else f"{v:.6g}"
-
-
-def summary(
-    result: Any,
-    content: dict[str, Any] | None,
-    extra: dict[str, Any],
-    reduction: LineReduction | None = None,
-) -> str:
-    """The short human summary printed on stdout (``reduction``: the lines the fit used)."""
-    lines = [
-        f"bondid.fit: {result.status} ({'converged' if result.success else 'NOT converged'}),"
-        f" {result.iterations} iterations, {result.wall_s:.1f} s",
-        f"cost ({result.cost_name}): {result.cost_initial:.6g} → {result.cost_final:.6g}",
-    ]
-    cm = extra.get("cost_model")
-    if cm is not None and not math.isclose(cm, result.cost_initial, rel_tol=1e-9):
-        lines[-1] += (
-            f" (from start {extra['multistart']['best_start']}; at the model's values {cm:.6g})"
-        )
-    if content is not None:
-        lines[1:1] = headline_lines(content["db_rms"])
-    if reduction is not None and reduction.reduced:
-        lines.insert(1, reduction.summary_line())
-    ms = extra.get("multistart")
-    if ms and ms["n_runs"] > 1:
-        lines.append(
-            f"multistart: {ms['n_runs']} runs ({ms['n_failed']} failed), final cost min"
-            f" {ms['min']:.4g} / median {ms['median']:.4g} / max {ms['max']:.4g};"
-            f" best from start {ms['best_start']}"
-        )
-    for st in extra.get("stages") or ():
-        info = st["skipped"] and f"skipped ({st['skipped']})"
-        if not info:
-            info = f"{st['status']}, cost {st['cost_initial']:.4g} → {st['cost_final']:.4g}"
-        lines.append(f"stage {st['name']}: {info}")
-    w = max([len("parameter"), *(len(n) for n in result.names)])
-    lines.append(f"{'parameter':<{w}}  {'initial':>12}  {'fitted':>12}  {'change':>9}  {'std':>10}")
-    n_bound = 0
-    for i, n in enumerate(result.names):
-        a, b, sd = float(result.initial[i]), float(result.fitted[i]), float(result.std[i])
-        ch = f"{100 * (b - a) / abs(a):+.2f} %" if a != 0 else f"{b - a:+.3g}"
-        lo, hi = float(result.lower[i]), float(result.upper[i])
-        bound = any(math.isfinite(x) and abs(b - x) <= 1e-6 * max(abs(x), 1e-12) for x in (lo, hi))
-        n_bound += bound
-        mark = "  [bound]" if bound else ""
-        lines.append(f"{n:<{w}}  {_fmt(a):>12}  {_fmt(b):>12}  {ch:>9}  {_fmt(sd):>10}{mark}")
-    footer = std_footer([float(v) for v in result.std], n_bound)
-    if footer:
-        lines.append(footer)
-    if result.active_constraints:
-        lines.append("active constraints: " + "; ".join(result.active_constraints))
-    for note in getattr(result, "notes", []) or []:
-        lines.append(f"note: {note}")
-    return "\n".join(lines)
-
-
 def _load(args: argparse.Namespace, s: StudySettings) -> dict[str, Any]:
     """Model, data, names, bounds and the results folder of a fit command (checked)."""
     from ..data.for_model import load_datasets
@@ -247,6 +189,8 @@ def _load(args: argparse.Namespace, s: StudySettings) -> dict[str, Any]:
     inputs += [f for f in (s.points_file, args.points_file) if f is not None]
     res = None if args.out is None else open_results(args.out, "fit", inputs, patterns=OUT_PATTERNS)
     doc, warnings = load_model(s.model, lambda d: prepare_model(d, s, args))
+    for name, items in s.ties.items():
+        declare_tie(doc, name, items, "--tie" if name in (args.tie or ()) else str(s.source))
     raw = load_datasets(doc, s.data, drop_nan=args.drop_nan, channel_map=uff_map(s, args.uff_map))
     warnings += given_operating_points(doc, raw, s.operating_points)
     warnings += check_inputs(doc, raw, s.data)
@@ -331,26 +275,24 @@ def _model_cost(ms: Any, w: dict[str, Any]) -> float:
     return problem.cost(problem.z0)
 
 
-def _exit_code(result: Any) -> int:
-    if result.status == "failed":
-        print(
-            f"error: the fit failed ({result.failure}); fit.json keeps the best point reached",
-            file=sys.stderr,
-        )
-        return EXIT_FAILED
-    if not result.success:
-        print(
-            f"error: the fit did not converge (solver status: {result.status}); raise"
-            " --max-iter or narrow the problem",
-            file=sys.stderr,
-        )
-        return EXIT_FAILED
-    return EXIT_OK
+def _reported(result: Any, ms: Any, w: dict[str, Any], cost_model: float) -> Any:
+    """The kept fit as the command reports it: ``initial`` the model's values (clipped to
+    the bounds) and ``cost_initial`` the cost there, the kept search's own start in
+    ``start``/``cost_start`` when it began elsewhere (a fallback start), and ``wall_s`` the
+    whole search's time (every run)."""
+    model_x = np.clip(get_parameters(w["doc"], w["names"]), w["lower"], w["upper"])
+    if not np.array_equal(result.initial, model_x):
+        result = replace(
+            result, initial=model_x, start=result.initial, cost_initial=cost_model,
+            cost_start=result.cost_initial,
+        )  # fmt: skip
+    return replace(result, wall_s=float(ms.wall_s))
 
 
 def _body(args: argparse.Namespace) -> int:
     from .outputs import FIT_JSON, write_outputs
 
+    t0 = time.perf_counter()
     s = resolve_settings(args)
     w = _load(args, s)
     res, warnings = w["res"], w["warnings"]
@@ -360,11 +302,14 @@ def _body(args: argparse.Namespace) -> int:
         if res is not None:
             write_failure(res, exc, w["doc"], w["names"], w["lower"], w["upper"], s, warnings)
         raise
-    result = ms.best
+    cost_model = _model_cost(ms, w)
+    result = _reported(ms.best, ms, w, cost_model)
+    spread = ms.spread()
+    spread["iterations_all"] = sum(r.result.iterations for r in ms.runs if r.result is not None)
     extra: dict[str, Any] = {
-        "cost_model": _model_cost(ms, w), "command": "bondid.fit", "model_file": str(s.model),
+        "cost_model": cost_model, "command": "bondid.fit", "model_file": str(s.model),
         "study_file": None if s.source is None else str(s.source),
-        "settings": s.to_json_dict(), "multistart": ms.spread(),
+        "settings": s.to_json_dict(), "multistart": spread,
         "stages": [st.to_json_dict() for st in ms.best_run.stages] or None,
         "warnings": warnings, "lines": w["lines"].to_json_dict(),
     }  # fmt: skip
@@ -381,14 +326,14 @@ def _body(args: argparse.Namespace) -> int:
             file_quantities=w["quantities"],
         )  # fmt: skip
         res.commit(warnings=warnings, main=FIT_JSON)
-    print(summary(result, content, extra, w["lines"]))
+    print(summary(result, content, extra, time.perf_counter() - t0, w["lines"]))
     for line in warn_lines(warnings):
         print(line)
     if args.out is not None:
         print(f"results: {args.out} ({', '.join(content['outputs']) if content else ''})")
     else:
         print("(no --out given: nothing written)")
-    return _exit_code(result)
+    return exit_code(result)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -128,10 +128,21 @@ def build_parser() -> argparse.ArgumentParser:
         help="then, while the fit is above the noise level and a restart still improves, up to"
         " N-1 random starts within the prior's box (default 4; 0 = off)",
     )  # fmt: skip
+    _add_structure_args(p)
     add_drop_nan_arg(p)
     p.add_argument("--out", type=Path, default=None, help="folder for the results")
     p.add_argument("--quiet", action="store_true", help="no progress display")
     return p
+
+
+def _add_structure_args(p: argparse.ArgumentParser) -> None:
+    """Options that give the free parameters a structure (ties)."""
+    p.add_argument(
+        "--tie", action="append", metavar="PATTERN",
+        help="joint parameters sharing one value: names or globs of one kind (stiffness or"
+        " damping), e.g. --tie '*.damping' (one damping for every joint) or --tie"
+        " 'j2.stiffness,j3.stiffness'; repeatable, one tie each; kept in fitted.urdf",
+    )  # fmt: skip
 
 
 def _positive(value: int | None, name: str, minimum: int) -> int | None:
@@ -182,6 +193,8 @@ def resolve_settings(args: argparse.Namespace) -> StudySettings:
     if args.lines is not None:
         s.lines = str(parse_lines(args.lines))
     _search_settings(args, s)
+    for text in args.tie or ():
+        s.ties[text] = split_names([text])
     if s.model is None:
         raise ConfigError("no model: give --model URDF (or model = ... in the study file)")
     if not s.data:

@@ -76,11 +76,15 @@ class FitResult:
     """Outcome of :func:`bondid.fit.fit` (arrays are ``(n,)`` in the named parameters' SI units).
 
     Attributes:
-        status: IPOPT's ``return_status`` (e.g. ``"Solve_Succeeded"``).
-        success: True when IPOPT converged (``Solve_Succeeded`` or
-            ``Solved_To_Acceptable_Level``).
+        status: IPOPT's ``return_status`` (e.g. ``"Solve_Succeeded"``), or
+            ``"Converged_Stalled"`` when the stall test stopped the last solve
+            (:mod:`bondid.optim.stall`; ``stop_reason`` says why), or ``"failed"``.
+        success: True when the fit converged (``Solve_Succeeded``,
+            ``Solved_To_Acceptable_Level`` or ``Converged_Stalled``).
         names: the free named parameters (URDF form).
         initial, fitted, lower, upper, std: per parameter; ``std`` NaN where not identifiable.
+            ``initial`` is the search's start; ``bondid.fit`` reports the model's values
+            there and the kept search's start, when it differs, in ``start``.
         correlation: ``(n, n)``.
         cost_initial, cost_final: the cost (``cost_name``) at the (projected) start and at the
             solution; ``cost_history``: the cost at every IPOPT iteration.
@@ -115,6 +119,13 @@ class FitResult:
     #: fitted FRF-modifier parameters by name (a fit with a :class:`bondid.cost.modifier.
     #: FrfModifier`, e.g. a diagnosis candidate's delay); empty otherwise
     modifiers: dict[str, float] = field(default_factory=dict)
+    #: why the last solve stopped when the stall test stopped it (``status`` is then
+    #: ``"Converged_Stalled"``); None otherwise
+    stop_reason: str | None = None
+    #: the kept search's start ``(n,)`` and its cost when it is not ``initial`` (a fallback
+    #: start of a multistart); None otherwise
+    start: np.ndarray | None = None
+    cost_start: float | None = None
 
     def parameter(self, name: str) -> float:
         """Fitted value of ``name``."""
@@ -138,6 +149,7 @@ class FitResult:
                     "lower": _num(self.lower[i]),
                     "upper": _num(self.upper[i]),
                     "std": _num(self.std[i]),
+                    **({} if self.start is None else {"start": _num(self.start[i])}),
                 }
                 for i, n in enumerate(self.names)
             ],
@@ -147,5 +159,7 @@ class FitResult:
             "notes": list(self.notes),
             "solver_status": self.solver_status or self.status,
             "failure": self.failure,
+            "stop_reason": self.stop_reason,
+            **({} if self.cost_start is None else {"cost_start": _num(self.cost_start)}),
             **({"modifiers": dict(self.modifiers)} if self.modifiers else {}),
         }

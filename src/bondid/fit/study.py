@@ -46,6 +46,10 @@ Every section and key is optional::
     [gains]                                  # transducer gains (fixed unless --free names them)
     "gain.in.motor" = 0.35
 
+    [ties]                                   # --tie: joint parameters sharing one value
+    damping = "*.damping"                    # a tie's name = names or globs of one kind
+    inner = ["j2.stiffness", "j3.stiffness"]
+
     [search]
     multistart = 8                           # --multistart
     seed = 0                                 # --seed
@@ -97,13 +101,13 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..modes.bands import Span as Band
 
 #: Parameter kinds a bound key may name (besides names and globs).
-KINDS = ("mass", "com", "inertia", "stiffness", "damping", "gain")
+KINDS = ("mass", "com", "inertia", "stiffness", "damping", "gain", "mix")
 #: Stages of the staged fit, in the order they run.
 STAGES = ("stiffness", "damping", "inertia")
 
 _TOP_KEYS = (
     "model", "data", "parameters", "bounds", "cost", "search", "points", "gains", "points_file",
-    "package_path", "floating_base", "uff_map", "operating_points",
+    "package_path", "floating_base", "uff_map", "operating_points", "ties",
 )  # fmt: skip
 _SECTION_KEYS = {
     "parameters": ("free", "fixed", "prior"),
@@ -177,6 +181,8 @@ class StudySettings:
         uff_map: channel name -> (node, direction) of UFF58 records.
         operating_points: data file -> its operating point (joint -> m or rad), for files
             that state none (:mod:`bondid.fit.operating_points`).
+        ties: tie name -> the names and globs of its joint parameters (one value each tie;
+            :mod:`bondid.model.ties`).
     """
 
     model: Path | None = None
@@ -212,6 +218,7 @@ class StudySettings:
     floating_base: bool = False
     uff_map: dict[str, tuple[int, int]] = field(default_factory=dict)
     operating_points: dict[str, dict[str, float]] = field(default_factory=dict)
+    ties: dict[str, list[str]] = field(default_factory=dict)
 
     def to_json_dict(self) -> dict[str, Any]:
         """The settings as plain JSON values (paths as strings)."""
@@ -249,6 +256,7 @@ class StudySettings:
             "floating_base": self.floating_base,
             "uff_map": {k: list(v) for k, v in self.uff_map.items()},
             "operating_points": {k: dict(v) for k, v in self.operating_points.items()},
+            "ties": {k: list(v) for k, v in self.ties.items()},
         }
 
 
@@ -307,6 +315,10 @@ def study_from_dict(
     read_model_keys(doc, s, where, base)
 
     _read_parameters(doc, s, where)
+    for name, items in check_table(doc.get("ties", {}), where, "ties").items():
+        s.ties[str(name)] = check_names(items, where, f"ties.{name}")
+        if not s.ties[str(name)]:
+            raise config_error(where, f"ties.{name}", "empty; give names or globs")
     _read_cost(doc, s, where)
     _read_search(doc, s, where)
     return s

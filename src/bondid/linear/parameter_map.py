@@ -5,7 +5,9 @@ A parameter vector ``p`` holds a chosen subset of the named parameters (``x_stag
 
 * link parameters (mass m, CoM c, inertia about the CoM I_c) → π = [m, m·c, I_c + m(|c|²𝟙 − ccᵀ)]
   (non-linear in (m, c), affine in I_c),
-* ``JOINT.stiffness`` / ``JOINT.damping`` → the spring / damper of that coordinate (identity).
+* ``JOINT.stiffness`` / ``JOINT.damping`` → the spring / damper of that coordinate (identity),
+* ``gain.in.X`` / ``gain.out.Y`` and ``mix.P`` → the transducer gains and the points' mixes
+  (:meth:`ParameterMap.gain_values`, :meth:`ParameterMap.mix_values`).
 
 :meth:`ParameterMap.jacobian` gives the exact derivatives, so dH/dp follows by the chain rule.
 """
@@ -53,8 +55,10 @@ class ParameterMap:
                 raise ParameterError(
                     f"{doc.source or '<URDF>'}: unknown parameter {n!r}; see parameter_names()"
                 )
-            if info.kind == "gain":
-                self.slots.append(_Slot("gain", -1, info.name))
+            if info.kind in ("gain", "mix"):
+                self.slots.append(
+                    _Slot(info.kind, -1, info.name if info.kind == "gain" else info.owner)
+                )
             elif info.is_inertial:
                 if info.owner not in affine.bodies:
                     raise ParameterError(
@@ -89,6 +93,23 @@ class ParameterMap:
             if s.kind == "gain":
                 out[str(s.component)] = np.eye(self.size)[col]
         return out
+
+    def mix_values(self, p: np.ndarray) -> dict[str, float]:
+        """Free mixes by point name (the mix part of the parameter-model protocol,
+        :mod:`bondid.cost.mixing`)."""
+        return {
+            str(s.component): float(v)
+            for s, v in zip(self.slots, np.asarray(p, dtype=float), strict=True)
+            if s.kind == "mix"
+        }
+
+    def mix_jacobian(self, p: np.ndarray) -> dict[str, np.ndarray]:
+        """d μ / d p ``(size,)`` of every free mix (a unit row)."""
+        return {
+            str(s.component): np.eye(self.size)[col]
+            for col, s in enumerate(self.slots)
+            if s.kind == "mix"
+        }
 
     def _inertials(self, p: np.ndarray) -> list[tuple[float, np.ndarray, np.ndarray]]:
         inert = [
@@ -131,7 +152,7 @@ class ParameterMap:
         dk = np.zeros((self.nv, self.size))
         dd = np.zeros((self.nv, self.size))
         for col, s in enumerate(self.slots):
-            if s.kind == "gain":
+            if s.kind in ("gain", "mix"):
                 continue
             if s.kind == "stiffness":
                 dk[s.index, col] = 1.0

@@ -11,7 +11,11 @@ name                           meaning                                      unit
 ``JOINT.stiffness``            Gazebo joint spring                          N/m, N·m/rad
 ``JOINT.damping``              joint viscous damper                         N·s/m, N·m·s/rad
 ``gain.in.X``, ``gain.out.Y``  transducer gain of input X / output Y         file unit per SI
+``mix.P``                      share of point P's second component          per its kinds
 =============================  ==========================================  ===============
+
+A mix is a parameter only for a point declared with a second component (a patch driving
+bending and torsion: :mod:`bondid.model.points`); it belongs to the group ``mixes`` only.
 
 A gain is a parameter only where the model declares it (``<transducer_gain>``, from a study's
 ``[gains]`` table or ``--points`` file; see :mod:`bondid.model.points`); it belongs to the
@@ -24,7 +28,8 @@ stores the inertial with ``rpy = 0``.
 Groups: ``inertial`` (the 10 parameters of every moving link with an ``<inertial>``),
 ``parasitic`` (stiffness and damping of every movable joint without a transmission),
 ``joints`` (stiffness and damping of every movable joint), ``all`` (``inertial`` + ``joints``),
-``gains`` (the declared transducer gains), ``default`` (``inertial`` + every joint stiffness
+``gains`` (the declared transducer gains), ``mixes`` (the points' mixes), ``default``
+(``inertial`` + every joint stiffness
 and damping whose model value is not 0: ``python -m bondid.fit``'s default free set; a 0 the
 model sets, no spring on a driven axis, is a modelling decision, not an uncertain number).
 """
@@ -33,13 +38,15 @@ from __future__ import annotations
 
 import fnmatch
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from ..exceptions import ParameterError
 from .document import UrdfDocument, rotation_and_translation
+from .points import MIX_PREFIX
+from .ties import TIEABLE, Tie, followers, model_ties, set_tie
 
 COM_AXES = ("x", "y", "z")
 INERTIA_COMPONENTS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
@@ -52,7 +59,7 @@ INERTIA_ENTRY = {
     "iyz": (1, 2),
     "izz": (2, 2),
 }
-GROUPS = ("inertial", "parasitic", "joints", "all", "gains", "default")
+GROUPS = ("inertial", "parasitic", "joints", "all", "gains", "mixes", "default")
 
 
 @dataclass(frozen=True)
@@ -111,6 +118,9 @@ def parameter_infos(doc: UrdfDocument) -> list[ParameterInfo]:
         out.append(ParameterInfo(f"{j.name}.damping", "damping", j.name, None, du))
     for name in doc.gains:
         out.append(ParameterInfo(name, "gain", name, None, "1"))
+    for pt in doc.points:
+        if pt.mixed:
+            out.append(ParameterInfo(f"{MIX_PREFIX}{pt.name}", "mix", pt.name, None, "1"))
     return out
 
 
@@ -200,6 +210,8 @@ def get_parameter(doc: UrdfDocument, name: str) -> float:
     info = _info(doc, name)
     if info.kind == "gain":
         return doc.gains[name]
+    if info.kind == "mix":
+        return next(p.mix for p in doc.points if p.name == info.owner)
     if info.kind == "stiffness":
         return doc.stiffness(info.owner)
     if info.kind == "damping":
@@ -225,6 +237,10 @@ def set_parameter(doc: UrdfDocument, name: str, value: float) -> None:
         if value == 0:
             raise ParameterError(f"{name}: a gain of 0 cuts the channel; valid: ≠ 0")
         doc.set_gain(name, value)
+        return
+    if info.kind == "mix":
+        point = next(p for p in doc.points if p.name == info.owner)
+        doc.set_point(replace(point, mix=value))
         return
     if info.kind == "stiffness":
         doc.set_stiffness(info.owner, value)
@@ -265,9 +281,11 @@ def group_members(doc: UrdfDocument, group: str) -> list[str]:
     if group == "joints":
         return [p.name for p in infos if p.kind in joint_kinds]
     if group == "all":
-        return [p.name for p in infos if p.kind != "gain"]
+        return [p.name for p in infos if p.kind not in ("gain", "mix")]
     if group == "gains":
         return [p.name for p in infos if p.kind == "gain"]
+    if group == "mixes":
+        return [p.name for p in infos if p.kind == "mix"]
     if group == "default":
         return [
             p.name
@@ -283,7 +301,8 @@ def select_parameters(
     """Resolve names, glob patterns and groups into parameter names (model order).
 
     ``free`` and ``fixed`` items may be comma- or space-separated strings. ``fixed`` wins.
-    A pattern that matches nothing raises :class:`ParameterError`.
+    A pattern that matches nothing raises :class:`ParameterError`. Of a tie declared in the
+    model (:mod:`.ties`) only the first chosen member is returned: the others follow it.
     """
     all_names = parameter_names(doc)
 
@@ -304,4 +323,50 @@ def select_parameters(
         return out
 
     chosen = expand(free) - expand(fixed)
-    return [n for n in all_names if n in chosen]
+    ordered = [n for n in all_names if n in chosen]
+    tied = followers(model_ties(doc), ordered)
+    return [n for n in ordered if n not in tied]
+
+
+def declare_tie(doc: UrdfDocument, name: str, items: Iterable[str], where: str) -> Tie:
+    """Tie the joint parameters that ``items`` (names and globs, comma- or space-separated)
+    match into one value, in ``doc`` (:mod:`.ties`); every member is set to the first one's
+    value (model order).
+
+    Raises:
+        ParameterError: a pattern matches nothing, fewer than two parameters, a parameter
+            that is not a joint stiffness or damping, members of two kinds, or a member
+            already in another tie (the message names ``where``).
+    """
+    infos = {p.name: p for p in parameter_infos(doc)}
+    hits: set[str] = set()
+    for item in items:
+        for token in item.replace(",", " ").split():
+            found = [n for n in infos if fnmatch.fnmatchcase(n, token)]
+            if not found:
+                raise ParameterError(
+                    f"{where}: tie {name!r}: {token!r} matches no parameter of"
+                    f" {doc.source or '<URDF>'}; give joint stiffness or damping names or globs"
+                    " (*.damping, seg*.stiffness)"
+                )
+            hits.update(found)
+    members = [n for n in infos if n in hits]
+    kinds = {infos[n].kind for n in members}
+    if len(members) < 2 or not kinds <= set(TIEABLE) or len(kinds) != 1:
+        raise ParameterError(
+            f"{where}: tie {name!r} holds {', '.join(members)}; valid: two or more joint"
+            f" parameters of one kind ({' or '.join(TIEABLE)})"
+        )
+    for other in model_ties(doc):
+        shared = set(other.members) & set(members)
+        if other.name != name and shared:
+            raise ParameterError(
+                f"{where}: tie {name!r}: {', '.join(sorted(shared))} already in tie"
+                f" {other.name!r}; a parameter can be in one tie only"
+            )
+    value = get_parameter(doc, members[0])
+    for m in members[1:]:
+        set_parameter(doc, m, value)
+    tie = Tie(name, tuple(members))
+    set_tie(doc, tie)
+    return tie

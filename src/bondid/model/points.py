@@ -23,6 +23,19 @@ file given with ``--points``)::
     [gains]
     "gain.in.motor" = 0.35      # any number ≠ 0 (a sign flip is a gain of −1)
 
+A point may have a *second component*: a piezo patch or a shaker that drives more than one
+motion (bending and torsion, a force and a moment) in a ratio to be fitted::
+
+    [points.patch1]
+    link = "seg0"
+    kind = "rotation"
+    direction = [0, 1, 0]       # the first component (bending)
+    second = {kind = "rotation", direction = [1, 0, 0]}   # the second (torsion)
+    mix = 0.0                   # its share: second = mix × first (a parameter, mix.patch1)
+
+As an input the point then applies ``u (d₁ + mix · d₂)`` (each ``d`` a force or a torque
+along its direction, per its kind); as an output it senses the same combination.
+
 and stored in the model as two URDF extension elements that other URDF readers ignore
 (``<measurement_point …/>``, ``<transducer_gain …/>``), so every command (and every copy of
 the model) sees them.
@@ -44,7 +57,10 @@ POINT_TAG = "measurement_point"
 GAIN_TAG = "transducer_gain"
 POINT_KINDS = ("translation", "rotation")
 POINT_AXES = ("world", "local")
-_POINT_KEYS = ("link", "kind", "direction", "axes", "relative_to")
+_POINT_KEYS = ("link", "kind", "direction", "axes", "relative_to", "second", "mix")
+_SECOND_KEYS = ("kind", "direction")
+#: the name of a point's mix parameter: ``mix.<point>``
+MIX_PREFIX = "mix."
 GAIN_SIDES = ("in", "out")
 
 
@@ -61,6 +77,8 @@ class Point:
         axes: ``world`` (direction in world axes) or ``local`` (in the link's axes at the
             operating point).
         relative_to: another frame whose motion is subtracted, or None (absolute).
+        second_kind, second_direction: a second component (same frames and axes), or None.
+        mix: the second component's share (``d₁ + mix · d₂``; 0 without one).
     """
 
     name: str
@@ -69,6 +87,14 @@ class Point:
     direction: tuple[float, float, float] = (0.0, 0.0, 1.0)
     axes: str = "world"
     relative_to: str | None = None
+    second_kind: str | None = None
+    second_direction: tuple[float, float, float] | None = None
+    mix: float = 0.0
+
+    @property
+    def mixed(self) -> bool:
+        """Does the point have a second component (and a ``mix.<name>`` parameter)?"""
+        return self.second_kind is not None
 
     def to_element(self) -> ET.Element:
         attrib = {
@@ -80,6 +106,10 @@ class Point:
         }
         if self.relative_to:
             attrib["relative_to"] = self.relative_to
+        if self.second_kind is not None and self.second_direction is not None:
+            attrib["second_kind"] = self.second_kind
+            attrib["second_direction"] = " ".join(repr(float(v)) for v in self.second_direction)
+            attrib["mix"] = repr(float(self.mix))
         return ET.Element(POINT_TAG, attrib)
 
 
@@ -125,7 +155,35 @@ def point_from_mapping(name: str, table: Mapping[str, Any], where: str) -> Point
     if rel is not None and (not isinstance(rel, str) or not rel):
         raise _fail(where, f"{key}.relative_to", f"{rel!r} is not a link name")
     direction = _direction(table.get("direction", [0, 0, 1]), where, f"{key}.direction")
-    return Point(name, link, kind, direction, axes, rel)
+    second = _second(table, where, key)
+    mix = table.get("mix", 0.0)
+    if isinstance(mix, bool) or not isinstance(mix, int | float) or not math.isfinite(mix):
+        raise _fail(where, f"{key}.mix", f"{mix!r} is not a finite number")
+    if second is None and "mix" in table:
+        raise _fail(where, f"{key}.mix", "a mix needs a second component (second = {...})")
+    if second is None:
+        return Point(name, link, kind, direction, axes, rel)
+    return Point(name, link, kind, direction, axes, rel, second[0], second[1], float(mix))
+
+
+def _second(table: Mapping[str, Any], where: str, key: str) -> tuple[str, Any] | None:
+    """A point's ``second = {kind, direction}`` table → (kind, unit direction), or None."""
+    sec = table.get("second")
+    if sec is None:
+        return None
+    if not isinstance(sec, Mapping):
+        raise _fail(where, f"{key}.second", "expected a table {kind = ..., direction = [...]}")
+    for k in sec:
+        if k not in _SECOND_KEYS:
+            raise _fail(
+                where, f"{key}.second.{k}", f"unknown key; valid: {', '.join(_SECOND_KEYS)}"
+            )
+    kind = sec.get("kind", table.get("kind", "translation"))
+    if kind not in POINT_KINDS:
+        raise _fail(where, f"{key}.second.kind", f"{kind!r}; valid: {', '.join(POINT_KINDS)}")
+    if "direction" not in sec:
+        raise _fail(where, f"{key}.second.direction", "missing; give three numbers, not all 0")
+    return kind, _direction(sec["direction"], where, f"{key}.second.direction")
 
 
 def points_from_table(table: Any, where: str) -> list[Point]:
@@ -164,6 +222,13 @@ def point_from_element(el: ET.Element, where: str) -> Point:
     try:
         if "direction" in table:
             table["direction"] = [float(v) for v in str(table["direction"]).split()]
+        if "second_kind" in table or "second_direction" in table:
+            table["second"] = {
+                "kind": table.pop("second_kind", None) or table.get("kind", "translation"),
+                "direction": [float(v) for v in str(table.pop("second_direction", "")).split()],
+            }
+        if "mix" in table:
+            table["mix"] = float(table["mix"])
         return point_from_mapping(el.get("name", ""), table, where)
     except (ConfigError, ValueError) as exc:
         raise ModelError(f"{where}: <{POINT_TAG} name={el.get('name')!r}>: {exc}") from None

@@ -29,14 +29,16 @@ import numpy as np
 
 from .. import interrupt
 from ..exceptions import ConfigError, SolverError
+from .casadi_callbacks import iteration_callback_class, numpy_callback_class
 from .recorder import Recorder
+from .stall import DEFAULT_RULE, STALLED, StallMonitor, StallRule, gauss_newton_decrement
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from .evaluator import Evaluator
     from .problem import Constraints, FitProblem
 
-#: IPOPT statuses counted as success.
-SUCCESS_STATUSES = frozenset({"Solve_Succeeded", "Solved_To_Acceptable_Level"})
+#: IPOPT statuses counted as success, and the stall test's (:mod:`.stall`)
+SUCCESS_STATUSES = frozenset({"Solve_Succeeded", "Solved_To_Acceptable_Level", STALLED})
 #: IPOPT statuses that leave a usable final iterate (``success=False``, no ``failure``).
 SOFT_STATUSES = frozenset(
     {
@@ -48,6 +50,8 @@ SOFT_STATUSES = frozenset(
         "Feasible_Point_Found",
     }
 )
+#: IPOPT's status when its search direction became too small to move the iterate
+TINY_STEP = "Search_Direction_Becomes_Too_Small"
 #: IPOPT options of a solve warm-started at a fit (IPOPT's default initial barrier, 0.1, is of
 #: the order of our objectives there and pushes the iterates off the start). Measured on the
 #: all-data refit of a blind-benchmark case's final model (the gantry design, a rotational
@@ -80,6 +84,8 @@ class Solution:
         history: the objective at every IPOPT iteration.
         g: constraint values ``(ng,)`` at ``z``.
         lam_x, lam_g: IPOPT's multipliers ``(n,)``, ``(ng,)`` at its last iterate.
+        stop_reason: why a solve stopped converged by the stall test (status
+            :data:`.stall.STALLED`), else None.
     """
 
     z: np.ndarray
@@ -94,6 +100,7 @@ class Solution:
     g: np.ndarray = field(default_factory=lambda: np.zeros(0))
     lam_x: np.ndarray = field(default_factory=lambda: np.zeros(0))
     lam_g: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    stop_reason: str | None = None
 
     @property
     def failed(self) -> bool:
@@ -103,104 +110,6 @@ class Solution:
     def error(self) -> SolverError:
         """The failure as a :class:`SolverError` keeping IPOPT's status."""
         return SolverError(self.failure or f"IPOPT stopped with {self.status}", status=self.status)
-
-
-def _numpy_callback_class() -> Any:
-    import casadi
-
-    class NumpyCallback(casadi.Callback):
-        """A CasADi function of dense column inputs evaluated by a Python function."""
-
-        def __init__(
-            self,
-            name: str,
-            in_sizes: list[int],
-            out_shapes: list[tuple[int, int]],
-            fn: Callable,
-            jacobian: Callable[[Any], Any] | None = None,
-        ):
-            casadi.Callback.__init__(self)
-            self._in, self._out, self._fn, self._jac = in_sizes, out_shapes, fn, jacobian
-            self.construct(name, {"enable_fd": False})
-
-        def has_jacobian(self) -> bool:
-            return self._jac is not None
-
-        def get_jacobian(self, name: str, inames: Any, onames: Any, opts: Any) -> Any:
-            # only used for the one-input objective: d f / d z
-            z = casadi.MX.sym("z", self._in[0])
-            nominal = [casadi.MX.sym(f"out{i}", *s) for i, s in enumerate(self._out)]
-            assert self._jac is not None
-            return casadi.Function(name, [z, *nominal], [self._jac(z)], inames, onames, opts)
-
-        def get_n_in(self) -> int:
-            return len(self._in)
-
-        def get_n_out(self) -> int:
-            return len(self._out)
-
-        def get_sparsity_in(self, i: int) -> Any:
-            return casadi.Sparsity.dense(self._in[i], 1)
-
-        def get_sparsity_out(self, i: int) -> Any:
-            return casadi.Sparsity.dense(*self._out[i])
-
-        def eval(self, arg: Any) -> Any:
-            out = self._fn(*[np.asarray(a, dtype=float).reshape(-1) for a in arg])
-            return [
-                casadi.DM(np.asarray(o, dtype=float).reshape(s))
-                for o, s in zip(out, self._out, strict=True)
-            ]
-
-    return NumpyCallback
-
-
-def _iteration_callback_class() -> Any:
-    import casadi
-
-    class IterationCallback(casadi.Callback):
-        """IPOPT's per-iteration hook: hands ``(f, x, g)`` to ``record``."""
-
-        def __init__(
-            self, nx: int, ng: int, record: Callable[[float, np.ndarray, np.ndarray], None]
-        ):
-            casadi.Callback.__init__(self)
-            self._nx, self._ng, self._record = nx, ng, record
-            self.construct("fit_iteration", {})
-
-        def get_n_in(self) -> int:
-            return casadi.nlpsol_n_out()
-
-        def get_n_out(self) -> int:
-            return 1
-
-        def get_name_in(self, i: int) -> str:
-            return casadi.nlpsol_out(i)
-
-        def get_name_out(self, i: int) -> str:
-            return "ret"
-
-        def get_sparsity_in(self, i: int) -> Any:
-            name = casadi.nlpsol_out(i)
-            if name == "f":
-                return casadi.Sparsity.dense(1, 1)
-            if name in ("x", "lam_x"):
-                return casadi.Sparsity.dense(self._nx, 1)
-            if name in ("g", "lam_g"):
-                return casadi.Sparsity.dense(self._ng, 1)
-            return casadi.Sparsity(0, 0)
-
-        def eval(self, arg: Any) -> Any:
-            names = casadi.nlpsol_out()
-            self._record(
-                float(arg[names.index("f")]),
-                np.asarray(arg[names.index("x")], dtype=float).reshape(-1),
-                np.asarray(arg[names.index("g")], dtype=float).reshape(-1),
-            )
-            # non-zero asks IPOPT to stop (User_Requested_Stop): a Ctrl-C that CasADi caught
-            return [1 if interrupt.requested() else 0]
-
-    return IterationCallback
 
 
 class Nlp:
@@ -232,11 +141,12 @@ class Nlp:
                 f"constraint_hessian {constraint_hessian!r} is invalid; "
                 f"valid: {', '.join(CONSTRAINT_HESSIANS)}"
             )
-        NumpyCallback = _numpy_callback_class()
+        NumpyCallback = numpy_callback_class()
         self.evaluator, self.constraints = evaluator, constraints
         self.n = n = int(constraints.zsym.shape[0])
         self.ng = ng = constraints.size
         self.g_fn = casadi.Function("fit_g", [constraints.zsym], [constraints.expr])
+        self._jac_g: Any = None  # the constraints' Jacobian, built when the stall test asks
         self._grad_cb = NumpyCallback(
             "fit_grad", [n], [(1, 1), (n, 1)], lambda z: list(evaluator.cost_and_gradient(z))
         )
@@ -273,14 +183,33 @@ class Nlp:
         """f at ``z`` through the CasADi objective function IPOPT uses."""
         return float(self.cost_fn(z))
 
-    def solver(
-        self, record: Callable[[float, np.ndarray, np.ndarray], None], ipopt: dict
-    ) -> tuple[Any, Any]:
-        """A ``casadi.nlpsol`` IPOPT instance calling ``record(f, z, g)`` every iteration, and
-        its iteration callback (which must outlive the solver's calls)."""
+    def decrement(self, z: np.ndarray, lam_x: np.ndarray, lam_g: np.ndarray) -> float:
+        """The Gauss–Newton decrement at ``z`` of the Lagrangian's gradient
+        ``∇f + J_gᵀ λ_g + λ_x`` (CasADi's multiplier signs; :func:`.stall.
+        gauss_newton_decrement`); the residual Jacobian comes from the evaluator's cache
+        when IPOPT has just evaluated it there."""
         import casadi
 
-        it_cb = _iteration_callback_class()(self.n, self.ng, record)
+        r, J = self.evaluator.residual_and_jacobian(z)
+        if not np.all(np.isfinite(r)):
+            return float("inf")
+        grad = 2.0 * (J.T @ r) + lam_x
+        if self.ng:
+            if self._jac_g is None:
+                zs = self.constraints.zsym
+                self._jac_g = casadi.Function(
+                    "fit_jac_g", [zs], [casadi.jacobian(self.constraints.expr, zs)]
+                )
+            grad = grad + np.asarray(self._jac_g(z), dtype=float).T @ lam_g
+        return gauss_newton_decrement(J, grad)
+
+    def solver(self, record: Callable[..., bool], ipopt: dict) -> tuple[Any, Any]:
+        """A ``casadi.nlpsol`` IPOPT instance calling ``record(f, z, g, lam_x, lam_g)`` every
+        iteration (True stops it), and its iteration callback (which must outlive the
+        solver's calls)."""
+        import casadi
+
+        it_cb = iteration_callback_class()(self.n, self.ng, record)
         opts: dict[str, Any] = {
             "grad_f": self.grad_fn, "hess_lag": self.hess_fn, "iteration_callback": it_cb,
             "print_time": False, "show_eval_warnings": False, "ipopt": ipopt,
@@ -321,6 +250,7 @@ def solve(
     progress: Callable[[int, float], None] | None = None,
     ipopt_options: dict[str, Any] | None = None,
     constraint_hessian: str = "convexified",
+    stall: StallRule | None = DEFAULT_RULE,
 ) -> Solution:
     """Run IPOPT (quiet) on ``problem`` from ``z0`` (default ``problem.z0``).
 
@@ -331,6 +261,9 @@ def solve(
         progress: called as ``progress(iteration, cost)`` at every IPOPT iteration.
         ipopt_options: extra IPOPT options (override the defaults).
         constraint_hessian: see :class:`Nlp`.
+        stall: the stall test (:mod:`.stall`): a solve whose cost, steps and projected
+            gradient have gone flat stops converged with status :data:`.stall.STALLED` and
+            its reason in ``stop_reason``; None = IPOPT's own tests only.
 
     Returns:
         A :class:`Solution`; never raises for IPOPT's outcome (a Ctrl-C still interrupts).
@@ -340,12 +273,20 @@ def solve(
     problem.evaluator.reset()  # every solve starts with the same damping
     cons = nlp.constraints
     rec = Recorder(cons.lower, cons.upper, progress)
+    monitor = None if stall is None else StallMonitor(stall, nlp.decrement)
+
+    def on_iteration(
+        f: float, z: np.ndarray, g: np.ndarray, lx: np.ndarray, lg: np.ndarray
+    ) -> bool:
+        rec(f, z, g)
+        return monitor is not None and monitor(f, z, lx, lg)
+
     ipopt: dict[str, Any] = {"print_level": 0, "sb": "yes", "max_iter": int(max_iter),
                              "tol": float(tol), "mu_strategy": "monotone"}  # fmt: skip
     ipopt.update(ipopt_options or {})
     t0 = time.perf_counter()
     try:
-        solver, _callback = nlp.solver(rec, ipopt)
+        solver, _callback = nlp.solver(on_iteration, ipopt)
         sol = solver(x0=z_start, lbx=problem.lbz, ubx=problem.ubz, lbg=cons.lower, ubg=cons.upper)
     except RuntimeError as exc:
         interrupt.check()  # CasADi turned a Ctrl-C into an error: it is an interrupt
@@ -354,6 +295,13 @@ def solve(
     interrupt.check()  # a Ctrl-C during the solve stopped IPOPT: stop the run too
     wall = time.perf_counter() - t0
     status, iterations = _stats(solver, len(rec.history))
+    reason = None if monitor is None else monitor.reason
+    if status == "User_Requested_Stop" and reason is not None:
+        status = STALLED
+    elif status == TINY_STEP and monitor is not None:
+        lam = (_column(sol["lam_x"]), _column(sol["lam_g"]))
+        if monitor.settled(_column(sol["x"]), *lam):
+            status, reason = STALLED, monitor.reason
     if status not in SUCCESS_STATUSES | SOFT_STATUSES:
         why = (
             f"IPOPT stopped with {status} after {iterations} iterations "
@@ -366,7 +314,7 @@ def solve(
         z=_column(sol["x"]), cost=float(sol["f"]), status=status,
         success=status in SUCCESS_STATUSES, iterations=iterations, wall_s=wall,
         history=rec.history, g=_column(sol["g"]), lam_x=_column(sol["lam_x"]),
-        lam_g=_column(sol["lam_g"]),
+        lam_g=_column(sol["lam_g"]), stop_reason=reason if status == STALLED else None,
     )  # fmt: skip
     best = rec.better_than(out.cost)
     if best is not None:

@@ -17,7 +17,9 @@ Layout of the decision vector ``z`` (all entries O(1)):
   (σ̄ the mean principal second moment at the start), σ scaled by ``√σ̄``, t scaled by the
   body length ``L`` (half the hull's bounding-box diagonal);
 * for every free ``JOINT.stiffness`` / ``JOINT.damping``, one entry ``p / s`` with ``s`` the
-  magnitude of its starting value (1 in SI units when that is 0).
+  magnitude of its starting value (1 in SI units when that is 0);
+* for every free transducer gain one entry ``ln(g / g₀)``, for every free point mix one entry
+  ``(μ − μ₀) / s`` (``s`` = ``max(|μ₀|, 1)``: a mix may change sign).
 
 :class:`Layout` is a *parameter model* for :class:`bondid.cost.FrfProblem` (``size``,
 ``values``, ``jacobian``); :mod:`bondid.optim.constraints` builds the NLP's constraint
@@ -113,6 +115,18 @@ class GainVar:
     g0: float = 1.0
 
 
+@dataclass
+class MixVar:
+    """A free point mix (:mod:`bondid.cost.mixing`): ``μ = μ₀ + s · z``."""
+
+    name: str  # mix.<point>
+    point: str
+    index: int  # index in z
+    name_index: int  # index in names
+    mu0: float = 0.0
+    scale: float = 1.0
+
+
 def named_from_pi(pi: np.ndarray) -> dict[str, float]:
     """URDF-form values ``{component: value}`` of one body's ``pi`` (10,)."""
     m, c, I_c = urdf_from_pi(pi)
@@ -165,11 +179,14 @@ class Layout:
         self.blocks = self._body_blocks(doc, affine, hulls)
         self.joints: list[JointVar] = []
         self.gains: list[GainVar] = []
+        self.mixes: list[MixVar] = []
         self.notes: list[str] = []
         offset = 10 * len(self.blocks)
         for j, info in enumerate(self.infos):
             if info.kind == "gain":
                 self.gains.append(GainVar(info.name, offset, j))
+            elif info.kind == "mix":
+                self.mixes.append(MixVar(info.name, info.owner, offset, j))
             elif not info.is_inertial:
                 dof = affine.dofs.index(info.owner)
                 self.joints.append(JointVar(info.name, info.kind, dof, offset, j, 1.0))
@@ -264,7 +281,25 @@ class Layout:
         for gv in self.gains:
             gv.g0 = float(p0[gv.name_index])
             z[gv.index] = 0.0
+        for mv in self.mixes:
+            mv.mu0 = float(p0[mv.name_index])
+            mv.scale = max(abs(mv.mu0), 1.0)
+            z[mv.index] = 0.0
         return z
+
+    # -- point mixes (the optional mix part of the parameter-model protocol) -----------------
+    def mix_values(self, z: np.ndarray) -> dict[str, float]:
+        """Free mixes by point name at ``z``."""
+        return {m.point: m.mu0 + m.scale * float(z[m.index]) for m in self.mixes}
+
+    def mix_jacobian(self, z: np.ndarray) -> dict[str, np.ndarray]:
+        """d μ / d z ``(size,)`` of every free mix."""
+        out = {}
+        for m in self.mixes:
+            row = np.zeros(self.size)
+            row[m.index] = m.scale
+            out[m.point] = row
+        return out
 
     # -- transducer gains (the optional gain part of the parameter-model protocol) ----------
     def gain_values(self, z: np.ndarray) -> dict[str, float]:
@@ -323,6 +358,8 @@ class Layout:
                 out[jv.name_index] = jv.scale * z[jv.index]
         for gv in self.gains:
             out[gv.name_index] = gv.g0 * float(np.exp(z[gv.index]))
+        for mv in self.mixes:
+            out[mv.name_index] = mv.mu0 + mv.scale * float(z[mv.index])
         return out
 
     # -- variable bounds -------------------------------------------------------------------
@@ -366,4 +403,8 @@ class Layout:
             lbz[gv.index] = np.log(r[0]) if r[0] > 0 else -np.inf
             ubz[gv.index] = np.log(r[1]) if r[1] > 0 and np.isfinite(r[1]) else np.inf
             labels.append((gv.name, gv.index))
+        for mv in self.mixes:
+            lbz[mv.index] = (lower[mv.name_index] - mv.mu0) / mv.scale
+            ubz[mv.index] = (upper[mv.name_index] - mv.mu0) / mv.scale
+            labels.append((mv.name, mv.index))
         return lbz, ubz, labels

@@ -52,6 +52,12 @@ class ModifiedLayout:
     def gain_jacobian(self, z: np.ndarray) -> dict[str, np.ndarray]:
         return {k: self._pad(v) for k, v in self.layout.gain_jacobian(z).items()}
 
+    def mix_values(self, z: np.ndarray) -> dict[str, float]:
+        return self.layout.mix_values(z)
+
+    def mix_jacobian(self, z: np.ndarray) -> dict[str, np.ndarray]:
+        return {k: self._pad(v) for k, v in self.layout.mix_jacobian(z).items()}
+
     def modifier_values(self, z: np.ndarray) -> np.ndarray:
         """θ ``(n_θ,)`` at ``z``."""
         u = np.asarray(z, dtype=float)[self.offset :]

@@ -93,6 +93,7 @@ def fit_result(
         document=doc,
         notes=list(notes),
         modifiers=_modifiers(problem, z),
+        stop_reason=solution.stop_reason,
     )
 
 

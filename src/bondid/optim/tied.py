@@ -3,7 +3,9 @@
 A *tie* drives joint parameters that are not fitted on their own by a free one:
 ``{leader: [(member, factor), ...]}`` sets ``member = factor · leader`` (e.g. one shear
 stiffness for every segment of a lumped chain a diagnosis candidate adds). Leaders and members
-are joint ``stiffness`` or ``damping`` parameters.
+are joint ``stiffness`` or ``damping`` parameters. Ties declared in the model (``--tie``, a
+study's ``[ties]``: :mod:`bondid.model.ties`) join the ones a caller gives
+(:func:`check_ties`), so every fit of the model keeps them.
 """
 
 from __future__ import annotations
@@ -17,25 +19,28 @@ from ..linear.affine import AffineModel
 from ..linear.parameter_map import ParameterMap
 from ..model.document import UrdfDocument
 from ..model.parameters import COM_AXES, parameter_infos, set_link_inertial, set_parameter
+from ..model.ties import TIEABLE as _TIEABLE
+from ..model.ties import leader_ties, model_ties
 from .layout import _IJ, Layout
-
-_TIEABLE = ("stiffness", "damping")
 
 
 def check_ties(
     doc: UrdfDocument, names: Sequence[str], ties: Mapping[str, Sequence[tuple[str, float]]]
 ) -> dict[str, list[tuple[str, float]]]:
-    """Validated ties (see the module docstring) as a plain dict.
+    """Validated ties (see the module docstring) as a plain dict: ``ties`` and those the
+    model declares over ``names`` (:func:`bondid.model.ties.leader_ties`; a leader given in
+    ``ties`` replaces the model's entry for it).
 
     Raises:
         ConfigError: a leader not among ``names``, a member that is free or tied twice, a
             parameter that is not a joint stiffness/damping, or a factor that is not finite
             and > 0.
+        ModelError: two members of a tie the model declares are both free.
     """
     kinds = {p.name: p.kind for p in parameter_infos(doc)}
     out: dict[str, list[tuple[str, float]]] = {}
     seen: set[str] = set()
-    for leader, members in ties.items():
+    for leader, members in {**leader_ties(model_ties(doc), names), **ties}.items():
         if leader not in names:
             raise ConfigError(f"tie {leader!r}: the leader must be one of the free parameters")
         for name in [leader, *(m for m, _ in members)]:
@@ -99,6 +104,13 @@ class TiedParameters:
         jac = self.map.gain_jacobian(self.T @ np.asarray(x, dtype=float))
         return {k: v @ self.T for k, v in jac.items()}
 
+    def mix_values(self, x: np.ndarray) -> dict[str, float]:
+        return self.map.mix_values(self.T @ np.asarray(x, dtype=float))
+
+    def mix_jacobian(self, x: np.ndarray) -> dict[str, np.ndarray]:
+        jac = self.map.mix_jacobian(self.T @ np.asarray(x, dtype=float))
+        return {k: v @ self.T for k, v in jac.items()}
+
 
 def fitted_document(
     doc: UrdfDocument, layout: Layout, z: np.ndarray, p: np.ndarray
@@ -120,4 +132,6 @@ def fitted_document(
         set_parameter(out, jv.name, max(float(v), 0.0))
     for gv in layout.gains:
         set_parameter(out, gv.name, float(p[gv.name_index]))
+    for mv in layout.mixes:
+        set_parameter(out, mv.name, float(p[mv.name_index]))
     return out
