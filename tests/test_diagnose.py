@@ -482,7 +482,7 @@ def test_tied_and_modifier_parameters_refitted_through_the_core(doc):
                 fitted, p.members[0][0]), rel=1e-9)  # fmt: skip
     # the std of every parameter from one Jacobian (named columns and ∂r/∂θ): the θ column
     # against central finite differences of the residual, and the named std can only widen
-    from bondid.fit.result import parameter_statistics
+    from bondid.optim.result import parameter_statistics
 
     fit, std_theta = refit.result(res)
     theta = refit.state_theta(fit)

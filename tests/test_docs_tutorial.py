@@ -55,7 +55,7 @@ def bash_blocks(path: Path) -> list[str]:
 def commands(block: str) -> list[str]:
     """The commands of a block: continuation lines joined, ``&&`` chains split, comments
     and blank lines dropped."""
-    joined = re.sub(r"\\\n\s*", " ", block)
+    joined = re.sub(r"\s*\\\n\s*", " ", block)
     out = []
     for line in joined.splitlines():
         line = line.split(" #", 1)[0].strip()

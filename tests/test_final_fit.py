@@ -149,8 +149,8 @@ def test_the_final_task_is_a_warm_refit_on_all_data(case):  # type: ignore[no-un
     search task keeps IPOPT's default barrier."""
     from bondid.diagnose.final_fit import final_task
     from bondid.diagnose.refit_job import Models
-    from bondid.fit.prior import PRIOR_IPOPT
     from bondid.optim.ipopt import WARM_START
+    from bondid.optim.prior import PRIOR_IPOPT
 
     base, cand, _k, refit = case
     source = replace(refit, label="with an effect")

@@ -278,8 +278,8 @@ def test_default_bounds(bonder: UrdfDocument) -> None:
     np.testing.assert_allclose(lo[0:3], [1.67 * 0.5, 0.0, 2e5 * 0.9])
     np.testing.assert_allclose(hi[[0, 2]], [1.67 * 1.5, 2e5 * 1.1])
     # a zero stiffness has nothing to be relative to: finite, from the joint's inertia
-    from bondid.fit.bounds import DEFAULT_F_MAX, STIFF_FACTOR
     from bondid.linear.affine import build_affine_model
+    from bondid.optim.bounds import DEFAULT_F_MAX, STIFF_FACTOR
 
     am = build_affine_model(bonder, {})
     m_xx = am.mass_matrix()[am.dofs.index("x"), am.dofs.index("x")]

@@ -115,7 +115,7 @@ def test_fit_end_to_end(case: dict[str, Path], tmp_path: Path, capsys) -> None:
     model, d0, d1 = case["model"], case["data0"], case["data1"]
     before = {p: _sha(p) for p in (model, d0, d1)}
     out = tmp_path / "res"
-    # the exact known answer: no prior (bondid.fit.prior; tests/test_prior.py has the default)
+    # the exact known answer: no prior (bondid.optim.prior; tests/test_prior.py has the default)
     argv = ["--model", model, "--data", d0, d1, "--out", out, "--quiet", "--free", "parasitic",
             "--prior", "0"]  # fmt: skip
     code, stdout, _ = _run(capsys, *argv)

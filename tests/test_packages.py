@@ -8,9 +8,9 @@ import pytest
 from models import robot_path
 
 from bondid.exceptions import ModelError
-from bondid.fit.bounds import link_hulls
 from bondid.model import UrdfDocument
 from bondid.model.packages import text_with_resolved_meshes
+from bondid.optim.bounds import link_hulls
 
 #: the hull of a 0.2 m cube mesh: its diagonal, to STL float32 precision
 SIZE_TOL = 1e-7

@@ -1,5 +1,5 @@
 """The noise level (bondid.cost.noise_level), the prior toward the model's values
-(bondid.fit.prior) and the fit command's default free set and headline."""
+(bondid.optim.prior) and the fit command's default free set and headline."""
 
 from __future__ import annotations
 
@@ -18,9 +18,9 @@ from bondid.cost.problem import CostOptions, FrfProblem
 from bondid.fit import fit
 from bondid.fit.defaults import default_free
 from bondid.fit.headline import AT_NOISE, verdict
-from bondid.fit.prior import logdet_rows, prior_rows
 from bondid.linear.parameter_map import ParameterMap
 from bondid.model import UrdfDocument, get_parameter, get_parameters, select_parameters
+from bondid.optim.prior import logdet_rows, prior_rows
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from test_fit import synth

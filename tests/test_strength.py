@@ -13,7 +13,7 @@ from bondid.diagnose import scoring
 from bondid.diagnose.effects.base import Candidate, NewParameter
 from bondid.diagnose.job import JobResult
 from bondid.diagnose.search import verdict_order
-from bondid.fit.result import parameter_statistics
+from bondid.optim.result import parameter_statistics
 
 #: draws of the noise
 N_DRAWS = 2000

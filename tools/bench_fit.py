@@ -8,7 +8,7 @@ noise floor: one 80 dB below the peak would bury the high-frequency receptance, 
 its 1 Hz level, and the log cost would then measure noise), two operating points, 2000
 log-spaced frequencies 1–4000 Hz, 9 channels (x, y, z × x, y, z). Every method starts from the
 nominal model with the same bounds (±50 % of each value, inertia and CoM widened as in
-:func:`bondid.fit.bounds.default_bounds`; the zero stiffness of the x and y axes gets
+:func:`bondid.optim.bounds.default_bounds`; the zero stiffness of the x and y axes gets
 [0, 50] N/m) and is scored with the same cost (:class:`bondid.cost.FrfProblem`, complex-log
 residual, L2, no coherence weighting, so ``cost = db_rms²``):
 
@@ -110,7 +110,7 @@ def make_datasets(
 
 
 def bench_bounds(doc: UrdfDocument, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
-    from bondid.fit.bounds import default_bounds
+    from bondid.optim.bounds import default_bounds
 
     lo, hi = default_bounds(doc, names, rel={"mass": 0.5})
     v = get_parameters(doc, names)

@@ -80,9 +80,9 @@ KINDS = ("mass", "com", "inertia", "stiffness", "damping")
 @settings(max_examples=15, deadline=None)
 @given(st.lists(st.sampled_from(range(50)), min_size=1, max_size=6, unique=True))
 def test_every_default_bound_is_finite(indices):
-    from bondid.fit.bounds import default_bounds
     from bondid.model.document import UrdfDocument
     from bondid.model.parameters import select_parameters
+    from bondid.optim.bounds import default_bounds
 
     from .conftest import BONDER
 

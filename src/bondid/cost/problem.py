@@ -422,8 +422,9 @@ class FrfProblem:
         modifier), written into ``r`` ``(k·n_sel,)`` and ``J`` ``(k, n_sel, n_p)`` one block
         of frequencies at a time: the model's derivatives are never held for every frequency
         at once (``(n_out, n_in, n_f, n_p)`` complex would grow with the lines times the
-        parameters). ``mix`` = the points' mix rows and the mixes' d/dx, or None; ``gains`` = ``(free gains, their d/dx)``, ``modifier`` = ``((G, ∂G/∂θ)
-        or None, ∂θ/∂x or None)``."""
+        parameters). ``mix`` = the points' mix rows and the mixes' d/dx, or None;
+        ``gains`` = ``(free gains, their d/dx)``, ``modifier`` = ``((G, ∂G/∂θ) or None,
+        ∂θ/∂x or None)``."""
         kind, k = self.options.kind, parts(self.options.kind)
         rk = r.reshape(k, -1)
         order = np.argsort(b.fidx, kind="stable")

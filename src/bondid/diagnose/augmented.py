@@ -178,8 +178,8 @@ def recentred(
     them (data's highest frequency): a structural effect that replaces a link's inertial (a
     link cut in two keeps its name for one part, :mod:`.effects.flexible_link`) changes what
     those parameters mean, and the nominal model's values no longer apply."""
-    from ..fit.bounds import default_bounds
     from ..model.parameters import get_parameters
+    from ..optim.bounds import default_bounds
 
     infos = {p.name: p for p in parameter_infos(doc)}
     idx = [i for i, n in enumerate(nominal.names)

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..cost.problem import CostOptions
 from ..data.measurement import FrfData
-from ..fit.result import FitResult
+from ..optim.result import FitResult
 from .refit import Refit
 
 if TYPE_CHECKING:

@@ -3,7 +3,7 @@
 A refit is a :class:`~bondid.optim.FitProblem` over the (augmented) model:
 
 * the nominal parameters (:class:`Nominal`): URDF names with the bounds of ``bondid.fit``
-  (:func:`bondid.fit.bounds.default_bounds` around the nominal model, for every origin);
+  (:func:`bondid.optim.bounds.default_bounds` around the nominal model, for every origin);
 * the new parameters of the accepted effects and of the candidate (:class:`NewVar`), just
   more names: a structural one is its first member's URDF parameter (the *leader*), its other
   members tied to it with the ratios of their factors (:mod:`bondid.optim.tied`); a modifier
@@ -12,7 +12,7 @@ A refit is a :class:`~bondid.optim.FitProblem` over the (augmented) model:
   A new parameter whose members the core cannot tie (several link masses: the core ties
   joint springs and dampers only) is held at its start;
 * the noise-scaled prior of ``bondid.fit`` toward the nominal model's values
-  (:mod:`bondid.fit.prior`, width :data:`bondid.fit.defaults.DEFAULT_WIDTH`) on the nominal
+  (:mod:`bondid.optim.prior`, width :data:`bondid.fit.defaults.DEFAULT_WIDTH`) on the nominal
   parameters only: a new parameter has no model value to be pulled toward.
 
 Solves are :func:`bondid.optim.search.run_search` schedules (direct with the presolve, or a
@@ -39,8 +39,8 @@ from ..model.document import UrdfDocument
 from ..optim.problem import FitProblem
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
-    from ..fit.prior import NominalPrior
-    from ..fit.result import FitResult
+    from ..optim.prior import NominalPrior
+    from ..optim.result import FitResult
     from ..optim.search import SearchResult, Step
 
 
@@ -68,8 +68,8 @@ def nominal_space(
 ) -> Nominal:  # fmt: skip
     """:class:`Nominal` of ``names`` around ``doc``'s values (``bondid.fit``'s default bounds,
     ``f_max_hz``: the data's highest frequency)."""
-    from ..fit.bounds import default_bounds
     from ..model.parameters import get_parameters
+    from ..optim.bounds import default_bounds
 
     lo, hi = default_bounds(doc, list(names), f_max_hz=f_max_hz)
     centre = get_parameters(doc, list(names))
@@ -129,8 +129,8 @@ def _prior(
     on the nominal parameters (and their bodies) only."""
     if not nominal.prior_width > 0:
         return None
-    from ..fit.prior import make_prior, shape_bounds
     from ..model.parameters import set_parameter
+    from ..optim.prior import make_prior, shape_bounds
 
     keep = set(nominal.names)
     links = {n.split(".", 1)[0] for n in nominal.names}
@@ -326,7 +326,7 @@ class Refit:
     def ipopt_options(self) -> dict | None:
         """IPOPT's options of every solve (those ``bondid.fit`` uses with the prior, then
         :attr:`ipopt`)."""
-        from ..fit.prior import with_prior_ipopt
+        from ..optim.prior import with_prior_ipopt
 
         return with_prior_ipopt(self.nominal.prior_width, self.ipopt or None)
 
@@ -339,7 +339,7 @@ class Refit:
         """
         import dataclasses
 
-        from ..fit.result import parameter_statistics
+        from ..optim.result import parameter_statistics
 
         fit = res.result
         if self.modifier is None:

@@ -40,7 +40,7 @@
   above is taken on the best-scoring refit whose *strength* the data determine, i.e. at least
   one of its strength parameters (``NewParameter.strength``: a stiffness, a delay, a lag
   time) has ``value/std ≥ Z``, the std from the refit's Jacobian with every nominal parameter
-  free (:func:`bondid.fit.result.parameter_statistics`). For a delay this is the Wald test of
+  free (:func:`bondid.optim.result.parameter_statistics`). For a delay this is the Wald test of
   ``τ = 0`` (the absent effect); for a stiffness ``k`` the compliance ``1/k`` has the same
   relative std to first order, so it is the Wald test of a zero compliance. A refit that
   lowers the held-out score while its strength stays undetermined trades the new parameter

@@ -93,7 +93,7 @@ def resolve_bounds(
     doc: UrdfDocument, names: list[str], s: StudySettings, f_max_hz: float | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Bounds from the defaults, the study and ``--bound`` (a kind key applies to its kind)."""
-    from .bounds import default_bounds
+    from ..optim.bounds import default_bounds
 
     known = [p.name for p in parameter_infos(doc)]
     for key in [*s.rel_bounds, *s.abs_bounds]:

@@ -3,7 +3,7 @@
 * :data:`DEFAULT_FREE`: the free parameters when none are named: ``default``
   (:func:`default_free`: every inertial parameter and every non-zero stiffness and damping).
 * :data:`DEFAULT_WIDTH`: the relative width τ of the prior toward the model's values
-  (:mod:`bondid.fit.prior`): the model's values are taken as right to about ±25 % (1σ), so
+  (:mod:`bondid.optim.prior`): the model's values are taken as right to about ±25 % (1σ), so
   the default bounds (±50 %) sit at 2σ.
 """
 

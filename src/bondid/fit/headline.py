@@ -13,8 +13,11 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
+from ..optim.noise import AT_LEVEL
+
 #: a final db_rms up to this factor times the noise level counts as "at the noise level"
-AT_NOISE = 1.1
+#: (the one ratio every search and rule uses, :mod:`bondid.optim.noise`)
+AT_NOISE = AT_LEVEL
 
 
 def verdict(final: float, noise: float | None) -> str:

@@ -32,7 +32,7 @@ from ..optim.schedules import Strategy
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..optim.problem import FitProblem
-    from .result import FitResult
+    from ..optim.result import FitResult
 
 #: Called as each run finishes: (runs done, runs total, the finished run).
 RunProgress = Callable[[int, int, "RunOutcome"], None]

@@ -32,7 +32,7 @@ from ..jsonsafe import json_safe
 from ..model.document import UrdfDocument
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
-    from .result import FitResult
+    from ..optim.result import FitResult
 
 FIT_JSON = "fit.json"
 FITTED_URDF = "fitted.urdf"

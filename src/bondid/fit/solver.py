@@ -51,8 +51,8 @@ from ..cost.problem import CostOptions
 from ..data.measurement import FrfData
 from ..model.document import UrdfDocument
 from ..optim.ipopt import SOFT_STATUSES, SUCCESS_STATUSES
+from ..optim.result import FitResult
 from ..optim.search import LOG_KINDS, PRESOLVE_ITER, WALL_SHARE
-from .result import FitResult
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..optim.search import SearchResult
@@ -99,7 +99,7 @@ def fit(
             complex error from which a second fit runs when the direct one did not succeed
             without phase walls (:data:`PRESOLVE_ITER`, :data:`WALL_SHARE`); 0 = none.
         prior_width: relative width τ of a weak prior toward ``doc``'s values, scaled by
-            the data's noise (:mod:`bondid.fit.prior`; log costs with the l2 norm, so not the
+            the data's noise (:mod:`bondid.optim.prior`; log costs with the l2 norm, so not the
             normalised-complex presolve); 0 = none. The reported costs are the data's alone.
         fallback_bands: when the direct fit ends above the predicted noise level, the band
             continuation with this many bands and the staged schedule from the same start
@@ -117,9 +117,9 @@ def fit(
         ConfigError: a repeated name, a kinematic placement, bad bounds or start.
         SolverError: IPOPT failed without reaching a feasible point (``status`` keeps IPOPT's).
     """
+    from ..optim.prior import prior_rows, with_prior_ipopt
     from ..optim.problem import FitProblem
     from ..optim.schedules import Strategy
-    from .prior import prior_rows, with_prior_ipopt
 
     problem = FitProblem(
         doc, datasets, names, options=options, lower=lower, upper=upper, start=start,

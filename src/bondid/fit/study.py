@@ -83,6 +83,7 @@ from ..data.reduce import parse_lines
 from ..data.weights import WEIGHTINGS
 from ..exceptions import ConfigError
 from ..model.points import Point
+from ..optim.schedules import STAGES
 from .defaults import DEFAULT_FREE, DEFAULT_WIDTH, check_prior
 from .setting_checks import (
     check_bands,
@@ -102,8 +103,6 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 
 #: Parameter kinds a bound key may name (besides names and globs).
 KINDS = ("mass", "com", "inertia", "stiffness", "damping", "gain", "mix")
-#: Stages of the staged fit, in the order they run.
-STAGES = ("stiffness", "damping", "inertia")
 
 _TOP_KEYS = (
     "model", "data", "parameters", "bounds", "cost", "search", "points", "gains", "points_file",
@@ -145,7 +144,7 @@ class StudySettings:
         data: measured-data paths.
         free, fixed: parameter names, globs or groups (``fixed`` wins).
         prior: relative width τ of the prior toward the model's values
-            (:mod:`bondid.fit.prior`); 0 = none.
+            (:mod:`bondid.optim.prior`); 0 = none.
         rel_bounds: key (kind, name or glob) -> relative fraction of |value|.
         abs_bounds: key (name or glob) -> (lo, hi), SI units.
         cost, norm: residual kind and norm (see :mod:`bondid.cost.residuals`).

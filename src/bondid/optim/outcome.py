@@ -1,5 +1,5 @@
 """A solve's :class:`~.ipopt.Solution` read back in the named parameters: the
-:class:`~bondid.fit.result.FitResult` (values, statistics, active constraints, fitted model)."""
+:class:`~bondid.optim.result.FitResult` (values, statistics, active constraints, fitted model)."""
 
 from __future__ import annotations
 
@@ -12,9 +12,9 @@ from ..consistency.log_cholesky import pi_from_theta
 from ..consistency.pseudo_inertia import second_moment_com
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
-    from ..fit.result import FitResult
     from .ipopt import Solution
     from .problem import FitProblem
+    from .result import FitResult
 
 _ACTIVE_TOL = 1e-6  # slack (scaled units) below which a bound or inequality counts as active
 _SINGULAR = 1e-6  # min/max principal second moment below which a body is on the boundary
@@ -65,7 +65,7 @@ def fit_result(
 ) -> FitResult:
     """The :class:`FitResult` of ``solution`` (a solve of ``problem``); ``initial``,
     ``cost_initial``, ``iterations`` and ``wall_s`` describe the whole search."""
-    from ..fit.result import FitResult, parameter_statistics
+    from .result import FitResult, parameter_statistics
 
     z = solution.z
     doc = problem.document(z)

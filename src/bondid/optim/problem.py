@@ -80,7 +80,7 @@ class FitProblem:
         names: free parameters (URDF form, e.g. ``x_stage.mass``), length ``n``.
         options: cost options (default: complex-log L2, all channels and frequencies).
         lower, upper: bounds ``(n,)`` in SI units (default
-            :func:`bondid.fit.bounds.default_bounds`; ±inf allowed).
+            :func:`bondid.optim.bounds.default_bounds`; ±inf allowed).
         start: starting values ``(n,)`` (default: the model's), clipped to the bounds; each
             fitted body is projected into the feasible set when it is not (see ``notes``).
         use_hull: constrain each fitted body's CoM to its collision geometry's convex hull.
@@ -123,7 +123,7 @@ class FitProblem:
         modifier: FrfModifier | None = None,
         extra_rows: Callable[[FitProblem], ExtraRows | None] | None = None,
     ):
-        from ..fit.bounds import infos_by_name
+        from .bounds import infos_by_name
 
         names = list(names)
         if not names:
@@ -158,7 +158,7 @@ class FitProblem:
         ties: dict[str, list[tuple[str, float]]],
         theta0: np.ndarray | None = None,
     ) -> None:
-        from ..fit.bounds import link_hulls
+        from .bounds import link_hulls
 
         self.doc, self.frf, self.infos = doc, frf, infos
         self.names = [i.name for i in infos]
@@ -384,7 +384,7 @@ def _bounds(
     upper: np.ndarray | None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The bounds given, completed by the defaults, checked for shape."""
-    from ..fit.bounds import default_bounds
+    from .bounds import default_bounds
 
     if lower is None or upper is None:
         f_max = max((float(np.max(d.freq_hz)) for d in datasets), default=None)

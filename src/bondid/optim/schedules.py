@@ -51,11 +51,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..exceptions import ConfigError
-from ..fit.study import STAGES
 from ..model.document import UrdfDocument
 from ..modes.bands import Span, clip_spans, resonances, stage_bands
 from .problem import FitProblem
 from .search import PRESOLVE_ITER, PRESOLVE_KIND, Step
+
+#: Stages of the staged fit, in the order they run.
+STAGES = ("stiffness", "damping", "inertia")
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from .multistart import Start
@@ -190,7 +192,7 @@ class Strategy:
         presolve_iter: the presolve of the last step.
         max_iter: IPOPT iterations of the last step (band stages: see :func:`staged`).
         prior_width: relative width of the prior toward the model's values
-            (:mod:`bondid.fit.prior`) in every step of every schedule; 0 = none.
+            (:mod:`bondid.optim.prior`) in every step of every schedule; 0 = none.
         fallback: bands of the band continuation the fit's loop tries when a direct or
             staged search ends above the noise level (:meth:`starts`; 0 = no fallback
             schedule; a continuation strategy has none).
@@ -212,13 +214,13 @@ class Strategy:
     def extra_rows(self, nominal: UrdfDocument) -> Callable[[FitProblem], Any] | None:
         """The ``extra_rows`` of the search's :class:`FitProblem`: the prior toward
         ``nominal``'s values (None without one)."""
-        from ..fit.prior import prior_rows
+        from .prior import prior_rows
 
         return prior_rows(nominal, self.prior_width)
 
     def ipopt_options(self, options: dict[str, Any] | None = None) -> dict[str, Any] | None:
         """IPOPT options of the search (``options`` plus the prior's, when it is on)."""
-        from ..fit.prior import with_prior_ipopt
+        from .prior import with_prior_ipopt
 
         return with_prior_ipopt(self.prior_width, options)
 

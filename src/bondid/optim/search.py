@@ -30,10 +30,10 @@ from typing import Any
 import numpy as np
 
 from ..exceptions import ConfigError
-from ..fit.result import FitResult
 from .ipopt import Solution, solve
 from .outcome import fit_result
 from .problem import KEEP, FitProblem
+from .result import FitResult
 
 Band = tuple[float, float]
 #: IPOPT iterations of the normalised-complex presolve of a log-cost fit (the default of

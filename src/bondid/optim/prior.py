@@ -48,10 +48,10 @@ from ..cost.noise_level import noise_level_cost
 from ..cost.problem import FrfProblem
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameter, link_inertial
-from ..optim.layout import BodyBlock, JointVar, Layout
+from .layout import BodyBlock, JointVar, Layout
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
-    from ..optim.problem import FitProblem
+    from .problem import FitProblem
 
 _SERIES = 1e-4  # |A_ii − 1| below which g and g' use their series
 _UPPER = [(i, j) for i in range(4) for j in range(i + 1, 4)]
