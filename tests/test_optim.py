@@ -160,7 +160,8 @@ CHAIN = (
 
 
 def test_cli_writes_fit_json_for_a_failed_staged_fit(tmp_path: Path, bonder: UrdfDocument) -> None:
-    """A failed search still writes fit.json: status failed, the point kept and why."""
+    """A failed search still writes fit.json: status failed, the solver's status, the
+    start as the best point known, and why."""
     model = tmp_path / "bonder.urdf"
     model.write_text(bonder.to_string(), encoding="utf-8")
     files = [write_csv(ds, tmp_path / f"pose{i}.csv") for i, ds in enumerate(synth(bonder, 60))]
@@ -176,8 +177,9 @@ def test_cli_writes_fit_json_for_a_failed_staged_fit(tmp_path: Path, bonder: Urd
     res = json.loads((out / "fit.json").read_text())
     assert res["status"] == "failed" and res["failure"]
     assert res["solver_status"] in ("Infeasible_Problem_Detected", "Restoration_Failed")
-    assert res["parameters"][0]["fitted"] is not None
-    assert [s["name"] for s in res["stages"]] == ["stiffness", "damping", "inertia", "all"]
+    # no usable iterate: the start is the best point known, the fitted value is null
+    p = res["parameters"][0]
+    assert p["fitted"] is None and p["lower"] <= p["initial"] <= p["upper"]
 
 
 def test_staged_schedule_steps(bonder: UrdfDocument) -> None:

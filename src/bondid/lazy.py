@@ -12,12 +12,15 @@ def lazy_getattr(package: str, where: Mapping[str, str]) -> Callable[[str], Any]
 
     Args:
         package: the package's ``__name__``.
-        where: public name → submodule (relative to the package) that defines it.
+        where: public name → submodule that defines it, relative to the package
+            (``"solver"``, or ``"..optim.result"`` for a module of a sibling package).
     """
 
     def __getattr__(name: str) -> Any:
         if name in where:
-            return getattr(importlib.import_module(f"{package}.{where[name]}"), name)
+            module = where[name]
+            module = module if module.startswith(".") else f".{module}"
+            return getattr(importlib.import_module(module, package), name)
         raise AttributeError(f"module {package!r} has no attribute {name!r}")
 
     return __getattr__

@@ -10,9 +10,9 @@ from __future__ import annotations
 from ..lazy import lazy_getattr
 
 _LAZY = {
-    "DEFAULT_REL": "bounds",
-    "default_bounds": "bounds",
-    "FitResult": "result",
+    "DEFAULT_REL": "..optim.bounds",
+    "default_bounds": "..optim.bounds",
+    "FitResult": "..optim.result",
     "fit": "solver",
 }
 

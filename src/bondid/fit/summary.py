@@ -109,8 +109,9 @@ def parameter_table(result: Any) -> list[str]:
     for i, n in enumerate(result.names):
         a, b, sd = float(result.initial[i]), float(result.fitted[i]), float(result.std[i])
         ch = f"{100 * (b - a) / abs(a):+.2f} %" if a != 0 else f"{b - a:+.3g}"
-        lo, hi = float(result.lower[i]), float(result.upper[i])
-        bound = any(math.isfinite(v) and abs(b - v) <= 1e-6 * max(abs(v), 1e-12) for v in (lo, hi))
+        lower, upper = getattr(result, "lower", None), getattr(result, "upper", None)
+        ends = () if lower is None or upper is None else (float(lower[i]), float(upper[i]))
+        bound = any(math.isfinite(v) and abs(b - v) <= 1e-6 * max(abs(v), 1e-12) for v in ends)
         n_bound += bound
         mark = "  [bound]" if bound else ""
         lines.append(f"{n:<{w}}  {_fmt(a):>12}  {_fmt(b):>12}  {ch:>9}  {_fmt(sd):>10}{mark}")

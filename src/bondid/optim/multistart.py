@@ -119,6 +119,7 @@ class Attempt:
         resumed: it continues an earlier attempt stopped at its iteration limit.
         x_end, theta_end: its end point (named values and modifier θ; None when it failed).
         detail: what else the runner kept of it (e.g. a diagnosis refit's model).
+        solver_status: the solver's own status of a failed search (None otherwise).
     """
 
     start: Start
@@ -132,6 +133,7 @@ class Attempt:
     x_end: np.ndarray | None = None
     theta_end: np.ndarray | None = None
     detail: Any = None
+    solver_status: str | None = None
 
     @property
     def status(self) -> str:
@@ -200,7 +202,7 @@ def run_start(
     """One search of the loop: ``start``'s schedule (or ``default``) from its point with at
     most ``max_iter`` IPOPT iterations per step; a numerical failure becomes a failed
     :class:`Attempt` (bad input still raises)."""
-    from ..exceptions import ComputationError
+    from ..exceptions import ComputationError, SolverError
     from .search import run_search
 
     t0 = time.perf_counter()
@@ -216,7 +218,8 @@ def run_start(
             and search.solution is not None
             and (search.solution.kept == "start")
         ):
-            raise ComputationError(f"the solver failed ({search.solution.status})")
+            st = search.solution.status
+            raise SolverError(f"the solver failed ({st})", status=st)
         obj, data = _objective(problem, search)
         return Attempt(
             start, search, obj, data, search.result.iterations, time.perf_counter() - t0,
@@ -224,7 +227,8 @@ def run_start(
         )  # fmt: skip
     except (ComputationError, np.linalg.LinAlgError, FloatingPointError) as exc:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        return Attempt(start, None, math.inf, math.inf, 0, time.perf_counter() - t0, msg)
+        return Attempt(start, None, math.inf, math.inf, 0, time.perf_counter() - t0, msg,
+                       solver_status=getattr(exc, "status", None))  # fmt: skip
 
 
 def _better(new: Attempt, kept: Attempt | None) -> bool:
@@ -320,8 +324,10 @@ def keep_best(
     if best is None or best.search is None:
         if stopped == "cancelled":
             raise SolverError("cancelled before any start ended")
-        first = next((a.error for a in attempts if a.error), "no start")
-        raise SolverError(f"every start of the fit failed: {first}")
+        failed = next((a for a in attempts if a.error), None)
+        first = failed.error if failed is not None else "no start"
+        status = failed.solver_status if failed is not None else None
+        raise SolverError(f"every start of the fit failed: {first}", status=status)
     return Outcome(best, attempts, stopped, noise)
 
 
