@@ -1,9 +1,10 @@
 """Convert an FRF stored in a NumPy ``.npz`` (keys ``f`` [Hz], ``H`` complex ``(n_out, n_in,
 n_freq)``, optional ``coh``) into a bondid CSV file, naming its channels for a model.
 
-Usage (the motor bench of this folder)::
+Usage (the motor bench of this folder; its converted ``motor_bench.csv`` is bundled, this
+rebuilds it from FdiTools' original ``motor_bench_B.npz``, wherever it is)::
 
-    python examples/motor_bench/convert.py /work/shared/data/motor_bench/motor_bench_B.npz \\
+    python examples/motor_bench/convert.py PATH/TO/motor_bench_B.npz \\
         examples/motor_bench/motor_bench.csv --outputs motor load --inputs motor
 
 ``--outputs``/``--inputs`` give the bondid channel names in the file's order (a joint name
