@@ -275,6 +275,7 @@ def test_tables_keep_their_columns_with_failed_cases() -> None:
     assert "| gantry | harsh | 2 (1) | 0% (0/1) | – | 1/1 |" in summary
 
 
+@pytest.mark.slow
 def test_blind_benchmark_runs_a_case_end_to_end(capsys: pytest.CaptureFixture[str]) -> None:
     import blind_benchmark
 

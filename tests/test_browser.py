@@ -68,6 +68,7 @@ def _empty_scene(path: Path) -> None:
         path.write_text(scene.static_html("empty"), encoding="utf-8")
 
 
+@pytest.mark.slow
 def test_static_mode_page_renders_the_machine(tmp_path: Path):
     exe = _chromium()
     out = tmp_path / "res"

@@ -119,6 +119,7 @@ def test_withheld_joint_compliance_is_found_first(compliance_case):
     assert diag.outcome.grades == ["confirmed"]
 
 
+@pytest.mark.slow
 def test_none_case_gives_verdict_none(doc):
     from bondid.diagnose import diagnose
 
@@ -346,6 +347,7 @@ def test_screening_ranks_the_withheld_effect_first(doc):
             assert st.figure <= refit.cost(State(st.x, st.theta)) + 1e-12
 
 
+@pytest.mark.slow
 def test_two_withheld_effects_are_found_in_order(doc, tmp_path):
     """Known answer: a joint compliance and an actuator lag withheld together; the search
     accepts both (class and location), one per step, and no third."""
@@ -519,6 +521,7 @@ def _spy_start_final(monkeypatch) -> tuple[list, list]:
     return sources, pending
 
 
+@pytest.mark.slow
 def test_the_plots_are_drawn_while_the_final_fit_runs(doc, tmp_path, monkeypatch):
     """``during_final`` sees the diagnosis before its final fit (``final`` None, the plots'
     inputs all there) while a worker runs it; the returned diagnosis has the final fit and a

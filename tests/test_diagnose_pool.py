@@ -57,6 +57,7 @@ def test_a_cancelled_refit_returns_at_once_in_a_worker(doc):
     assert here.token() == 0 and not here.parallel
 
 
+@pytest.mark.slow
 def test_a_diagnosis_on_a_dask_cluster_gives_the_local_answer(doc):
     """The same diagnosis with its screenings and refits on the workers of a Dask cluster
     (``Settings.scheduler``) as on local processes: the same verdict and outcome."""

@@ -193,6 +193,7 @@ def test_a_candidate_about_another_pivot_keeps_its_start_frequency(doc):
     assert d / d0 == pytest.approx(k / k0)  # both follow the inertia: the same ratio
 
 
+@pytest.mark.slow
 def test_a_refit_of_the_other_elastic_centres_reaches_below_the_com_one(doc):
     """Known answer: unequal mounts about the bottom face's centre; the candidate's refit from
     its screened starts (the CoM family and every variant's start) keeps a bottom-face

@@ -100,6 +100,7 @@ def _status(out: Path, mid: str) -> dict:
     return json.loads((out / "machines" / mid / "status.json").read_text())
 
 
+@pytest.mark.slow
 def test_fleet_fits_every_machine_and_flags_only_the_planted_outlier(first_run, fleet):
     out, code, stdout, stderr, _ = first_run
     _, _, truth = fleet
@@ -178,6 +179,7 @@ def test_second_run_skips_finished_machines(first_run, fleet, cluster, capsys):
     assert [o["machine"] for o in doc["outliers"]] == [FAULT[0]]
 
 
+@pytest.mark.slow
 def test_diagnose_counts_effects(cluster, fleet, tmp_path):
     c, _ = cluster
     _, machines, _ = fleet

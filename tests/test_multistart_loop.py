@@ -135,6 +135,7 @@ def test_the_noise_level_of_the_truth_is_near_one(case: dict) -> None:
     assert ratio is not None and 0.8 < ratio < AT_LEVEL, ratio
 
 
+@pytest.mark.slow
 def test_a_direct_fit_above_the_noise_is_saved_by_the_continuation_start(case: dict) -> None:
     kw = {"start": case["start"], "lower": case["lo"], "upper": case["hi"]}
     alone = fit(case["doc"], case["data"], case["names"], fallback_bands=0, **kw)

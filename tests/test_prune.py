@@ -60,6 +60,7 @@ def wrong_then_true(doc):  # type: ignore[no-untyped-def]  # noqa: F811
     return ctx, base, steps
 
 
+@pytest.mark.slow
 def test_an_effect_redundant_once_the_true_one_is_in_is_dropped(wrong_then_true):  # type: ignore[no-untyped-def]
     from bondid.diagnose.prune import prune
 
@@ -150,6 +151,7 @@ def test_a_single_effect_is_kept_without_a_refit(wrong_then_true):  # type: igno
     assert prune(ctx, pool, [], base).kept == [] and pool.calls == 0
 
 
+@pytest.mark.slow
 def test_a_diagnosis_with_a_dropped_effect_writes_the_kept_one(doc, tmp_path, monkeypatch):  # type: ignore[no-untyped-def]  # noqa: F811
     """End to end through :func:`bondid.diagnose.diagnose` and its outputs, with the search
     replaced by one that accepts the wrong compliance first and the true one second (as the

@@ -119,6 +119,7 @@ def test_operating_point_outside_limits_warns(command, inputs, run, tmp_path):
     assert "warning:" in stdout and "x = 0.5 is outside the joint's limits" in stdout
 
 
+@pytest.mark.slow
 def test_unstable_operating_point_warns_in_every_data_command(inputs, run, tmp_path):
     from bondid.model.document import UrdfDocument
     from bondid.model.parameters import set_parameter

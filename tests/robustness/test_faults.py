@@ -193,6 +193,7 @@ def _complete_or_absent(out: Path, command: str, inputs: list[Path]) -> str:
     return "complete"
 
 
+@pytest.mark.slow
 def test_sigkill_never_leaves_a_mixed_or_partial_folder(inputs, tmp_path):
     """Kill runs that rewrite an older complete run at several moments up to their end."""
     model, data = inputs["model"], inputs["d0"]
