@@ -75,8 +75,11 @@ def figures(
             h = mod.apply(theta, ds.freq_hz, ds.outputs, ds.inputs, h)
         H.append(h)
     chans = options.channels
-    weighted = gap_report(list(datasets), H, channels=chans, weighting="coherence").db_rms
-    plain = gap_report([mask_incoherent(d) for d in datasets], H, channels=chans).db_rms
+    fb = options.channels_by_file
+    weighted = gap_report(
+        list(datasets), H, channels=chans, by_file=fb, weighting="coherence"
+    ).db_rms
+    plain = gap_report([mask_incoherent(d) for d in datasets], H, channels=chans, by_file=fb).db_rms
     return Figures(float(cost), H, float(weighted), float(plain))
 
 

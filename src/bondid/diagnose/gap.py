@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import itertools
 import json
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -143,6 +143,7 @@ def gap_report(
     bands: Sequence[tuple[float, float]] | None = None,
     *,
     channels: Sequence[str] | None = None,
+    by_file: Mapping[str, Sequence[str]] | None = None,
     weighting: str = "none",
 ) -> GapReport:
     """The gap (spec ``db_rms``) in total, per channel and per band.
@@ -154,6 +155,8 @@ def gap_report(
         bands: ``[(f_lo, f_hi), ...]`` [Hz] for ``by_band`` (e.g. :func:`gap_bands`);
             default one band over the whole range.
         channels: ``OUT.IN`` names to use (default every channel present in the data).
+        by_file: per data file (its ``source``), the channels used there instead (a channel
+            informative at one operating point only is counted there only).
         weighting: ``"none"`` (the spec's figure) or ``"coherence"``.
 
     Returns:
@@ -175,7 +178,8 @@ def gap_report(
     per_channel: dict[str, list[_Points]] = {c: [] for c in use}
     rows, labels = [], []
     for k, (d, Hs) in enumerate(zip(sets, models, strict=True)):
-        for c in use:
+        here = by_file.get(d.source or "", use) if by_file else use
+        for c in (c for c in use if c in here):
             pts = _channel_points(d, Hs, c, weighting)
             if pts is None:
                 continue

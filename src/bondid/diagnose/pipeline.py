@@ -132,6 +132,8 @@ class Diagnosis:
     outcome: Outcome | None = None
     #: what the final model still misses (:mod:`.remainder`); None when not described
     remainder: Any = None
+    #: per data file (its ``source``), the channels used there (None: ``channels`` in all)
+    channels_by_file: dict[str, tuple[str, ...]] | None = None
 
 
 def used_channels(datasets: Sequence[FrfData], requested: Sequence[str] | None) -> list[str]:
@@ -201,8 +203,15 @@ def prepare_data(doc: UrdfDocument, datasets: Sequence[FrfData], s: Settings) ->
     weighted = [with_weights_as_coherence(d, s.weighting) for d in datasets]
     full = [limit_bands(d, s.bands) for d in weighted]
     channels = used_channels(full, s.channels)
-    # the data's coherence now holds the information weights: weigh by it as it is
-    options = CostOptions(channels=channels, weighting="coherence")
+    # the data's coherence now holds the information weights: weigh by it as it is; the
+    # channels are chosen file by file, as bondid.fit chooses them (a channel informative at
+    # one operating point is used there only), unless --channels names them
+    by_file = None
+    if not s.channels:
+        from ..data.weights import informative_by_file
+
+        by_file, _, _ = informative_by_file(full, "coherence", MIN_CHANNEL_COHERENCE)
+    options = CostOptions(channels=channels, weighting="coherence", channels_by_file=by_file)
     names = default_names(doc, s.free)
     if not names:
         raise ConfigError("no parameter to refit; check --free")
@@ -287,6 +296,7 @@ def diagnose(
             modes_by_dataset=by_ds, antiresonances=anti, split_info=p.split_info,
             wall_s=math.nan, weighting=p.weighting, steps=steps, pruning=pruning,
             mesh_names=mesh_names, noise=p.noise, places=places, outcome=answer,
+            channels_by_file=p.options.channels_by_file,
         )  # fmt: skip
         if during_final is not None:
             during_final(diag)

@@ -76,14 +76,16 @@ def gaps(diag: Diagnosis) -> dict[str, GapReport]:
     from .split import mask_incoherent
 
     masked = [mask_incoherent(d) for d in diag.datasets]
-    ch = diag.channels
+    ch, fb = diag.channels, diag.channels_by_file
     models = {"nominal": diag.nominal_H, "refit": diag.baseline.full_H}
     if diag.winner is not None:
         models["effect"] = diag.winner.full_H
     out: dict[str, GapReport] = {}
     for stage, H in models.items():
-        out[stage] = gap_report(diag.datasets, H, diag.bands, channels=ch, weighting="coherence")
-        out[f"{stage}_unweighted"] = gap_report(masked, H, diag.bands, channels=ch)
+        out[stage] = gap_report(
+            diag.datasets, H, diag.bands, channels=ch, by_file=fb, weighting="coherence"
+        )
+        out[f"{stage}_unweighted"] = gap_report(masked, H, diag.bands, channels=ch, by_file=fb)
     return out
 
 

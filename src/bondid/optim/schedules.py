@@ -3,7 +3,7 @@
 
 Direct (:func:`direct`): one step over everything, with the presolve of a log cost.
 
-Staged (:func:`staged`, the seed report's recommendation): bands first, then everything
+Staged (:func:`staged`): bands first, then everything
 together. Each stage fits a subset of the free parameters on a subset of the frequencies:
 
 1. ``stiffness`` — the joint springs, below the first parasitic resonance (where the

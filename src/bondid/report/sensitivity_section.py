@@ -208,7 +208,7 @@ def _sweep_blocks(sens: Mapping[str, Any]) -> list[Block]:
     span = f" from {percent(min(rng), '.0f')} to {percent(max(rng), '.0f')}" if rng else ""
     rows = [Row(cells(n, fmt(v, 3))) for n, v in spread[:8]]
     foot = [
-        "One-at-a-time sweep (the seed report's Algorithm 1): each parameter alone is scaled"
+        "One-at-a-time sweep: each parameter alone is scaled"
         f"{span} of its nominal value, the others held; cost = mean square residual (dB²)."
     ]
     return [

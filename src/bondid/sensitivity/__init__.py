@@ -1,6 +1,6 @@
 """Sensitivity and identifiability: which parameters the data can determine, band by band.
 
-* :mod:`.sweep` — the seed report's Algorithm 1 (each parameter alone over 50..150 %).
+* :mod:`.sweep` — the one-at-a-time sweep (each parameter alone over 50..150 %).
 * :mod:`.local` — derivative-based sensitivities per frequency band, channel and direction
   from one exact Jacobian, with automatic bands from the model's modes (:mod:`bondid.modes.bands`).
 * :mod:`.identifiability` — singular values (Fisher information), pinned-down combinations

@@ -48,7 +48,7 @@ def _parser() -> argparse.ArgumentParser:
     p = cli.make_parser(
         "sensitivity",
         "Local sensitivities per band and channel, identifiability (recommended subset) and "
-        "the one-at-a-time sweep of the seed report (Algorithm 1).",
+        "the one-at-a-time sweep (each parameter alone over 50..150 %).",
     )
     cli.add_model_args(p)
     from ..fit.operating_points import add_operating_point_arg

@@ -213,7 +213,7 @@ def write_plots(
                 sweep.costs,
                 param_names=sweep.names,
                 path=out_dir / PNG_NAMES["sweep"],
-                title=f"{title}: cost, each parameter scaled alone (the seed report's Algorithm 1)",
+                title=f"{title}: cost, each parameter scaled alone (one-at-a-time sweep)",
             )
         )
         written.append(
@@ -291,7 +291,7 @@ def summary_lines(
     if sweep is not None:
         order = np.argsort(-np.nan_to_num(sweep.spread(), nan=-1.0))[:5]
         lines.append(
-            "sweep (the seed report's Algorithm 1: each parameter scaled alone from"
+            "sweep (one at a time: each parameter scaled alone from"
             f" {100 * sweep.scales.min():.0f} % to {100 * sweep.scales.max():.0f} %, the others"
             f" held; {len(sweep.names)} parameters × {sweep.scales.size} scales, "
             f"{sweep.workers} processes, {sweep.wall_s:.1f} s); largest cost range: "

@@ -1,4 +1,4 @@
-"""The seed report's Algorithm 1: one parameter at a time over 50 %..150 % of nominal.
+"""The one-at-a-time sweep: one parameter at a time over 50 %..150 % of nominal.
 
 For every parameter ``i`` and scale factor ``s`` (default 0.5, 0.6, ..., 1.5) the parameter is
 set to ``p0_i + (s − 1)·scale_i`` with every other parameter at its nominal value, and the cost
@@ -126,7 +126,7 @@ def run_sweep(
     workers: int = 2,
     progress: Callable[[int, str], None] | None = None,
 ) -> SweepResult:
-    """Algorithm 1 on a prepared :class:`Setup` (see :func:`sensitivity_sweep`)."""
+    """The one-at-a-time sweep on a prepared :class:`Setup` (see :func:`sensitivity_sweep`)."""
     s = default_scales() if scales is None else np.asarray(scales, dtype=float)
     t0 = time.perf_counter()
     vals = sweep_values(setup, s)
@@ -209,7 +209,7 @@ def sensitivity_sweep(
     workers: int = 2,
     progress: Callable[[int, str], None] | None = None,
 ) -> SweepResult:
-    """The seed report's Algorithm 1: each parameter alone over ``scales`` × nominal.
+    """The one-at-a-time sweep: each parameter alone over ``scales`` × nominal.
 
     Args:
         doc: the model (its values are the nominal ``θ0``).

@@ -1,4 +1,4 @@
-"""``flexible_base``: the elastic base/chassis of the seed report §4.2, lumped.
+"""``flexible_base``: the elastic base or chassis, lumped.
 
 The report models the base as a block of height L whose horizontal (shear) and vertical
 (compression) motion propagates as waves, with a stress-free bottom (weak legs), and suggests
@@ -88,7 +88,7 @@ def first_mode_w2(masses: np.ndarray) -> float:
 @register
 class FlexibleBase(Effect):
     name = "flexible_base"
-    description = "elastic base/chassis: lumped shear/compression chain (seed report 4.2)"
+    description = "elastic base/chassis: lumped shear/compression chain"
 
     def __init__(
         self, n_nodes: int = N_NODES, variant_nodes: Iterable[int] = VARIANT_NODES
