@@ -149,7 +149,7 @@ SIGNALS: list[Case] = [
         _first_child,
     ),
     Case(
-        "sigint_modes", "signals", "modes", lambda b: modes(b), "signal", signal.SIGINT, _after(1.5)
+        "sigint_modes", "signals", "modes", lambda b: modes(b), "signal", signal.SIGINT, _after(0.8)
     ),
     Case(
         "sigint_fleet_cluster_start",
