@@ -13,18 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-REPO = Path(__file__).resolve().parents[2]
-BONDER = REPO / "urdf" / "bonder.urdf"
-
-MAINS = {
-    "fit": "bondid.fit.cli",
-    "sensitivity": "bondid.sensitivity.__main__",
-    "diagnose": "bondid.diagnose.cli",
-    "modes": "bondid.modes.__main__",
-    "simulate": "bondid.simulate",
-    "report": "bondid.report.__main__",
-}
+from trust_common import BONDER, MAINS  # the commands' entry points, shared
 
 
 def sha(path: Path) -> str:

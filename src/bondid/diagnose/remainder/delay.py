@@ -21,7 +21,7 @@ from ...cost.residuals import wrap
 from . import words
 from .base import Candidate, Finding, Location, Significance
 from .context import Context
-from .groups import MIN_POINTS, groups
+from .groups import group_points
 from .residual import Points, Residual
 from .stats import fit_points
 
@@ -42,15 +42,8 @@ class Delay(Finding):
 
 
 def candidates(res: Residual, ctx: Context) -> list[Candidate]:
-    out = []
-    for side, name, select in groups(res):
-        pts = res.points(select)
-        if pts.size < MIN_POINTS:
-            continue
-        cand = _fit(pts, side, name)
-        if cand is not None:
-            out.append(cand)
-    return out
+    fits = (_fit(pts, side, name) for side, name, pts in group_points(res))
+    return [c for c in fits if c is not None]
 
 
 def _fit(pts: Points, side: str, name: str) -> Candidate | None:

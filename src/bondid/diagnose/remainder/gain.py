@@ -16,7 +16,7 @@ from ...cost.residuals import DB
 from . import words
 from .base import Candidate, Finding, Location, Significance
 from .context import Context
-from .groups import MIN_POINTS, groups
+from .groups import group_points
 from .residual import Points, Residual
 from .stats import assess
 
@@ -63,10 +63,7 @@ def candidates(res: Residual, ctx: Context) -> list[Candidate]:
     """One candidate per output row and input column (and all channels together): the
     better of the gain alone and the gain with the sign reversed."""
     out = []
-    for side, name, select in groups(res):
-        pts = res.points(select)
-        if pts.size < MIN_POINTS:
-            continue
+    for side, name, pts in group_points(res):
         fits = [c for c in (_fit(pts, side, name, flip) for flip in (False, True)) if c]
         if fits:
             out.append(max(fits, key=lambda c: c.fit.gain))

@@ -7,7 +7,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from .residual import Residual, Selector, SetResidual
+from .residual import Points, Residual, Selector, SetResidual
 
 #: fewest used points a group needs before anything is fitted to it
 MIN_POINTS = 8
@@ -60,3 +60,12 @@ def groups(res: Residual, with_global: bool = True) -> Iterator[tuple[str, str, 
             yield "input", i, on_input(i)
     if with_global:
         yield "global", "", None
+
+
+def group_points(res: Residual) -> Iterator[tuple[str, str, Points]]:
+    """``(side, name, points)`` of every group of :func:`groups` holding at least
+    :data:`MIN_POINTS` used points (fewer cannot support a fitted shape)."""
+    for side, name, select in groups(res):
+        pts = res.points(select)
+        if pts.size >= MIN_POINTS:
+            yield side, name, pts

@@ -21,7 +21,7 @@ import numpy as np
 from . import words
 from .base import Candidate, Finding, Location, Significance, mode_group
 from .context import Context
-from .groups import MIN_POINTS, groups
+from .groups import group_points
 from .modal import nearest, pole
 from .mode_finding import Seen, missing_mode
 from .residual import Points, Residual, log_ratio
@@ -55,10 +55,7 @@ def candidates(res: Residual, ctx: Context) -> list[Candidate]:
     f_lo, f_hi = ctx.freq_range(res)
     all_chan = _names(res)
     out = []
-    for side, name, select in groups(res):
-        pts = res.points(select)
-        if pts.size < MIN_POINTS:
-            continue
+    for side, name, pts in group_points(res):
         for cand in (_first(pts, side, name, f_lo, f_hi),
                      _second(pts, side, name, f_lo, f_hi, ctx, res, all_chan)):  # fmt: skip
             if cand is not None:
