@@ -5,8 +5,8 @@ point, so one linearisation per pose) and the cost options together. Its decisio
 is whatever a *parameter model* (:class:`ParameterModel`) maps onto the physical values ``(π
 (nb,10), k (nv,), d (nv,))`` with exact derivatives, and optionally onto free transducer gains
 ``gain.in.X`` / ``gain.out.Y`` (``H = g_out · H_model · g_in``) and the mixes of points with a
-second component (:mod:`.mixing`). Which points are used is decided by
-:mod:`bondid.cost.selection`.
+second component (:mod:`.mixing`) and the proportional damping's ``α``, ``β``
+(``rayleigh_values``). Which points are used is decided by :mod:`bondid.cost.selection`.
 
 The residual vector is scaled so that ``cost = ‖r‖²`` is the weighted mean square over the
 selected complex points (for ``complex_log`` that is ``db_rms²``).
@@ -60,7 +60,9 @@ class ParameterModel(Protocol):
     :class:`bondid.optim.layout.Layout` (the fit's decision vector) and
     :class:`bondid.optim.tied.TiedParameters` (named parameters with ties). A model may also
     have transducer gains: ``gain_values(x) -> {name: g}`` and ``gain_jacobian(x) -> {name:
-    dg/dx (size,)}`` (optional; without them the gains stay the model's).
+    dg/dx (size,)}`` (optional; without them the gains stay the model's), and proportional
+    damping: ``rayleigh_values(x) -> (α, β) | None`` and ``rayleigh_jacobian(x) -> d(α, β)/dx
+    (2, size)`` (optional; None or without them α and β stay the model's).
     """
 
     @property
@@ -94,8 +96,24 @@ def _free_gain_jacobian(pmodel: ParameterModel, x: np.ndarray) -> dict[str, np.n
     return dict(fn(x)) if fn is not None else {}
 
 
-def _block_affine(b: DataSelection, values: _Values, gains: _Gains) -> AffineModel:
+def _free_rayleigh(
+    pmodel: ParameterModel, x: np.ndarray, jacobian: bool = False
+) -> tuple[tuple[float, float] | None, np.ndarray | None]:
+    """``(α, β)`` of a parameter model with free proportional damping (else None) and, when
+    asked, ``d(α, β)/dx`` ``(2, size)``."""
+    fn = getattr(pmodel, "rayleigh_values", None)
+    ab = fn(x) if fn is not None else None
+    if ab is None or not jacobian:
+        return ab, None
+    return ab, np.asarray(pmodel.rayleigh_jacobian(x), dtype=float)  # type: ignore[attr-defined]
+
+
+def _block_affine(
+    b: DataSelection, values: _Values, gains: _Gains, rayleigh: tuple[float, float] | None = None
+) -> AffineModel:
     affine = b.affine.with_values(*values)
+    if rayleigh is not None:
+        affine = affine.with_rayleigh(*rayleigh)
     return affine.with_gains(*gain_arrays(affine, gains)) if gains else affine
 
 
@@ -182,12 +200,14 @@ class FrfProblem:
         values at ``x`` (``doc``: the model document holding those values). The affine bases
         and the data selections are shared: nothing is linearised or selected again."""
         values, gains = pmodel.values(x), _free_gains(pmodel, x)
-        mixes = free_mixes(pmodel, x)[0]
+        mixes, ab = free_mixes(pmodel, x)[0], _free_rayleigh(pmodel, x)[0]
         out = copy.copy(self)
         out.doc = doc
         out.modifier_theta = self._theta(pmodel, x)[0]
         out.blocks = [
-            dataclasses.replace(b, affine=self._mixed(i, _block_affine(b, values, gains), mixes))
+            dataclasses.replace(
+                b, affine=self._mixed(i, _block_affine(b, values, gains, ab), mixes)
+            )
             for i, b in enumerate(self.blocks)
         ]
         return out
@@ -224,12 +244,13 @@ class FrfProblem:
         """Model FRF at each data set's used frequencies, ``(n_out, n_in_model, n_fu)`` each
         (receptance; :func:`bondid.frf.aligned.model_frf` gives it in a data set's layout)."""
         values, gains = pmodel.values(x), _free_gains(pmodel, x)
-        mixes = free_mixes(pmodel, x)[0]
+        mixes, ab = free_mixes(pmodel, x)[0], _free_rayleigh(pmodel, x)[0]
         theta = self._theta(pmodel, x)[0]
 
         def one(i: int) -> np.ndarray:
             b = self.blocks[i]
-            H = self._mixed(i, _block_affine(b, values, gains), mixes).linear_model().frf(b.freq_hz)
+            affine = self._mixed(i, _block_affine(b, values, gains, ab), mixes)
+            H = affine.linear_model().frf(b.freq_hz)
             if theta is None:
                 return H
             assert self.modifier is not None
@@ -291,7 +312,9 @@ class FrfProblem:
         dgains = _free_gain_jacobian(pmodel, x) if gains else {}
         rows = self._rows()
         mixes, dmixes = free_mixes(pmodel, x)
-        dpi, dk, dd = pmodel.jacobian(x)
+        ab, dab = _free_rayleigh(pmodel, x, jacobian=True)
+        derivatives = (*pmodel.jacobian(x), dab)
+        dpi = derivatives[0]
         theta, dtheta = self._theta(pmodel, x)
         n_p, k = dpi.shape[2], parts(self.options.kind)
         sizes = [k * b.Hm.size for b in self.blocks]
@@ -303,17 +326,17 @@ class FrfProblem:
             b = self.blocks[i]
             rb = r[start[i] : start[i + 1]]
             Jb = J[start[i] : start[i + 1]].reshape(k, b.Hm.size, n_p)
-            affine = self._mixed(i, _block_affine(b, values, gains), mixes)
+            affine = self._mixed(i, _block_affine(b, values, gains, ab), mixes)
             if b.flat is None and not gains and not mixes and theta is None:
-                rows.grid(b, affine, (dpi, dk, dd), rb, Jb)
+                rows.grid(b, affine, derivatives, rb, Jb)
                 return
             mix = (self._mix_rows[i], dmixes) if mixes and self._mix_rows is not None else None
             mod = self.modifier
             if theta is not None and mod is not None and mod.mixing is not None:
-                rows.mixed(b, affine, (dpi, dk, dd), (gains, dgains), mix, (theta, dtheta), rb, Jb)
+                rows.mixed(b, affine, derivatives, (gains, dgains), mix, (theta, dtheta), rb, Jb)
                 return
             G = None if theta is None else self._modifier_at(b, theta)
-            rows.points(b, affine, (dpi, dk, dd), (gains, dgains), mix, (G, dtheta), rb, Jb)
+            rows.points(b, affine, derivatives, (gains, dgains), mix, (G, dtheta), rb, Jb)
 
         thread_map(one, range(len(self.blocks)), parallel=self.threaded)
         return r, J

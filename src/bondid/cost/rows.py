@@ -28,6 +28,8 @@ from .residuals import parts, residual, residual_jacobian, residual_jacobian_par
 from .selection import CostOptions, DataSelection
 
 Gains = dict[str, float]
+#: ``(dπ (nb, 10, n_p), dk (nv, n_p), dd (nv, n_p), d(α, β) (2, n_p) or None)``
+Derivatives = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]
 #: a data set's mix rows and the mixes' d/dx
 Mix = tuple[MixRows, dict[str, np.ndarray]]
 
@@ -75,14 +77,14 @@ class Rows:
         self,
         b: DataSelection,
         affine: AffineModel,
-        derivatives: tuple[np.ndarray, np.ndarray, np.ndarray],
+        derivatives: Derivatives,
         r: np.ndarray,
         J: np.ndarray,
     ) -> None:
         """Residuals and Jacobian rows of a data set that uses every channel at every one of
         its frequencies, written into ``r`` ``(k·n_sel,)`` and ``J`` ``(k, n_sel, n_p)`` (views
         of the result) one block of frequencies at a time while the FRF derivatives are in
-        cache (no complex Jacobian is assembled). ``derivatives`` = ``(dπ, dk, dd)``."""
+        cache (no complex Jacobian is assembled). ``derivatives`` = ``(dπ, dk, dd, d(α, β))``."""
         kind, k = self.options.kind, parts(self.options.kind)
         grid = (len(affine.outputs), len(affine.inputs), b.freq_hz.size)
         Hm, scale = b.Hm.reshape(grid), b.scale.reshape(grid)
@@ -101,7 +103,7 @@ class Rows:
         self,
         b: DataSelection,
         affine: AffineModel,
-        derivatives: tuple[np.ndarray, np.ndarray, np.ndarray],
+        derivatives: Derivatives,
         gains: tuple[Gains, dict[str, np.ndarray]],
         mix: Mix | None,
         modifier: tuple[tuple[np.ndarray, np.ndarray] | None, np.ndarray | None],
@@ -146,7 +148,7 @@ class Rows:
         self,
         b: DataSelection,
         affine: AffineModel,
-        derivatives: tuple[np.ndarray, np.ndarray, np.ndarray],
+        derivatives: Derivatives,
         gains: tuple[Gains, dict[str, np.ndarray]],
         mix: Mix | None,
         modifier: tuple[np.ndarray, np.ndarray | None],
@@ -159,7 +161,7 @@ class Rows:
         formed at once. ``modifier`` = ``(θ, ∂θ/∂x or None)``."""
         assert self.modifier is not None and self.modifier_at is not None
         theta, dtheta = modifier
-        H, dH = frf_and_jacobian(affine, b.freq_hz, *derivatives)
+        H, dH = frf_and_jacobian(affine, b.freq_hz, *derivatives[:3], drayleigh=derivatives[3])
         if gains[0]:
             no, ni, nf = H.shape
             rows = np.repeat(np.arange(no), ni * nf)

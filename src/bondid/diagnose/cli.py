@@ -10,6 +10,7 @@ from pathlib import Path
 
 def build_parser() -> argparse.ArgumentParser:
     from .. import cli
+    from ..fit.damping import add_damping_arg
     from ..fit.operating_points import add_operating_point_arg
     from .effects import available
 
@@ -37,6 +38,7 @@ def build_parser() -> argparse.ArgumentParser:
     )  # fmt: skip
     cli.add_channels_arg(p, "channels OUT.IN to use (default: those above the noise floor)")
     add_operating_point_arg(p)
+    add_damping_arg(p)
     p.add_argument("--points", type=int, default=500, help="frequencies per data set for refits")
     p.add_argument("--workers", type=int, default=2, help="worker processes (1 = in-process)")
     p.add_argument(
@@ -101,6 +103,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         warnings += check_inputs(doc, data, args.data)
         channels = cli.split_names([args.channels]) if args.channels else None
         check_selection(data, bands=args.band, channels=channels)
+        from ..fit.damping import data_band, declare_damping
+
+        declare_damping(
+            doc, args.damping or "model", band_hz=data_band(data, args.band),
+            operating_point=data[0].operating_point,
+        )  # fmt: skip
         if not args.quiet:  # at once, not only after a run of minutes (the summary repeats them)
             for line in cli.warn_lines(warnings):
                 print(line, file=sys.stderr, flush=True)
@@ -113,6 +121,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             workers=args.workers,
             scheduler=args.scheduler,
             weighting=args.weighting,
+            damping=args.damping or "model",
         )
         prog = cli.Progress("diagnose", quiet=args.quiet)
 

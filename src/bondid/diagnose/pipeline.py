@@ -76,6 +76,7 @@ class Settings:
         max_effects: effects accepted one after the other at most.
         n_min, n_max: refits of a step before the rule may end it, and at most
             (:mod:`.search`).
+        damping: the damping model the model was declared with (:mod:`bondid.fit.damping`).
     """
 
     effects: list[str] | None = None
@@ -91,6 +92,7 @@ class Settings:
     max_effects: int = 3
     n_min: int = N_MIN
     n_max: int = N_MAX
+    damping: str = "model"
 
 
 @dataclass
@@ -162,12 +164,18 @@ def used_channels(datasets: Sequence[FrfData], requested: Sequence[str] | None) 
     return keep
 
 
-def default_names(doc: UrdfDocument, free: Sequence[str] | None) -> list[str]:
+def default_names(
+    doc: UrdfDocument, free: Sequence[str] | None, damping: str = "model"
+) -> list[str]:
     """The refit's free parameters: ``free`` (names, globs, groups) or :data:`DEFAULT_FREE`
-    without zero-valued springs and dampers."""
+    without zero-valued springs and dampers, under the damping model ``damping``
+    (:func:`bondid.fit.damping.damping_free`)."""
+    from ..fit.damping import damping_free
+
+    tokens, fixed = damping_free(doc, damping, list(free or DEFAULT_FREE), [])
+    names = select_parameters(doc, tokens, fixed)
     if free:
-        return select_parameters(doc, free)
-    names = select_parameters(doc, DEFAULT_FREE)
+        return names
     return [n for n in names if not n.endswith((".stiffness", ".damping")) or
             get_parameter(doc, n) > 0]  # fmt: skip
 
@@ -212,7 +220,7 @@ def prepare_data(doc: UrdfDocument, datasets: Sequence[FrfData], s: Settings) ->
 
         by_file, _, _ = informative_by_file(full, "coherence", MIN_CHANNEL_COHERENCE)
     options = CostOptions(channels=channels, weighting="coherence", channels_by_file=by_file)
-    names = default_names(doc, s.free)
+    names = default_names(doc, s.free, s.damping)
     if not names:
         raise ConfigError("no parameter to refit; check --free")
     candidates = [c for e in get_effects(s.effects) for c in e.candidates(doc)]

@@ -32,6 +32,7 @@ from ..model.parameters import (
     parameter_infos,
     select_parameters,
 )
+from .damping import damping_json, data_band, declare_damping
 from .options import build_parser, resolve_settings
 from .study import (
     KINDS,
@@ -47,6 +48,7 @@ _KIND_GLOB = {
     "damping": "*.damping",
     "gain": "gain.*",
     "mix": "mix.*",
+    "rayleigh": "rayleigh.*",
 }
 
 
@@ -69,8 +71,11 @@ def cost_options(s: StudySettings) -> CostOptions:
 def resolve_names(
     doc: UrdfDocument, datasets: list[FrfData], s: StudySettings, options: CostOptions
 ) -> list[str]:
-    """Free parameter names from ``free``/``fixed`` (``auto`` asks bondid.sensitivity)."""
-    free = list(s.free)
+    """Free parameter names from ``free``/``fixed`` (``auto`` asks bondid.sensitivity) under
+    the damping model (:func:`bondid.fit.damping.damping_free`)."""
+    from .damping import damping_free
+
+    free, fixed = damping_free(doc, s.damping, s.free, s.fixed)
     if "auto" in free:
         try:
             from ..sensitivity import recommend_subset
@@ -80,7 +85,7 @@ def resolve_names(
                 " lacks; name the parameters, globs or groups instead"
             ) from None
         free = [t for t in free if t != "auto"] + list(recommend_subset(doc, datasets, options))
-    names = select_parameters(doc, free, s.fixed) if free else []
+    names = select_parameters(doc, free, fixed) if free else []
     if not names:
         raise ConfigError(
             f"{doc.source}: no free parameter left (free: {' '.join(s.free)};"
@@ -197,6 +202,10 @@ def _load(args: argparse.Namespace, s: StudySettings) -> dict[str, Any]:
     check_selection(raw, bands=s.bands, channels=s.channels, band_option=_where(s, "--band"),
                     channel_option=_where(s, "--channels"))  # fmt: skip
     datasets = [ds if ds.quantity == "receptance" else ds.to_quantity("receptance") for ds in raw]
+    damping_start = declare_damping(
+        doc, s.damping, start=s.damping_start, band_hz=data_band(datasets, s.bands),
+        operating_point=datasets[0].operating_point,
+    )  # fmt: skip
     if args.out is not None:
         check_out_dir(args.out, inputs, datasets)
     check_weights(s, datasets)
@@ -212,7 +221,7 @@ def _load(args: argparse.Namespace, s: StudySettings) -> dict[str, Any]:
         "inputs": inputs, "res": res, "doc": doc, "warnings": warnings, "datasets": datasets,
         "options": options, "names": names, "lower": lower, "upper": upper,
         "left_out": left_out, "quantities": [ds.quantity for ds in raw],
-        "fit_datasets": fit_datasets, "lines": lines,
+        "fit_datasets": fit_datasets, "lines": lines, "damping_start": damping_start,
     }  # fmt: skip
 
 
@@ -313,6 +322,7 @@ def _body(args: argparse.Namespace) -> int:
         "stages": [st.to_json_dict() for st in ms.best_run.stages] or None,
         "warnings": warnings, "lines": w["lines"].to_json_dict(),
     }  # fmt: skip
+    extra["damping"] = damping_json(s.damping, w["damping_start"], w["doc"], result)
     extra["channels_left_out"], extra["channels_by_file"] = channels_by_file(
         w["datasets"], w["options"], w["left_out"]
     )

@@ -17,7 +17,7 @@ from .study import StudySettings
 
 def read_model_keys(doc: Mapping[str, Any], s: StudySettings, where: str, base: Path) -> None:
     """The study keys ``points``, ``gains``, ``points_file``, ``package_path``,
-    ``floating_base``, ``uff_map`` and ``operating_points`` into ``s`` (raises
+    ``floating_base``, ``uff_map``, ``operating_points`` and ``damping`` into ``s`` (raises
     ``ConfigError`` naming the key)."""
     if "points" in doc:
         s.points = points_from_table(doc["points"], where)
@@ -39,6 +39,10 @@ def read_model_keys(doc: Mapping[str, Any], s: StudySettings, where: str, base: 
         from .operating_points import from_table
 
         s.operating_points = from_table(doc["operating_points"], where, base)
+    if "damping" in doc:
+        from .damping import damping_from_study
+
+        s.damping, s.damping_start = damping_from_study(doc["damping"], where)
     if "floating_base" in doc:
         s.floating_base = check_bool(doc["floating_base"], where, "floating_base")
     for name, v in check_table(doc.get("uff_map", {}), where, "uff_map").items():

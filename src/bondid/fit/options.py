@@ -136,7 +136,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _add_structure_args(p: argparse.ArgumentParser) -> None:
-    """Options that give the free parameters a structure (ties)."""
+    """Options that give the free parameters a structure (ties, the damping model)."""
+    from .damping import add_damping_arg
+
+    add_damping_arg(p)
     p.add_argument(
         "--tie", action="append", metavar="PATTERN",
         help="joint parameters sharing one value: names or globs of one kind (stiffness or"
@@ -195,6 +198,10 @@ def resolve_settings(args: argparse.Namespace) -> StudySettings:
     _search_settings(args, s)
     for text in args.tie or ():
         s.ties[text] = split_names([text])
+    if args.damping is not None:
+        if args.damping != s.damping:
+            s.damping_start = None  # the study's start belongs to the study's kind
+        s.damping = args.damping
     if s.model is None:
         raise ConfigError("no model: give --model URDF (or model = ... in the study file)")
     if not s.data:

@@ -31,6 +31,8 @@ Every section and key is optional::
     points_file = "points.toml"              # --points: [points] and [gains] tables
     package_path = ["../ros_ws/src"]         # --package-path (package:// meshes)
     floating_base = false                    # --floating-base (a free-free structure)
+    damping = "rayleigh"                     # --damping: model|joints|rayleigh|rayleigh-only
+                                             # or {kind = "rayleigh", alpha = 0.5, beta = 1e-6}
 
     [operating_points]                       # --operating-point FILE=x=0.1,y=0.3
     "pose_b.uff" = {x = 0.1, y = 0.3}        # for data files that state none (m or rad)
@@ -102,37 +104,19 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..modes.bands import Span as Band
 
 #: Parameter kinds a bound key may name (besides names and globs).
-KINDS = ("mass", "com", "inertia", "stiffness", "damping", "gain", "mix")
+KINDS = ("mass", "com", "inertia", "stiffness", "damping", "gain", "mix", "rayleigh")
 
 _TOP_KEYS = (
     "model", "data", "parameters", "bounds", "cost", "search", "points", "gains", "points_file",
-    "package_path", "floating_base", "uff_map", "operating_points", "ties",
+    "package_path", "floating_base", "uff_map", "operating_points", "ties", "damping",
 )  # fmt: skip
 _SECTION_KEYS = {
     "parameters": ("free", "fixed", "prior"),
-    "cost": (
-        "kind",
-        "norm",
-        "bands",
-        "channels",
-        "coherence",
-        "weighting",
-        "channel_weights",
-        "lines",
-    ),
-    "search": (
-        "multistart",
-        "seed",
-        "workers",
-        "staged",
-        "continuation",
-        "max_iter",
-        "presolve",
-        "fallback",
-        "fallback_starts",
-        "stage_bands",
-    ),
-}
+    "cost": ("kind", "norm", "bands", "channels", "coherence", "weighting", "channel_weights",
+             "lines"),
+    "search": ("multistart", "seed", "workers", "staged", "continuation", "max_iter", "presolve",
+               "fallback", "fallback_starts", "stage_bands"),
+}  # fmt: skip
 
 
 @dataclass
@@ -182,6 +166,8 @@ class StudySettings:
             that state none (:mod:`bondid.fit.operating_points`).
         ties: tie name -> the names and globs of its joint parameters (one value each tie;
             :mod:`bondid.model.ties`).
+        damping, damping_start: the damping model and the (α, β) to start from, or None
+            (:mod:`bondid.fit.damping`).
     """
 
     model: Path | None = None
@@ -218,6 +204,8 @@ class StudySettings:
     uff_map: dict[str, tuple[int, int]] = field(default_factory=dict)
     operating_points: dict[str, dict[str, float]] = field(default_factory=dict)
     ties: dict[str, list[str]] = field(default_factory=dict)
+    damping: str = "model"
+    damping_start: tuple[float, float] | None = None
 
     def to_json_dict(self) -> dict[str, Any]:
         """The settings as plain JSON values (paths as strings)."""
@@ -256,7 +244,12 @@ class StudySettings:
             "uff_map": {k: list(v) for k, v in self.uff_map.items()},
             "operating_points": {k: dict(v) for k, v in self.operating_points.items()},
             "ties": {k: list(v) for k, v in self.ties.items()},
+            "damping": {"kind": self.damping, "start": _pair(self.damping_start)},
         }
+
+
+def _pair(v: tuple[float, float] | None) -> list[float] | None:
+    return None if v is None else list(v)
 
 
 def add_bound(settings: StudySettings, key: str, bound: float | tuple[float, float]) -> None:

@@ -15,6 +15,7 @@ from typing import Any
 
 from ..cli import EXIT_FAILED, EXIT_OK
 from ..optim.stall import STALLED, still_falling
+from .damping import damping_line
 from .headline import headline_lines, std_footer
 
 #: IPOPT's status of a solve stopped at its iteration limit
@@ -93,6 +94,9 @@ def summary(result: Any, content: dict[str, Any] | None, extra: dict[str, Any],
             info = f"{st['status']}, cost {st['cost_initial']:.4g} → {st['cost_final']:.4g}"
         lines.append(f"stage {st['name']}: {info}")
     lines += parameter_table(result)
+    said = damping_line(extra.get("damping"))
+    if said:
+        lines.append(said)
     if result.active_constraints:
         lines.append("active constraints: " + "; ".join(result.active_constraints))
     for note in merged_notes(list(getattr(result, "notes", []) or []), ms.get("best_start", 0)):

@@ -11,7 +11,9 @@ matrices. :class:`Directions` keeps only what is not zero:
   Hessian of the potential energy) only the pairs ``n ≤ m`` are contracted, with
   ``S[n,m] + S[m,n]`` off the diagonal;
 * of those, only the pairs some parameter's stiffness (resp. mass) direction touches enter the
-  stiffness (resp. mass) part, and the damping part uses the diagonal of the joint dampers only.
+  stiffness (resp. mass) part, and the damping part uses the diagonal of the joint dampers only
+  — unless the model has proportional damping ``D ∋ α M + β K``: then
+  ``∂D/∂p = ∂D_joints/∂p + α ∂M/∂p + β ∂K/∂p + (∂α/∂p) M + (∂β/∂p) K``, on the pairs it touches.
 
 So a fit of joint springs and dampers alone contracts ``2n`` products, not ``n²``; on the
 bonder with all 52 parameters free it is 31 stiffness, 56 mass and 11 damping products
@@ -62,31 +64,42 @@ class Directions:
 
     @classmethod
     def build(
-        cls, affine: AffineModel, dpi: np.ndarray, dk: np.ndarray, dd: np.ndarray
+        cls,
+        affine: AffineModel,
+        dpi: np.ndarray,
+        dk: np.ndarray,
+        dd: np.ndarray,
+        drayleigh: np.ndarray | None = None,
     ) -> Directions:
         """Directions of ``n_p`` parameters from their derivatives.
 
         Args:
-            affine: the model (its gravity-stiffness and mass bases).
+            affine: the model (its gravity-stiffness and mass bases, its ``alpha``, ``beta``).
             dpi: ``(nb, 10, n_p)`` derivative of the body parameters w.r.t. each parameter.
             dk, dd: ``(nv, n_p)`` derivatives of the joint springs (N/m or N·m/rad) and
                 dampers (N·s/m or N·m·s/rad).
+            drayleigh: ``(2, n_p)`` derivatives of ``α`` (1/s) and ``β`` (s), or None (held).
         """
         n, n_p = affine.nv, dpi.shape[2]
         Kp = np.einsum("bkp,bkij->pij", dpi, affine.G_basis)
         Mp = np.einsum("bkp,bkij->pij", dpi, affine.M_basis)
         idx = np.arange(n)
         Kp[:, idx, idx] += dk.T
-        symmetric = is_symmetric(Kp) and is_symmetric(Mp)
+        Dp = _damping_directions(affine, Kp, Mp, dd, drayleigh)
+        symmetric = is_symmetric(Kp) and is_symmetric(Mp) and (Dp is None or is_symmetric(Dp))
         if symmetric:
             pn, pm = np.triu_indices(n)
             Kp = 0.5 * (Kp + np.swapaxes(Kp, 1, 2))
             Mp = 0.5 * (Mp + np.swapaxes(Mp, 1, 2))
+            Dp = None if Dp is None else 0.5 * (Dp + np.swapaxes(Dp, 1, 2))
         else:
             pn, pm = (a.reshape(-1) for a in np.indices((n, n)))
         K2, M2 = Kp[:, pn, pm].T, Mp[:, pn, pm].T  # (pairs, n_p)
-        D2 = np.zeros_like(K2)
-        D2[pn == pm] = dd
+        if Dp is None:
+            D2 = np.zeros_like(K2)
+            D2[pn == pm] = dd
+        else:
+            D2 = Dp[:, pn, pm].T
         used = [np.any(A != 0, axis=1) for A in (K2, M2, D2)]
         keep = np.flatnonzero(used[0] | used[1] | used[2])
         k_sel, m_sel, d_sel = (np.flatnonzero(u[keep]) for u in used)
@@ -121,3 +134,24 @@ class Directions:
         np.multiply(w, Sd.imag, out=T[0, :, nk + nm :])  # Re(−jω S) = ω Im S
         np.multiply(-w, Sd.real, out=T[1, :, nk + nm :])  # Im(−jω S) = −ω Re S
         return (T.reshape(2 * rows, -1) @ self.W).reshape(2, rows, self.n_p)
+
+
+def _damping_directions(
+    affine: AffineModel,
+    Kp: np.ndarray,
+    Mp: np.ndarray,
+    dd: np.ndarray,
+    drayleigh: np.ndarray | None,
+) -> np.ndarray | None:
+    """``∂D/∂p`` ``(n_p, nv, nv)`` of a model with proportional damping (module docstring), or
+    None when ``D`` is the joint dampers' alone (its directions: the diagonal ``dd``)."""
+    alpha, beta = affine.alpha, affine.beta
+    if not alpha and not beta and drayleigh is None:
+        return None
+    n = affine.nv
+    Dp = alpha * Mp + beta * Kp
+    Dp[:, np.arange(n), np.arange(n)] += dd.T
+    if drayleigh is not None:
+        M, K = affine.mass_matrix(), affine.stiffness_matrix()
+        Dp += drayleigh[0][:, None, None] * M[None] + drayleigh[1][:, None, None] * K[None]
+    return Dp

@@ -35,7 +35,12 @@ def _channels(n_out: int, n_in: int, mirrored: bool) -> tuple[np.ndarray, np.nda
 
 
 def jacobian_blocks(
-    affine: AffineModel, freq_hz: np.ndarray, dpi: np.ndarray, dk: np.ndarray, dd: np.ndarray
+    affine: AffineModel,
+    freq_hz: np.ndarray,
+    dpi: np.ndarray,
+    dk: np.ndarray,
+    dd: np.ndarray,
+    drayleigh: np.ndarray | None = None,
 ) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
     """Receptance and its derivatives, one block of frequencies at a time.
 
@@ -50,7 +55,7 @@ def jacobian_blocks(
     M = affine.mass_matrix()
     K = affine.stiffness_matrix()
     D = affine.damping_matrix()
-    dirs = Directions.build(affine, dpi, dk, dd)
+    dirs = Directions.build(affine, dpi, dk, dd, drayleigh)
     C, B = affine.C, affine.B
     n_out, n_in, n_p = C.shape[0], B.shape[1], dirs.n_p
     symmetric = is_symmetric(np.stack([M, K, D]))
@@ -89,6 +94,8 @@ def frf_and_jacobian(
     dk: np.ndarray,
     dd: np.ndarray,
     quantity: str = "receptance",
+    *,
+    drayleigh: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """FRF and its derivatives at the affine model's current values.
 
@@ -98,6 +105,8 @@ def frf_and_jacobian(
         dpi: ``(nb, 10, n_p)`` derivative of the body parameters w.r.t. each parameter.
         dk, dd: ``(nv, n_p)`` derivatives of the joint springs and dampers.
         quantity: receptance, mobility or accelerance.
+        drayleigh: ``(2, n_p)`` derivatives of the proportional damping's ``α``, ``β`` (None:
+            held at the model's).
 
     Returns:
         ``H`` ``(n_out, n_in, n_f)`` and ``J`` ``(n_out, n_in, n_f, n_p)``, complex, both
@@ -107,7 +116,7 @@ def frf_and_jacobian(
     n_out, n_in, n_p = affine.C.shape[0], affine.B.shape[1], dpi.shape[2]
     H = np.empty((n_out, n_in, freq_hz.size), dtype=complex)
     J = np.empty((n_out, n_in, freq_hz.size, n_p), dtype=complex)
-    for sl, Hb, dH in jacobian_blocks(affine, freq_hz, dpi, dk, dd):
+    for sl, Hb, dH in jacobian_blocks(affine, freq_hz, dpi, dk, dd, drayleigh):
         H[:, :, sl] = Hb
         J.real[:, :, sl] = dH[0]
         J.imag[:, :, sl] = dH[1]

@@ -4,7 +4,8 @@ At a fixed configuration q0, Pinocchio's numbers enter as constants:
 
 * ``M(π) = M_rest + Σ_b Σ_k π_bk · M_bk`` (mass matrix, exact: M is linear in π),
 * ``G(π) = G_rest + Σ_b Σ_k π_bk · G_bk`` (gravity stiffness ∂g/∂q, linear in π too),
-* ``K = G(π) + Σ_j k_j e_j e_jᵀ`` and ``D = D_rest + Σ_j d_j e_j e_jᵀ`` (joint springs, dampers),
+* ``K = G(π) + Σ_j k_j e_j e_jᵀ`` and ``D = D_rest + Σ_j d_j e_j e_jᵀ + α M(π) + β K`` (joint
+  springs, dampers, and the model's proportional damping, :mod:`bondid.model.rayleigh`),
 
 where ``π_b`` are the 10 dynamic parameters of link ``b`` in Pinocchio's order
 ``[m, m·cx, m·cy, m·cz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz]``, about the LINK frame origin and in
@@ -32,6 +33,8 @@ from ..consistency.pseudo_inertia import pi_from_urdf
 from ..exceptions import ModelError
 from ..model.document import UrdfDocument
 from ..model.parameters import carries_mass, link_inertial
+from ..model.rayleigh import model_rayleigh
+from .bases import inertia_bases, link_placements
 from .channels import channel_gains, io_matrices
 from .channels import model_inputs as model_inputs  # re-exported: the model's channel names
 from .channels import model_outputs as model_outputs
@@ -44,8 +47,6 @@ pi_from_inertial = pi_from_urdf
 
 #: Velocity coordinates of a free-flyer (Pinocchio: linear then angular, in the body frame).
 FREE_FLYER_AXES = ("vx", "vy", "vz", "wx", "wy", "wz")
-
-_REF_PI = np.array([1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 1.0])
 
 
 @dataclass
@@ -66,6 +67,7 @@ class AffineModel:
         B_kin, C_kin: the kinematic input / output matrices (joint selectors, and the frame
             Jacobian rows of measurement points).
         gain_in, gain_out: transducer gains ``(n_in,)``, ``(n_out,)`` (1 = none).
+        alpha, beta: proportional damping ``α M + β K`` (1/s, s; 0 = none).
     """
 
     dofs: tuple[str, ...]
@@ -88,6 +90,8 @@ class AffineModel:
     C_kin: np.ndarray | None = None
     gain_in: np.ndarray | None = None
     gain_out: np.ndarray | None = None
+    alpha: float = 0.0
+    beta: float = 0.0
 
     def __post_init__(self) -> None:
         if self.B_kin is None:
@@ -116,9 +120,20 @@ class AffineModel:
         k = self.stiffness if stiffness is None else stiffness
         return self.G_rest + np.einsum("bk,bkij->ij", p, self.G_basis) + np.diag(k)
 
-    def damping_matrix(self, damping: np.ndarray | None = None) -> np.ndarray:
+    def damping_matrix(
+        self,
+        damping: np.ndarray | None = None,
+        pi: np.ndarray | None = None,
+        stiffness: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """D ``(nv, nv)`` = joint dampers + α M(π) + β K(π, k) (defaults: current values)."""
         d = self.damping if damping is None else damping
-        return self.D_rest + np.diag(d)
+        D = self.D_rest + np.diag(d)
+        if self.alpha:
+            D = D + self.alpha * self.mass_matrix(pi)
+        if self.beta:
+            D = D + self.beta * self.stiffness_matrix(pi, stiffness)
+        return D
 
     def linear_model(self) -> LinearModel:
         """The numeric :class:`LinearModel` at the current parameters."""
@@ -148,6 +163,10 @@ class AffineModel:
             damping=self.damping if damping is None else np.asarray(damping, float),
         )
 
+    def with_rayleigh(self, alpha: float, beta: float) -> AffineModel:
+        """A copy with other proportional damping coefficients (1/s, s)."""
+        return replace(self, alpha=float(alpha), beta=float(beta))
+
     def with_gains(
         self, gain_in: np.ndarray | None = None, gain_out: np.ndarray | None = None
     ) -> AffineModel:
@@ -159,37 +178,6 @@ class AffineModel:
         return replace(
             self, B=self.B_kin * gi[None, :], C=go[:, None] * self.C_kin, gain_in=gi, gain_out=go
         )
-
-
-def _link_placements(model, links: list[str], where: str) -> dict[str, tuple[int, object]]:
-    """For each link: (parent joint id, placement of the link frame in the joint frame)."""
-    import pinocchio as pin
-
-    out = {}
-    for name in links:
-        if not model.existFrame(name, pin.FrameType.BODY):
-            raise ModelError(f"{where}: Pinocchio has no body frame for link {name!r}")
-        f = model.frames[model.getFrameId(name, pin.FrameType.BODY)]
-        out[name] = (int(f.parentJoint), f.placement)
-    return out
-
-
-def _transport_matrix(placement) -> np.ndarray:
-    """10×10 linear map: dynamic parameters in a link frame → in its joint's frame."""
-    import pinocchio as pin
-
-    def f(p: np.ndarray) -> np.ndarray:
-        return np.asarray(
-            pin.Inertia.FromDynamicParameters(p).se3Action(placement).toDynamicParameters()
-        )
-
-    base = f(_REF_PI)
-    T = np.empty((10, 10))
-    for k in range(10):
-        e = _REF_PI.copy()
-        e[k] += 1.0
-        T[:, k] = f(e) - base
-    return T
 
 
 def _dof_names(model, where: str) -> list[str]:
@@ -209,37 +197,6 @@ def _dof_names(model, where: str) -> list[str]:
             )
         dofs[jm.idx_v] = names[jid]
     return dofs
-
-
-def _joint_bases(model, data, q0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Joint-frame bases ``(njoints, 10, nv, nv)`` of M (columns from the torque regressor,
-    gravity off) and of the gravity stiffness (by differencing unit inertias)."""
-    import pinocchio as pin
-
-    nv = model.nv
-    zero = np.zeros(nv)
-    saved_gravity = model.gravity.linear.copy()
-    model.gravity.linear = np.zeros(3)
-    Mj = np.zeros((model.njoints, 10, nv, nv))
-    for col in range(nv):
-        a = np.zeros(nv)
-        a[col] = 1.0
-        Y = np.reshape(pin.computeJointTorqueRegressor(model, data, q0, zero, a), (nv, -1))
-        for jid in range(1, model.njoints):
-            Mj[jid, :, :, col] = Y[:, 10 * (jid - 1) : 10 * jid].T
-    model.gravity.linear = saved_gravity
-    Gj = np.zeros((model.njoints, 10, nv, nv))
-    saved = [model.inertias[j].copy() for j in range(model.njoints)]
-    for jid in range(1, model.njoints):
-        model.inertias[jid] = pin.Inertia.FromDynamicParameters(_REF_PI)
-        g0 = pin.computeGeneralizedGravityDerivatives(model, data, q0).copy()
-        for k in range(10):
-            e = _REF_PI.copy()
-            e[k] += 1.0
-            model.inertias[jid] = pin.Inertia.FromDynamicParameters(e)
-            Gj[jid, k] = pin.computeGeneralizedGravityDerivatives(model, data, q0) - g0
-        model.inertias[jid] = saved[jid]
-    return Mj, Gj
 
 
 def build_affine_model(
@@ -274,9 +231,9 @@ def build_affine_model(
     stiffness, damping = _springs_and_dampers(doc, dofs, where)
     grounded = doc.grounded_links()
     bodies = [lk.name for lk in doc.robot.links if carries_mass(lk) and lk.name not in grounded]
-    placements = _link_placements(model, bodies, where)
+    placements = link_placements(model, bodies, where)
     pi = np.array([pi_from_urdf(*link_inertial(doc, b)) for b in bodies]).reshape(-1, 10)
-    M_basis, G_basis, M_rest, G_rest = _inertia_bases(model, q0, placements, bodies, pi)
+    M_basis, G_basis, M_rest, G_rest = inertia_bases(model, q0, placements, bodies, pi)
     full = AffineModel(
         dofs=tuple(dofs),
         bodies=tuple(bodies),
@@ -296,6 +253,9 @@ def build_affine_model(
         operating_point=op,
     )
     am = _reduce_mimic(full, couplings) if couplings else full
+    r = model_rayleigh(doc)
+    if r is not None:
+        am = am.with_rayleigh(r.alpha, r.beta)
     return am.with_gains(*channel_gains(doc, inputs, outs))
 
 
@@ -318,38 +278,6 @@ def _springs_and_dampers(
         stiffness[v_index(j, "spring")] = doc.stiffness(j)
         damping[v_index(j, "damper")] = doc.damping(j)
     return stiffness, damping
-
-
-def _inertia_bases(
-    model,  # pinocchio.Model
-    q0: np.ndarray,
-    placements: dict[str, tuple[int, object]],
-    bodies: list[str],
-    pi: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(M_basis, G_basis, M_rest, G_rest)``: the mass matrix and gravity stiffness at
-    ``q0`` per inertial parameter of each body, ``(n_bodies, 10, nv, nv)``, and what is left
-    of the full matrices ``(nv, nv)`` at the bodies' parameters ``pi`` ``(n_bodies, 10)``."""
-    import pinocchio as pin
-
-    nv = model.nv
-    data = model.createData()
-    Mj, Gj = _joint_bases(model, data, q0)
-    M_basis = np.zeros((len(bodies), 10, nv, nv))
-    G_basis = np.zeros((len(bodies), 10, nv, nv))
-    for b, name in enumerate(bodies):
-        jid, placement = placements[name]
-        if jid == 0:
-            continue
-        T = _transport_matrix(placement)
-        M_basis[b] = np.einsum("mk,mij->kij", T, Mj[jid])
-        G_basis[b] = np.einsum("mk,mij->kij", T, Gj[jid])
-    M_full = pin.crba(model, data, q0)
-    M_full = np.triu(M_full) + np.triu(M_full, 1).T
-    G_full = pin.computeGeneralizedGravityDerivatives(model, data, q0).copy()
-    M_rest = M_full - np.einsum("bk,bkij->ij", pi, M_basis)
-    G_rest = G_full - np.einsum("bk,bkij->ij", pi, G_basis)
-    return M_basis, G_basis, M_rest, G_rest
 
 
 def _reduce_mimic(am: AffineModel, couplings: Mapping[str, Coupling]) -> AffineModel:

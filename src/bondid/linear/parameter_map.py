@@ -7,7 +7,9 @@ A parameter vector ``p`` holds a chosen subset of the named parameters (``x_stag
   (non-linear in (m, c), affine in I_c),
 * ``JOINT.stiffness`` / ``JOINT.damping`` → the spring / damper of that coordinate (identity),
 * ``gain.in.X`` / ``gain.out.Y`` and ``mix.P`` → the transducer gains and the points' mixes
-  (:meth:`ParameterMap.gain_values`, :meth:`ParameterMap.mix_values`).
+  (:meth:`ParameterMap.gain_values`, :meth:`ParameterMap.mix_values`),
+* ``rayleigh.alpha`` / ``rayleigh.beta`` → the proportional damping ``α M + β K``
+  (:meth:`ParameterMap.rayleigh_values`).
 
 :meth:`ParameterMap.jacobian` gives the exact derivatives, so dH/dp follows by the chain rule.
 """
@@ -55,10 +57,9 @@ class ParameterMap:
                 raise ParameterError(
                     f"{doc.source or '<URDF>'}: unknown parameter {n!r}; see parameter_names()"
                 )
-            if info.kind in ("gain", "mix"):
-                self.slots.append(
-                    _Slot(info.kind, -1, info.name if info.kind == "gain" else info.owner)
-                )
+            if info.kind in ("gain", "mix", "rayleigh"):
+                comp = {"gain": info.name, "mix": info.owner}.get(info.kind, info.component)
+                self.slots.append(_Slot(info.kind, -1, comp))
             elif info.is_inertial:
                 if info.owner not in affine.bodies:
                     raise ParameterError(
@@ -70,6 +71,7 @@ class ParameterMap:
         self.base_pi = affine.pi.copy()
         self.base_stiffness = affine.stiffness.copy()
         self.base_damping = affine.damping.copy()
+        self.base_rayleigh = (affine.alpha, affine.beta)
         self.p0 = get_parameters(doc, self.names)
         self.nb = len(affine.bodies)
         self.nv = affine.nv
@@ -110,6 +112,24 @@ class ParameterMap:
             for col, s in enumerate(self.slots)
             if s.kind == "mix"
         }
+
+    def rayleigh_values(self, p: np.ndarray) -> tuple[float, float] | None:
+        """``(α (1/s), β (s))`` at ``p`` when one of them is free, else None (the Rayleigh
+        part of the parameter-model protocol, :mod:`bondid.cost.problem`)."""
+        ab = dict(zip(("alpha", "beta"), self.base_rayleigh, strict=True))
+        free = False
+        for s, v in zip(self.slots, np.asarray(p, dtype=float), strict=True):
+            if s.kind == "rayleigh":
+                ab[str(s.component)], free = float(v), True
+        return (ab["alpha"], ab["beta"]) if free else None
+
+    def rayleigh_jacobian(self, p: np.ndarray) -> np.ndarray:
+        """``d(α, β)/dp`` ``(2, size)`` (unit rows: the coefficients are parameters)."""
+        out = np.zeros((2, self.size))
+        for col, s in enumerate(self.slots):
+            if s.kind == "rayleigh":
+                out[0 if s.component == "alpha" else 1, col] = 1.0
+        return out
 
     def _inertials(self, p: np.ndarray) -> list[tuple[float, np.ndarray, np.ndarray]]:
         inert = [
@@ -152,7 +172,7 @@ class ParameterMap:
         dk = np.zeros((self.nv, self.size))
         dd = np.zeros((self.nv, self.size))
         for col, s in enumerate(self.slots):
-            if s.kind in ("gain", "mix"):
+            if s.kind in ("gain", "mix", "rayleigh"):
                 continue
             if s.kind == "stiffness":
                 dk[s.index, col] = 1.0

@@ -12,7 +12,12 @@ name                           meaning                                      unit
 ``JOINT.damping``              joint viscous damper                         N·s/m, N·m·s/rad
 ``gain.in.X``, ``gain.out.Y``  transducer gain of input X / output Y         file unit per SI
 ``mix.P``                      share of point P's second component          per its kinds
+``rayleigh.alpha``             mass-proportional damping α (D += α·M)       1/s
+``rayleigh.beta``              stiffness-proportional damping β (D += β·K)  s
 =============================  ==========================================  ===============
+
+``rayleigh.*`` exist only in a model that declares proportional damping
+(:mod:`bondid.model.rayleigh`); they belong to ``all`` and (when not 0) to ``default``.
 
 A mix is a parameter only for a point declared with a second component (a patch driving
 bending and torsion: :mod:`bondid.model.points`); it belongs to the group ``mixes`` only.
@@ -27,11 +32,11 @@ stores the inertial with ``rpy = 0``.
 
 Groups: ``inertial`` (the 10 parameters of every moving link with an ``<inertial>``),
 ``parasitic`` (stiffness and damping of every movable joint without a transmission),
-``joints`` (stiffness and damping of every movable joint), ``all`` (``inertial`` + ``joints``),
-``gains`` (the declared transducer gains), ``mixes`` (the points' mixes), ``default``
-(``inertial`` + every joint stiffness
-and damping whose model value is not 0: ``python -m bondid.fit``'s default free set; a 0 the
-model sets, no spring on a driven axis, is a modelling decision, not an uncertain number).
+``joints`` (stiffness and damping of every movable joint), ``all`` (``inertial`` + ``joints``
++ ``rayleigh.*``), ``gains`` (the declared transducer gains), ``mixes`` (the points' mixes),
+``default`` (``inertial`` + every joint stiffness and damping and Rayleigh coefficient whose
+model value is not 0: ``python -m bondid.fit``'s default free set; a 0 the model sets, no
+spring on a driven axis, is a modelling decision, not an uncertain number).
 """
 
 from __future__ import annotations
@@ -46,6 +51,7 @@ import numpy as np
 from ..exceptions import ParameterError
 from .document import UrdfDocument, rotation_and_translation
 from .points import MIX_PREFIX
+from .rayleigh import RAYLEIGH_OWNER, RAYLEIGH_UNITS, Rayleigh, model_rayleigh, set_rayleigh
 from .ties import TIEABLE, Tie, followers, model_ties, set_tie
 
 COM_AXES = ("x", "y", "z")
@@ -121,6 +127,9 @@ def parameter_infos(doc: UrdfDocument) -> list[ParameterInfo]:
     for pt in doc.points:
         if pt.mixed:
             out.append(ParameterInfo(f"{MIX_PREFIX}{pt.name}", "mix", pt.name, None, "1"))
+    if model_rayleigh(doc) is not None:
+        for c, unit in RAYLEIGH_UNITS.items():
+            out.append(ParameterInfo(f"{RAYLEIGH_OWNER}.{c}", "rayleigh", RAYLEIGH_OWNER, c, unit))
     return out
 
 
@@ -212,6 +221,9 @@ def get_parameter(doc: UrdfDocument, name: str) -> float:
         return doc.gains[name]
     if info.kind == "mix":
         return next(p.mix for p in doc.points if p.name == info.owner)
+    if info.kind == "rayleigh":
+        declared = model_rayleigh(doc)
+        return 0.0 if declared is None else declared.get(str(info.component))
     if info.kind == "stiffness":
         return doc.stiffness(info.owner)
     if info.kind == "damping":
@@ -231,7 +243,7 @@ def set_parameter(doc: UrdfDocument, name: str, value: float) -> None:
     value = float(value)
     if not np.isfinite(value):
         raise ParameterError(f"{name}: value {value} is not finite")
-    if info.kind in ("stiffness", "damping", "mass") and value < 0:
+    if info.kind in ("stiffness", "damping", "mass", "rayleigh") and value < 0:
         raise ParameterError(f"{name}: value {value} is negative; valid: ≥ 0")
     if info.kind == "gain":
         if value == 0:
@@ -241,6 +253,10 @@ def set_parameter(doc: UrdfDocument, name: str, value: float) -> None:
     if info.kind == "mix":
         point = next(p for p in doc.points if p.name == info.owner)
         doc.set_point(replace(point, mix=value))
+        return
+    if info.kind == "rayleigh":
+        old = model_rayleigh(doc) or Rayleigh(0.0, 0.0)
+        set_rayleigh(doc, replace(old, **{str(info.component): value}))
         return
     if info.kind == "stiffness":
         doc.set_stiffness(info.owner, value)
@@ -290,7 +306,8 @@ def group_members(doc: UrdfDocument, group: str) -> list[str]:
         return [
             p.name
             for p in infos
-            if p.is_inertial or (p.kind in joint_kinds and get_parameter(doc, p.name) != 0.0)
+            if p.is_inertial
+            or (p.kind in (*joint_kinds, "rayleigh") and get_parameter(doc, p.name) != 0.0)
         ]
     raise ParameterError(f"unknown parameter group {group!r}; valid: {', '.join(GROUPS)}")
 

@@ -20,6 +20,11 @@ Relative bounds are ``value · (1 ± rel)`` around the model's value, with these
   the data (invisible); a damper above ``D_MAX`` damps a mode at ten times ``f_max``
   critically. So every default bound is finite and a fit cannot diverge to infinity.
 
+* ``rayleigh`` (``rayleigh.alpha``, ``rayleigh.beta``): ``[0, α_max]`` and ``[0, β_max]`` —
+  ``α_max`` alone damps the model's lowest vibration mode critically, ``β_max`` alone a mode at
+  ``f_max`` (:func:`bondid.linear.rayleigh.upper_bounds`); a relative width given for them
+  (``--bound rayleigh=0.5``) bounds them as a damper's instead.
+
 ``rel`` maps a kind (``mass``, ``com``, ``inertia``, ``stiffness``, ``damping``), a parameter name
 or a glob pattern (``x_stage.*``) to a fraction; the most specific entry wins (exact name, then
 glob, then kind). ``absolute`` maps names or globs to ``(lo, hi)`` in SI units and overrides the
@@ -29,6 +34,7 @@ relative bounds.
 from __future__ import annotations
 
 import fnmatch
+import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -48,6 +54,7 @@ DEFAULT_REL: dict[str, float] = {
     "damping": 0.5,
     "gain": 9.0,  # a factor 1 + r either way: 10
     "mix": 10.0,  # a point's mix: ± r · max(|μ|, 1)
+    "rayleigh": math.inf,  # [0, the coefficient that alone damps critically]
 }
 
 _DEFAULT_LENGTH = 0.1  # m, length scale of a link without geometry
@@ -196,9 +203,21 @@ def _relative_bound(
     if info.kind == "mix":  # may change sign: room around 0 as around the value
         half = r * max(abs(v), 1.0)
         return v - half, v + half
+    if info.kind == "rayleigh" and (math.isinf(r) or v == 0.0):
+        return 0.0, _rayleigh_upper(doc, str(info.component), f_max, cache)
     if v == 0.0:  # stiffness, damping
         return 0.0, zero_value_upper(doc, info.owner, info.kind, f_max, cache)
     return max(0.0, v - r * abs(v)), v + r * abs(v)
+
+
+def _rayleigh_upper(doc: UrdfDocument, component: str, f_max: float, cache: dict) -> float:
+    """``α_max`` or ``β_max`` of the model (module docstring); ``cache`` keeps them."""
+    if "rayleigh" not in cache:
+        from ..linear.affine import build_affine_model
+        from ..linear.rayleigh import upper_bounds
+
+        cache["rayleigh"] = upper_bounds(build_affine_model(doc, {}), f_max)
+    return float(cache["rayleigh"][0 if component == "alpha" else 1])
 
 
 def _apply_absolute(

@@ -19,7 +19,8 @@ Layout of the decision vector ``z`` (all entries O(1)):
 * for every free ``JOINT.stiffness`` / ``JOINT.damping``, one entry ``p / s`` with ``s`` the
   magnitude of its starting value (1 in SI units when that is 0);
 * for every free transducer gain one entry ``ln(g / g₀)``, for every free point mix one entry
-  ``(μ − μ₀) / s`` (``s`` = ``max(|μ₀|, 1)``: a mix may change sign).
+  ``(μ − μ₀) / s`` (``s`` = ``max(|μ₀|, 1)``: a mix may change sign), for every free Rayleigh
+  coefficient one entry ``α / s`` (``β / s``) (:mod:`.model_vars`).
 
 :class:`Layout` is a *parameter model* for :class:`bondid.cost.FrfProblem` (``size``,
 ``values``, ``jacobian``); :mod:`bondid.optim.constraints` builds the NLP's constraint
@@ -42,6 +43,7 @@ from ..consistency.pseudo_inertia import pi_from_urdf, urdf_from_pi
 from ..linear.affine import AffineModel
 from ..model.document import UrdfDocument
 from ..model.parameters import COM_AXES, INERTIA_COMPONENTS, ParameterInfo, link_inertial
+from .model_vars import GainVar, MixVar, ModelVars, RayleighVar
 
 # (row, col) of each URDF inertia component
 _IJ = {"ixx": (0, 0), "ixy": (0, 1), "ixz": (0, 2), "iyy": (1, 1), "iyz": (1, 2), "izz": (2, 2)}
@@ -105,28 +107,6 @@ class JointVar:
     leader: int = -1  # a tied member: its leader's position in Layout.joints
 
 
-@dataclass
-class GainVar:
-    """A free transducer gain: ``g = g0 · e^z`` (log scale, the sign of ``g0`` kept)."""
-
-    name: str
-    index: int  # index in z
-    name_index: int  # index in names
-    g0: float = 1.0
-
-
-@dataclass
-class MixVar:
-    """A free point mix (:mod:`bondid.cost.mixing`): ``μ = μ₀ + s · z``."""
-
-    name: str  # mix.<point>
-    point: str
-    index: int  # index in z
-    name_index: int  # index in names
-    mu0: float = 0.0
-    scale: float = 1.0
-
-
 def named_from_pi(pi: np.ndarray) -> dict[str, float]:
     """URDF-form values ``{component: value}`` of one body's ``pi`` (10,)."""
     m, c, I_c = urdf_from_pi(pi)
@@ -151,7 +131,7 @@ def _new_block(doc: UrdfDocument, affine: AffineModel, link: str, hull: Hull | N
     return BodyBlock(link, affine.bodies.index(link), 0, np.zeros(10), scale, length, 1.0, hull)
 
 
-class Layout:
+class Layout(ModelVars):
     """Decision vector of the fit (see the module docstring) and its maps.
 
     Args:
@@ -180,6 +160,7 @@ class Layout:
         self.joints: list[JointVar] = []
         self.gains: list[GainVar] = []
         self.mixes: list[MixVar] = []
+        self.rayleigh: list[RayleighVar] = []
         self.notes: list[str] = []
         offset = 10 * len(self.blocks)
         for j, info in enumerate(self.infos):
@@ -187,6 +168,8 @@ class Layout:
                 self.gains.append(GainVar(info.name, offset, j))
             elif info.kind == "mix":
                 self.mixes.append(MixVar(info.name, info.owner, offset, j))
+            elif info.kind == "rayleigh":
+                self.rayleigh.append(RayleighVar(info.name, str(info.component), offset, j))
             elif not info.is_inertial:
                 dof = affine.dofs.index(info.owner)
                 self.joints.append(JointVar(info.name, info.kind, dof, offset, j, 1.0))
@@ -195,6 +178,7 @@ class Layout:
             offset += 1
         self.size = offset
         self._tie_members(affine, ties or {})
+        self._model_vars_of(affine)
 
     def _body_blocks(
         self, doc: UrdfDocument, affine: AffineModel, hulls: dict[str, Hull | None]
@@ -278,42 +262,8 @@ class Layout:
             # stiff spring on the joint (measured: the bundled --free all fit then stalls)
             jv.scale = abs(v) if v != 0 else 1.0
             z[jv.index] = v / jv.scale
-        for gv in self.gains:
-            gv.g0 = float(p0[gv.name_index])
-            z[gv.index] = 0.0
-        for mv in self.mixes:
-            mv.mu0 = float(p0[mv.name_index])
-            mv.scale = max(abs(mv.mu0), 1.0)
-            z[mv.index] = 0.0
+        self._start_model_vars(p0, z)
         return z
-
-    # -- point mixes (the optional mix part of the parameter-model protocol) -----------------
-    def mix_values(self, z: np.ndarray) -> dict[str, float]:
-        """Free mixes by point name at ``z``."""
-        return {m.point: m.mu0 + m.scale * float(z[m.index]) for m in self.mixes}
-
-    def mix_jacobian(self, z: np.ndarray) -> dict[str, np.ndarray]:
-        """d μ / d z ``(size,)`` of every free mix."""
-        out = {}
-        for m in self.mixes:
-            row = np.zeros(self.size)
-            row[m.index] = m.scale
-            out[m.point] = row
-        return out
-
-    # -- transducer gains (the optional gain part of the parameter-model protocol) ----------
-    def gain_values(self, z: np.ndarray) -> dict[str, float]:
-        """Free gains by name at ``z``."""
-        return {g.name: g.g0 * float(np.exp(z[g.index])) for g in self.gains}
-
-    def gain_jacobian(self, z: np.ndarray) -> dict[str, np.ndarray]:
-        """d g / d z ``(size,)`` of every free gain."""
-        out = {}
-        for g in self.gains:
-            row = np.zeros(self.size)
-            row[g.index] = g.g0 * float(np.exp(z[g.index]))
-            out[g.name] = row
-        return out
 
     # -- parameter-model protocol (numpy) ------------------------------------------------
     def values(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -356,10 +306,7 @@ class Layout:
         for jv in self.joints:
             if jv.name_index >= 0:
                 out[jv.name_index] = jv.scale * z[jv.index]
-        for gv in self.gains:
-            out[gv.name_index] = gv.g0 * float(np.exp(z[gv.index]))
-        for mv in self.mixes:
-            out[mv.name_index] = mv.mu0 + mv.scale * float(z[mv.index])
+        self._named_model_vars(z, out)
         return out
 
     # -- variable bounds -------------------------------------------------------------------
@@ -398,13 +345,5 @@ class Layout:
             lbz[jv.index] = lower[jv.name_index] / jv.scale
             ubz[jv.index] = upper[jv.name_index] / jv.scale
             labels.append((jv.name, jv.index))
-        for gv in self.gains:
-            r = sorted((lower[gv.name_index] / gv.g0, upper[gv.name_index] / gv.g0))
-            lbz[gv.index] = np.log(r[0]) if r[0] > 0 else -np.inf
-            ubz[gv.index] = np.log(r[1]) if r[1] > 0 and np.isfinite(r[1]) else np.inf
-            labels.append((gv.name, gv.index))
-        for mv in self.mixes:
-            lbz[mv.index] = (lower[mv.name_index] - mv.mu0) / mv.scale
-            ubz[mv.index] = (upper[mv.name_index] - mv.mu0) / mv.scale
-            labels.append((mv.name, mv.index))
+        labels += self._bound_model_vars(lower, upper, lbz, ubz)
         return lbz, ubz, labels

@@ -58,6 +58,12 @@ class ModifiedLayout:
     def mix_jacobian(self, z: np.ndarray) -> dict[str, np.ndarray]:
         return {k: self._pad(v) for k, v in self.layout.mix_jacobian(z).items()}
 
+    def rayleigh_values(self, z: np.ndarray) -> tuple[float, float] | None:
+        return self.layout.rayleigh_values(z)
+
+    def rayleigh_jacobian(self, z: np.ndarray) -> np.ndarray:
+        return self._pad(self.layout.rayleigh_jacobian(z))
+
     def modifier_values(self, z: np.ndarray) -> np.ndarray:
         """θ ``(n_θ,)`` at ``z``."""
         u = np.asarray(z, dtype=float)[self.offset :]

@@ -372,7 +372,7 @@ class FitProblem:
         return self.frf.phase_wall_fraction(self.model, np.asarray(z, dtype=float))
 
 
-_NONNEG = (".stiffness", ".damping", ".mass")
+_NONNEG = (".stiffness", ".damping", ".mass", "rayleigh.alpha", "rayleigh.beta")
 
 
 def _bounds(

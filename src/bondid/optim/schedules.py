@@ -66,7 +66,7 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 STAGE_MIN_ITER = 20
 _STAGE_KINDS = {
     "stiffness": ("stiffness",),
-    "damping": ("damping",),
+    "damping": ("damping", "rayleigh"),
     "inertia": ("mass", "com", "inertia"),
 }
 #: Number of bands (the last one is the full fit), the default of ``--continuation``.

@@ -111,13 +111,20 @@ class TiedParameters:
         jac = self.map.mix_jacobian(self.T @ np.asarray(x, dtype=float))
         return {k: v @ self.T for k, v in jac.items()}
 
+    def rayleigh_values(self, x: np.ndarray) -> tuple[float, float] | None:
+        return self.map.rayleigh_values(self.T @ np.asarray(x, dtype=float))
+
+    def rayleigh_jacobian(self, x: np.ndarray) -> np.ndarray:
+        """``d(α, β)/dx`` ``(2, n)``."""
+        return self.map.rayleigh_jacobian(self.T @ np.asarray(x, dtype=float)) @ self.T
+
 
 def fitted_document(
     doc: UrdfDocument, layout: Layout, z: np.ndarray, p: np.ndarray
 ) -> UrdfDocument:
-    """A copy of ``doc`` with the fitted bodies at ``z`` and the joint parameters and gains
-    ``p`` (named values ``(n,)``; tied members follow ``z``). Fixed inertial components keep
-    their exact URDF values."""
+    """A copy of ``doc`` with the fitted bodies at ``z`` and the joint parameters, gains,
+    mixes and Rayleigh coefficients ``p`` (named values ``(n,)``; tied members follow ``z``).
+    Fixed inertial components keep their exact URDF values."""
     out = doc.copy()
     for link, vals in layout.body_values(z).items():
         blk = next(b for b in layout.blocks if b.link == link)
@@ -134,4 +141,6 @@ def fitted_document(
         set_parameter(out, gv.name, float(p[gv.name_index]))
     for mv in layout.mixes:
         set_parameter(out, mv.name, float(p[mv.name_index]))
+    for rv in layout.rayleigh:
+        set_parameter(out, rv.name, max(float(p[rv.name_index]), 0.0))
     return out

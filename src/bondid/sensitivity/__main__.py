@@ -17,6 +17,8 @@ from typing import TYPE_CHECKING
 from ..data.reduce import AUTO_ABOVE, AUTO_LINES
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
+    from ..data.measurement import FrfData
+    from ..model.document import UrdfDocument
     from ._common import Setup
     from .identifiability import Identifiability
     from .local import Linearisation, LocalSensitivity
@@ -54,6 +56,9 @@ def _parser() -> argparse.ArgumentParser:
     from ..fit.operating_points import add_operating_point_arg
 
     add_operating_point_arg(p)
+    from ..fit.damping import add_damping_arg
+
+    add_damping_arg(p)
     p.add_argument("--free", nargs="+", default=["all"], help="parameters: names, globs, groups")
     p.add_argument("--fixed", nargs="+", default=[], help="parameters to leave out (wins)")
     p.add_argument("--band", action="append", type=cli.parse_band, default=None,
@@ -120,8 +125,8 @@ def _run(args: argparse.Namespace) -> int:
         warnings.append(note)
     # the analysis runs on the lines a fit with the same --lines uses
     datasets, reduction = reduce_datasets(datasets, lines_setting, options.channels, options.bands)
-    setup = make_setup(doc, datasets, options, cli.split_names(args.free),
-                       cli.split_names(args.fixed))  # fmt: skip
+    free, fixed = _damping(doc, datasets, args, cli.split_names(args.free))
+    setup = make_setup(doc, datasets, options, free, [*cli.split_names(args.fixed), *fixed])
     lin = linearise_cost(setup)
     local, ident, sweep, timing = _analyse(setup, lin, args)
     print(
@@ -152,6 +157,19 @@ def _run(args: argparse.Namespace) -> int:
             f"wrote {Path(args.out) / 'sensitivity.json'} and {len(pngs)} PNG file(s) in {args.out}"
         )
     return 0
+
+
+def _damping(
+    doc: UrdfDocument, datasets: list[FrfData], args: argparse.Namespace, free: list[str]
+) -> tuple[list[str], list[str]]:
+    """Apply ``--damping`` to ``doc`` (:mod:`bondid.fit.damping`, as the fit does); the free
+    names and the extra fixed ones it implies."""
+    from ..fit.damping import damping_free, data_band, declare_damping
+
+    kind = args.damping or "model"
+    band = data_band(datasets, args.band)
+    declare_damping(doc, kind, band_hz=band, operating_point=datasets[0].operating_point)
+    return damping_free(doc, kind, free, [])
 
 
 def _analyse(

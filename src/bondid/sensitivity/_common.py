@@ -111,7 +111,9 @@ def reference_scales(
     * ``JOINT.damping``: ``M_jj·2π f_lo`` (same idea for a damper);
     * ``LINK.com.*``: 10 % of the link's RMS mass radius ``√(tr I_c / 2m)`` (m);
     * ``LINK.inertia.*``: 10 % of the link's mean principal moment (kg·m²);
-    * ``LINK.mass``: 1 % of the heaviest moving link (kg).
+    * ``LINK.mass``: 1 % of the heaviest moving link (kg);
+    * ``rayleigh.alpha`` / ``.beta``: the model's reference coefficient
+      (:func:`bondid.linear.rayleigh.reference`).
 
     Returns:
         ``(scale (n_p,), names of the zero-valued parameters)``.
@@ -134,6 +136,10 @@ def reference_scales(
             scale[i] = mjj * w_lo**2 if info.kind == "stiffness" else mjj * w_lo
         elif info.kind == "mass":
             scale[i] = 0.01 * max(float(pi[0]) for pi in affine.pi)
+        elif info.kind == "rayleigh":
+            from ..linear.rayleigh import reference
+
+            scale[i] = reference(affine)[0 if info.component == "alpha" else 1]
         else:
             m, _, Ic = link_inertial(doc, info.owner)
             tr = float(np.trace(Ic))

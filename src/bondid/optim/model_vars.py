@@ -1,0 +1,165 @@
+"""The fit's model-level variables: transducer gains, point mixes and Rayleigh coefficients.
+
+Each is one entry of the decision vector ``z`` (after the bodies and the joint parameters,
+:mod:`.layout`):
+
+* a transducer gain ``g = g₀ · e^z`` (log scale, the sign of ``g₀`` kept);
+* a point mix ``μ = μ₀ + s · z`` with ``s = max(|μ₀|, 1)`` (a mix may change sign);
+* a Rayleigh coefficient ``α = s · z`` (``β = s · z``) with ``s`` its start, or, for a start
+  at 0, the model's reference coefficient (:func:`bondid.linear.rayleigh.reference`): a zero
+  start then moves off its bound by a fraction of a light damping, not of 1 s.
+
+:class:`ModelVars` gives :class:`~.layout.Layout` the optional parts of the parameter-model
+protocol (:class:`bondid.cost.ParameterModel`): ``gain_values``/``gain_jacobian``,
+``mix_values``/``mix_jacobian`` and ``rayleigh_values``/``rayleigh_jacobian``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..linear.affine import AffineModel
+
+
+@dataclass
+class GainVar:
+    """A free transducer gain: ``g = g0 · e^z`` (log scale, the sign of ``g0`` kept)."""
+
+    name: str
+    index: int  # index in z
+    name_index: int  # index in names
+    g0: float = 1.0
+
+
+@dataclass
+class MixVar:
+    """A free point mix (:mod:`bondid.cost.mixing`): ``μ = μ₀ + s · z``."""
+
+    name: str  # mix.<point>
+    point: str
+    index: int  # index in z
+    name_index: int  # index in names
+    mu0: float = 0.0
+    scale: float = 1.0
+
+
+@dataclass
+class RayleighVar:
+    """A free Rayleigh coefficient (``component`` ``alpha`` or ``beta``): value ``= s · z``."""
+
+    name: str  # rayleigh.alpha / rayleigh.beta
+    component: str
+    index: int  # index in z
+    name_index: int  # index in names
+    scale: float = 1.0
+
+
+class ModelVars:
+    """The model-level variables of a :class:`~.layout.Layout` (module docstring)."""
+
+    size: int
+    gains: list[GainVar]
+    mixes: list[MixVar]
+    rayleigh: list[RayleighVar]
+
+    def _model_vars_of(self, affine: AffineModel) -> None:
+        """Keep what the Rayleigh variables need of ``affine``: the coefficients that are
+        not free, and the reference scales (when one is free)."""
+        self.base_rayleigh = (affine.alpha, affine.beta)
+        self.rayleigh_ref = (1.0, 1.0)
+        if self.rayleigh:
+            from ..linear.rayleigh import reference
+
+            self.rayleigh_ref = reference(affine)
+
+    def _start_model_vars(self, p0: np.ndarray, z: np.ndarray) -> None:
+        """Scales and ``z`` entries ``(size,)`` of the variables for named values ``p0``."""
+        for gv in self.gains:
+            gv.g0 = float(p0[gv.name_index])
+            z[gv.index] = 0.0
+        for mv in self.mixes:
+            mv.mu0 = float(p0[mv.name_index])
+            mv.scale = max(abs(mv.mu0), 1.0)
+            z[mv.index] = 0.0
+        for rv in self.rayleigh:
+            v = float(p0[rv.name_index])
+            ref = self.rayleigh_ref[0 if rv.component == "alpha" else 1]
+            rv.scale = abs(v) if v != 0 else ref
+            z[rv.index] = v / rv.scale
+
+    def _named_model_vars(self, z: np.ndarray, out: np.ndarray) -> None:
+        """Write the named values of the variables at ``z`` into ``out`` ``(n,)``."""
+        for gv in self.gains:
+            out[gv.name_index] = gv.g0 * float(np.exp(z[gv.index]))
+        for mv in self.mixes:
+            out[mv.name_index] = mv.mu0 + mv.scale * float(z[mv.index])
+        for rv in self.rayleigh:
+            out[rv.name_index] = rv.scale * float(z[rv.index])
+
+    def _bound_model_vars(
+        self, lower: np.ndarray, upper: np.ndarray, lbz: np.ndarray, ubz: np.ndarray
+    ) -> list[tuple[str, int]]:
+        """Set the bounds ``lbz``, ``ubz`` ``(size,)`` of the variables from the named bounds
+        ``lower``, ``upper`` ``(n,)``; returns their labels ``(name, z index)``."""
+        labels = []
+        for gv in self.gains:
+            r = sorted((lower[gv.name_index] / gv.g0, upper[gv.name_index] / gv.g0))
+            lbz[gv.index] = np.log(r[0]) if r[0] > 0 else -np.inf
+            ubz[gv.index] = np.log(r[1]) if r[1] > 0 and np.isfinite(r[1]) else np.inf
+            labels.append((gv.name, gv.index))
+        for mv in self.mixes:
+            lbz[mv.index] = (lower[mv.name_index] - mv.mu0) / mv.scale
+            ubz[mv.index] = (upper[mv.name_index] - mv.mu0) / mv.scale
+            labels.append((mv.name, mv.index))
+        for rv in self.rayleigh:
+            lbz[rv.index] = lower[rv.name_index] / rv.scale
+            ubz[rv.index] = upper[rv.name_index] / rv.scale
+            labels.append((rv.name, rv.index))
+        return labels
+
+    # -- point mixes (the optional mix part of the parameter-model protocol) -----------------
+    def mix_values(self, z: np.ndarray) -> dict[str, float]:
+        """Free mixes by point name at ``z``."""
+        return {m.point: m.mu0 + m.scale * float(z[m.index]) for m in self.mixes}
+
+    def mix_jacobian(self, z: np.ndarray) -> dict[str, np.ndarray]:
+        """d μ / d z ``(size,)`` of every free mix."""
+        out = {}
+        for m in self.mixes:
+            row = np.zeros(self.size)
+            row[m.index] = m.scale
+            out[m.point] = row
+        return out
+
+    # -- transducer gains (the optional gain part of the parameter-model protocol) ----------
+    def gain_values(self, z: np.ndarray) -> dict[str, float]:
+        """Free gains by name at ``z``."""
+        return {g.name: g.g0 * float(np.exp(z[g.index])) for g in self.gains}
+
+    def gain_jacobian(self, z: np.ndarray) -> dict[str, np.ndarray]:
+        """d g / d z ``(size,)`` of every free gain."""
+        out = {}
+        for g in self.gains:
+            row = np.zeros(self.size)
+            row[g.index] = g.g0 * float(np.exp(z[g.index]))
+            out[g.name] = row
+        return out
+
+    # -- proportional damping (the optional Rayleigh part of the protocol) -------------------
+    def rayleigh_values(self, z: np.ndarray) -> tuple[float, float] | None:
+        """``(α (1/s), β (s))`` at ``z`` when one is free (the other the model's), else None."""
+        if not self.rayleigh:
+            return None
+        ab = dict(zip(("alpha", "beta"), self.base_rayleigh, strict=True))
+        for rv in self.rayleigh:
+            ab[rv.component] = rv.scale * float(z[rv.index])
+        return ab["alpha"], ab["beta"]
+
+    def rayleigh_jacobian(self, z: np.ndarray) -> np.ndarray:
+        """``d(α, β)/dz`` ``(2, size)``."""
+        out = np.zeros((2, self.size))
+        for rv in self.rayleigh:
+            out[0 if rv.component == "alpha" else 1, rv.index] = rv.scale
+        return out
