@@ -25,6 +25,8 @@ from .affine import AffineModel
 
 #: the damping ratio of the reference coefficients (light structural damping)
 ZETA_REF = 0.005
+#: damping ratios at or below this count as none (round-off of an undamped model's modes)
+ZETA_MIN = 1e-9
 #: the band's ends when the model has no vibration mode in it (Hz)
 FALLBACK_BAND_HZ = (1.0, 4000.0)
 
@@ -93,7 +95,7 @@ def rayleigh_start(
     (Hz), None = every vibration mode. A coefficient the least squares puts at 0 starts at 1 %
     of its reference, inside its bounds."""
     ref = reference(affine, band_hz)
-    modes = [m for m in _within(_modes(affine, damped=True), band_hz) if m[1] > 0]
+    modes = [m for m in _within(_modes(affine, damped=True), band_hz) if m[1] > ZETA_MIN]
     if not modes:
         return RayleighStart(*ref, how=f"no damped mode: ζ = {ZETA_REF:g} at the band's ends")
     f, z = (np.array(v) for v in zip(*modes, strict=True))
