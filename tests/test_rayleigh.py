@@ -303,6 +303,22 @@ def test_bad_values_exit_2(tmp_path, capsys):
     assert main(["--model", str(tmp_path / "bad.urdf"), *base[2:]]) == 2
 
 
+def test_sensitivity_takes_the_damping_model(tmp_path):
+    """``bondid.sensitivity --damping rayleigh-only`` analyses α and β, not the dampers."""
+    from bondid.data.io import write_frf
+    from bondid.sensitivity.__main__ import main
+
+    write_frf(simulate(_proportional(), freq_hz=FREQ, outputs=("acc",)), tmp_path / "d.csv")
+    _strip(0.3).write(tmp_path / "m.urdf")
+    out = tmp_path / "out"
+    args = ["--model", str(tmp_path / "m.urdf"), "--data", str(tmp_path / "d.csv"),
+            "--damping", "rayleigh-only", "--no-sweep", "--quiet", "--out", str(out)]  # fmt: skip
+    assert main(args) == 0
+    names = {p["name"] for p in json.loads((out / "sensitivity.json").read_text())["parameters"]}
+    assert {"rayleigh.alpha", "rayleigh.beta"} <= names
+    assert not [n for n in names if n.endswith(".damping")]
+
+
 # -- known answers ----------------------------------------------------------------------------
 @pytest.mark.parametrize("kind", ["rayleigh-only", "rayleigh"])
 def test_fit_recovers_alpha_and_beta_at_the_noise_level(tmp_path, kind):
