@@ -319,6 +319,26 @@ def test_sensitivity_takes_the_damping_model(tmp_path):
     assert not [n for n in names if n.endswith(".damping")]
 
 
+def test_diagnosis_refits_the_coefficients(tmp_path):
+    """``bondid.diagnose --damping rayleigh-only``: the parameter refit moves α and β, and
+    the refitted model carries them."""
+    from bondid.data.io import write_frf
+    from bondid.diagnose.cli import main
+
+    data = simulate(_proportional(), freq_hz=FREQ, outputs=("acc",), noise=0.01, seed=3)
+    write_frf(data, tmp_path / "d.csv")
+    _strip(0.3).write(tmp_path / "m.urdf")
+    out = tmp_path / "out"
+    args = ["--model", str(tmp_path / "m.urdf"), "--data", str(tmp_path / "d.csv"),
+            "--damping", "rayleigh-only", "--free", "*.stiffness", "--effects", "sensor_delay",
+            "--workers", "1", "--no-plots", "--quiet", "--out", str(out)]  # fmt: skip
+    assert main(args) == 0
+    refit = model_rayleigh(UrdfDocument.load(out / "refit.urdf"))
+    assert refit is not None
+    assert refit.alpha == pytest.approx(ALPHA, rel=RECOVER_RTOL), refit
+    assert refit.beta == pytest.approx(BETA, rel=RECOVER_RTOL), refit
+
+
 # -- known answers ----------------------------------------------------------------------------
 @pytest.mark.parametrize("kind", ["rayleigh-only", "rayleigh"])
 def test_fit_recovers_alpha_and_beta_at_the_noise_level(tmp_path, kind):
