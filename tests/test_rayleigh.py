@@ -245,6 +245,8 @@ def test_rayleigh_only_zeroes_the_dampers_and_starts_from_their_modal_damping():
     assert all(doc.damping(j) == 0.0 for j in doc.movable_joint_names)
     r = model_rayleigh(doc)
     assert r is not None and r.alpha > 0 and r.beta > 0
+    free, fixed = damping_free(doc, "rayleigh-only", ["all", "*.damping"], [])
+    assert not [n for n in select_parameters(doc, free, fixed) if n.endswith(".damping")]
 
 
 def test_rayleigh_keeps_the_dampers_and_frees_them_only_by_name():

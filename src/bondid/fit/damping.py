@@ -8,7 +8,8 @@
 ``rayleigh``       ``D = D_joints + α M + β K``: ``rayleigh.alpha`` and ``rayleigh.beta`` are
                    fitted; the joint dampers keep their values unless ``--free`` names them
                    (by name or glob: a group does not free them)
-``rayleigh-only``  ``D = α M + β K``: the joint dampers are set to 0, ``α`` and ``β`` fitted
+``rayleigh-only``  ``D = α M + β K``: the joint dampers are set to 0 and stay 0, ``α`` and
+                   ``β`` fitted
 =================  ===========================================================================
 
 The start of ``α`` and ``β``, in this order: the values given (a study's ``[damping]`` table
@@ -138,14 +139,17 @@ def damping_free(
     doc: UrdfDocument, kind: str, free: Sequence[str], fixed: Sequence[str]
 ) -> tuple[list[str], list[str]]:
     """``(free, fixed)`` of a fit under the damping model ``kind``: with ``rayleigh`` and
-    ``rayleigh-only`` the Rayleigh coefficients join ``free``, and every joint damper that no
-    name or glob of ``free`` matches (only a group) joins ``fixed``."""
+    ``rayleigh-only`` the Rayleigh coefficients join ``free``; with ``rayleigh`` every joint
+    damper that no name or glob of ``free`` matches (only a group) joins ``fixed``, with
+    ``rayleigh-only`` every joint damper (they stay 0)."""
     free, fixed = list(free), list(fixed)
     if kind not in ("rayleigh", "rayleigh-only"):
         return free, fixed
     dampers = [p.name for p in parameter_infos(doc) if p.kind == "damping"]
     tokens = [t for item in free for t in item.replace(",", " ").split()]
     named = {d for t in tokens if t not in GROUPS for d in fnmatch.filter(dampers, t)}
+    if kind == "rayleigh-only":
+        named = set()
     free += [n for n in RAYLEIGH_NAMES if n not in tokens]
     fixed += [d for d in dampers if d not in named]
     return free, fixed
