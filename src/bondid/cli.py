@@ -255,7 +255,7 @@ def run(body: Callable[[], int | None], args: argparse.Namespace | None = None) 
     worker processes are stopped and no partial result is left (:mod:`bondid.interrupt`,
     :mod:`bondid.results`).
     """
-    from . import interrupt, results
+    from . import interrupt, open_runs
     from .warnlines import one_line_warnings
 
     if args is not None:
@@ -272,7 +272,7 @@ def run(body: Callable[[], int | None], args: argparse.Namespace | None = None) 
         with one_line_warnings():
             return _run(body)
     finally:
-        results.close_all()
+        open_runs.close_all()
         interrupt.restore(previous)
 
 
@@ -345,7 +345,7 @@ def os_error_line(exc: OSError) -> str:
     """One line for a file-system failure of the run: a full disk (or quota) names the
     results folder being written and says the previous results are intact (the staged run
     is abandoned, :mod:`bondid.results`)."""
-    from .results import open_targets
+    from .open_runs import open_targets
 
     targets = open_targets()
     where = str(targets[0]) if targets else str(exc.filename or "the results")
