@@ -13,7 +13,8 @@ from typing import Any
 import numpy as np
 
 from ..model.parameters import INERTIA_COMPONENTS
-from .layout import _DIAG, _IJ, _OFF, _T, BodyBlock, Layout
+from .layout import Layout
+from .variables import _DIAG, _IJ, _OFF, _T, BodyBlock
 
 
 @dataclass(frozen=True)
