@@ -21,7 +21,7 @@ from ..cli import (
     split_names,
 )
 from ..cost.residuals import NORMS, RESIDUAL_KINDS
-from ..data.reduce import AUTO_ABOVE, AUTO_LINES, parse_lines
+from ..data.lines import AUTO_ABOVE, AUTO_LINES, parse_lines
 from ..exceptions import ConfigError
 from .defaults import add_prior_arg, check_prior
 from .operating_points import add_operating_point_arg, operating_points_of

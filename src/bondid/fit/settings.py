@@ -36,7 +36,7 @@ class StudySettings:
         channel_weights: extra weight per channel.
         coherence: use the file's coherence column in the weights where present.
         weighting: point weights (:data:`bondid.data.weights.WEIGHTINGS`), default auto.
-        lines: the lines per file the fit uses (:func:`bondid.data.reduce.parse_lines`):
+        lines: the lines per file the fit uses (:func:`bondid.data.lines.parse_lines`):
             ``auto`` (default), ``all`` or a count.
         multistart: number of starts (1 = the URDF values only).
         seed: seed of the Latin hypercube.

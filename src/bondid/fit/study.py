@@ -79,7 +79,7 @@ from pathlib import Path
 from typing import Any
 
 from ..cost.residuals import NORMS, RESIDUAL_KINDS
-from ..data.reduce import parse_lines
+from ..data.lines import parse_lines
 from ..data.weights import WEIGHTINGS
 from ..exceptions import ConfigError
 from ..optim.schedules import STAGES
