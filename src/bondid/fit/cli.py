@@ -33,10 +33,8 @@ from ..model.parameters import (
     select_parameters,
 )
 from .options import build_parser, resolve_settings
-from .study import (
-    KINDS,
-    StudySettings,
-)
+from .settings import StudySettings
+from .study import KINDS
 from .summary import exit_code, summary
 
 _KIND_GLOB = {
