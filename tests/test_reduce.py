@@ -193,3 +193,34 @@ def test_a_tight_budget_is_kept_with_every_extremum() -> None:
         red = select_lines(ds, budget)
         assert red.n_kept <= budget and red.feature_lines <= budget
         assert {f.index for f in red.features} <= set(red.kept.tolist())
+
+
+#: the diagnosis's gap over the noise level, reduced lines against all lines (absolute: the
+#: gap itself differs, the reduction keeping relatively more lines near the resonances)
+OVER_NOISE_ABS = 0.15
+
+
+def test_the_diagnosis_works_on_the_reduced_lines_and_says_so(tmp_path: Path) -> None:
+    from bondid.diagnose.cli import main
+
+    truth = two_mass_chain(M_A, M_B, K_A, D_A, K_B, D_B)
+    model = two_mass_chain(1.2 * M_A, 0.8 * M_B, 0.8 * K_A, 1.3 * D_A, 1.25 * K_B, 0.7 * D_B)
+    (tmp_path / "model.urdf").write_text(model.to_string())
+    f = np.geomspace(1.0, 1000.0, 6000)
+    H = build_affine_model(truth, {}).linear_model().frf(f)
+    Hn, coh = add_measurement_noise(H, f, rel=0.01, floor_db=-80.0, rng=3)
+    data = str(write_csv(FrfData(f, ("a", "b"), ("a", "b"), Hn, coherence=coh), tmp_path / "d.csv"))
+    res = {}
+    for lines in ("all", "600"):
+        out = tmp_path / f"diag_{lines}"
+        argv = ["--model", str(tmp_path / "model.urdf"), "--data", data, "--out", str(out),
+                "--quiet", "--lines", lines, "--effects", "sensor_delay", "--workers", "1",
+                "--points", "120", "--no-plots"]  # fmt: skip
+        assert main(argv) == 0
+        res[lines] = json.loads((out / "diagnosis.json").read_text())
+    red, full = res["600"], res["all"]
+    assert red["lines"]["reduced"] and red["lines"]["kept"] <= 600
+    assert red["lines"]["lines"] == 6000 and not full["lines"]["reduced"]
+    assert red["verdict"]["outcome"] == full["verdict"]["outcome"]
+    over = (red["verdict"]["over_noise"], full["verdict"]["over_noise"])
+    assert over[0] == pytest.approx(over[1], abs=OVER_NOISE_ABS)

@@ -40,6 +40,8 @@ from collections.abc import Iterator
 from multiprocessing.context import SpawnContext, SpawnProcess
 from typing import Any
 
+from .open_runs import close_all
+
 _FLAG = threading.Event()
 #: the signals :func:`install` handles, and the last one that arrived
 _SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -84,8 +86,6 @@ class _Watchdog:
             faulthandler.dump_traceback(file=sys.stderr, all_threads=True)
         _stop(multiprocessing.active_children())
         with contextlib.suppress(Exception):
-            from .results import close_all
-
             close_all(self.thread_id)
         exit_process(code)
 

@@ -48,6 +48,7 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
+from . import interrupt, open_runs
 from .exceptions import ConfigError
 from .interrupt import signals_deferred
 from .journal import move, pending, recover, replace_files
@@ -58,6 +59,7 @@ from .manifest import (
     sha256,
     valid_name,
 )
+from .open_runs import close_all as close_all
 from .outcheck import _same, check_out
 from .paths import check_output_path
 
@@ -71,7 +73,6 @@ __all__ = [
     "read_manifest",
 ]
 
-_OPEN: list[Results] = []
 _AT_FORK: list[bool] = [False]
 
 
@@ -80,12 +81,11 @@ def _forget_runs_in_child() -> None:
     forget the runs. ``flock`` belongs to the open file, which a fork shares, so a worker that
     outlives its killed parent would otherwise hold the output's lock (seen in CI: the next
     run into the folder was refused while a killed fit's workers were still computing)."""
-    for run in _OPEN:
-        if run._lock_fd is not None:
+    for run in open_runs.forget_all():
+        if isinstance(run, Results) and run._lock_fd is not None:
             with contextlib.suppress(OSError):
                 os.close(run._lock_fd)
             run._lock_fd = None
-    _OPEN.clear()
 
 
 class Results:
@@ -186,7 +186,7 @@ class Results:
         except BaseException:
             self.close()
             raise
-        _OPEN.append(self)
+        open_runs.add(self)
         return self
 
     def path(self, name: str) -> Path:
@@ -224,8 +224,6 @@ class Results:
         Returns:
             The final paths of the files written (manifest excluded).
         """
-        from . import interrupt
-
         interrupt.check()  # an interrupt a library swallowed: the run ends here, uncommitted
         files = self._files()
         for f in files:  # last guard: never replace an input
@@ -299,8 +297,7 @@ class Results:
                 os.unlink(self._lock_path)  # unlink while locked: see the inode check
             os.close(self._lock_fd)
             self._lock_fd = None
-        if self in _OPEN:
-            _OPEN.remove(self)
+        open_runs.discard(self)
 
 
 def open_results(
@@ -322,22 +319,6 @@ def open_results(
     check_output_path(out, "--out")
     p = check_out(out, ins, patterns=patterns, file=file)
     return Results(p, command, ins, file=file, patterns=patterns).open()
-
-
-def open_targets(thread_id: int | None = None) -> list[Path]:
-    """The ``--out`` targets of the uncommitted runs of this thread (or of ``thread_id``)."""
-    me = threading.get_ident() if thread_id is None else thread_id
-    return [r.out for r in _OPEN if r.thread == me]
-
-
-def close_all(thread_id: int | None = None) -> None:
-    """Abandon every uncommitted :class:`Results` of this thread, or of thread ``thread_id``
-    (called by :func:`bondid.cli.run`, and by the interrupt watchdog for the run it ends;
-    runs in other threads, e.g. Dask workers, are left alone)."""
-    me = threading.get_ident() if thread_id is None else thread_id
-    for r in list(_OPEN):
-        if r.thread == me:
-            r.close()
 
 
 def _atomic_temp(name: str, patterns: Sequence[str]) -> bool:

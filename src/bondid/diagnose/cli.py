@@ -10,6 +10,7 @@ from pathlib import Path
 
 def build_parser() -> argparse.ArgumentParser:
     from .. import cli
+    from ..data.lines import AUTO_ABOVE, AUTO_LINES
     from ..fit.damping import add_damping_arg
     from ..fit.operating_points import add_operating_point_arg
     from .effects import available
@@ -46,6 +47,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="run the screenings and refits on the workers of a Dask cluster "
         "(tcp://HOST:PORT; needs pip install 'bondid[fleet]'); default: local processes",
     )  # fmt: skip
+    p.add_argument(
+        "--lines", default="auto", metavar="auto|all|N",
+        help="frequency lines per file the diagnosis works on: auto (default: files above"
+        f" {AUTO_ABOVE} lines keep {AUTO_LINES}: every line near each resonance and"
+        " anti-resonance, log-spaced elsewhere, as bondid.fit does), all, or at most N",
+    )  # fmt: skip
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     cli.add_weighting_arg(p, "auto")
     cli.add_drop_nan_arg(p)
@@ -77,6 +84,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     def body() -> int:
         from ..data.for_model import load_datasets
+        from ..data.lines import parse_lines
+        from ..data.reduce import reduce_datasets
         from ..exceptions import ConfigError
         from ..results import open_results
         from ..validation import check_inputs, check_selection, load_model
@@ -87,6 +96,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         cli.check_workers(args.workers)
         if args.points < 20:
             raise ConfigError(f"--points {args.points}: need at least 20")
+        lines_setting = parse_lines(args.lines)
         res = None
         if args.out is not None:
             res = open_results(
@@ -109,6 +119,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             doc, args.damping or "model", band_hz=data_band(data, args.band),
             operating_point=data[0].operating_point,
         )  # fmt: skip
+        # dense analyser files: every later step (noise estimate, refits, gap figures on all
+        # data, the final fit) works on the lines a fit with the same --lines uses
+        data, reduction = reduce_datasets(data, lines_setting, channels, args.band)
         if not args.quiet:  # at once, not only after a run of minutes (the summary repeats them)
             for line in cli.warn_lines(warnings):
                 print(line, file=sys.stderr, flush=True)
@@ -134,6 +147,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             plot_dir = res.tmp
             draw = lambda d: write_plots(d, plot_dir)  # noqa: E731
         diag = diagnose(doc, data, settings, progress=on_progress, during_final=draw)
+        diag.lines = reduction.to_json_dict()
         prog.close()
         if res is not None:
             staged = write_outputs(diag, res.tmp, plots=False, warnings=warnings)
@@ -142,6 +156,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         else:
             content = to_json_dict(diag, gaps(diag))
         print(summary(diag, content))
+        if reduction.reduced:
+            print(reduction.summary_line("diagnosed", figures=False))
         for line in cli.warn_lines(warnings):
             print(line)
         if res is not None:

@@ -136,6 +136,9 @@ class Diagnosis:
     remainder: Any = None
     #: per data file (its ``source``), the channels used there (None: ``channels`` in all)
     channels_by_file: dict[str, tuple[str, ...]] | None = None
+    #: the ``--lines`` reduction of the data files (``LineReduction.to_json_dict()``), when
+    #: the command recorded one
+    lines: dict[str, Any] | None = None
 
 
 def used_channels(datasets: Sequence[FrfData], requested: Sequence[str] | None) -> list[str]:

@@ -268,6 +268,7 @@ def to_json_dict(diag: Diagnosis, reports: dict[str, GapReport]) -> dict[str, An
         "split": diag.split_info,
         "scoring": _scoring_section(diag),
         "weighting": diag.weighting,
+        "lines": diag.lines,
         "final_fit": _final_section(diag),
         "remainder": diag.remainder.as_dict() if diag.remainder is not None else None,
         "wall_s": diag.wall_s,

@@ -34,10 +34,8 @@ from ..model.parameters import (
 )
 from .damping import damping_json, data_band, declare_damping
 from .options import build_parser, resolve_settings
-from .study import (
-    KINDS,
-    StudySettings,
-)
+from .settings import StudySettings
+from .study import KINDS
 from .summary import exit_code, summary
 
 _KIND_GLOB = {

@@ -12,7 +12,7 @@ from typing import Any
 from ..model.document import UrdfDocument
 from ..model.points import apply_declarations, gains_from_table, load_points_file, points_from_table
 from .setting_checks import check_bool, check_path, check_table, config_error
-from .study import StudySettings
+from .settings import StudySettings
 
 
 def read_model_keys(doc: Mapping[str, Any], s: StudySettings, where: str, base: Path) -> None:

@@ -21,17 +21,13 @@ from ..cli import (
     split_names,
 )
 from ..cost.residuals import NORMS, RESIDUAL_KINDS
-from ..data.reduce import AUTO_ABOVE, AUTO_LINES, parse_lines
+from ..data.lines import AUTO_ABOVE, AUTO_LINES, parse_lines
 from ..exceptions import ConfigError
 from .defaults import add_prior_arg, check_prior
 from .operating_points import add_operating_point_arg, operating_points_of
 from .setting_checks import check_names, parse_bound_option
-from .study import (
-    STAGES,
-    StudySettings,
-    add_bound,
-    load_study,
-)
+from .settings import StudySettings, add_bound
+from .study import STAGES, load_study
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -64,7 +64,7 @@ def merged_notes(notes: list[str], best_start: int) -> list[str]:
 def summary(result: Any, content: dict[str, Any] | None, extra: dict[str, Any],
             wall_s: float, reduction: Any = None) -> str:  # fmt: skip
     """The short human summary printed on stdout (``wall_s``: the run's time so far;
-    ``reduction``: the :class:`~bondid.data.reduce.LineReduction` of the lines the fit
+    ``reduction``: the :class:`~bondid.data.lines.LineReduction` of the lines the fit
     used, or None)."""
     lines = [
         status_line(result, wall_s, extra),

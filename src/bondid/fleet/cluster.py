@@ -16,10 +16,12 @@ import signal
 import threading
 import warnings
 from collections.abc import Iterator
+from multiprocessing import resource_tracker
 from typing import Any
 
 from .. import interrupt
 from ..exceptions import ConfigError
+from .worker_stderr import relayed_stderr
 
 #: environment variable naming the scheduler of an existing cluster (Dask's own name)
 SCHEDULER_ENV = "DASK_SCHEDULER_ADDRESS"
@@ -84,20 +86,26 @@ def open_client(address: str | None, workers: int) -> Iterator[Any]:
                 interrupt.check()
                 yield client
             return
-        before = set(multiprocessing.active_children())
-        cluster = None
-        try:
-            cluster = _local_cluster(workers)
-            interrupt.check()  # a Ctrl-C that a library swallowed while the cluster started
-            with Client(cluster) as client:
-                yield client
-        except BaseException:
-            _kill_new_children(before)
-            if cluster is not None:
-                with contextlib.suppress(Exception):
-                    cluster.close(timeout=CLOSE_TIMEOUT_S)
-            raise
-        cluster.close()
+        with relayed_stderr():
+            yield from _local_client(Client, workers)
+
+
+def _local_client(Client: Any, workers: int) -> Iterator[Any]:
+    """The body of :func:`open_client` for a local cluster (a generator of one client)."""
+    before = set(multiprocessing.active_children())
+    cluster = None
+    try:
+        cluster = _local_cluster(workers)
+        interrupt.check()  # a Ctrl-C that a library swallowed while the cluster started
+        with Client(cluster) as client:
+            yield client
+    except BaseException:
+        _kill_new_children(before)
+        if cluster is not None:
+            with contextlib.suppress(Exception):
+                cluster.close(timeout=CLOSE_TIMEOUT_S)
+        raise
+    cluster.close()
 
 
 #: seconds a local cluster may take to close after its workers were killed
@@ -121,6 +129,11 @@ def _local_cluster(workers: int) -> Any:
     LocalCluster = require_dask().LocalCluster
 
     box: dict[str, Any] = {}
+    # The first semaphore of the cluster starts multiprocessing's resource tracker, and that
+    # start ends by UNBLOCKING SIGINT in the calling thread instead of restoring its mask:
+    # done in the cluster's event-loop thread, it would undo the mask for every worker
+    # spawned from there. Started here, in a thread that does not block SIGINT anyway.
+    resource_tracker.ensure_running()
 
     def start() -> None:
         try:

@@ -1,7 +1,8 @@
 """The model layer: a URDF document, its named parameters, and structural edits."""
 
 from .authoring import find_joint_between, insert_parasitic_joint, move_pivot
-from .document import Spring, Transmission, UrdfDocument
+from .document import UrdfDocument
+from .joint_elements import Spring, Transmission
 from .parameters import (
     GROUPS,
     ParameterInfo,

@@ -6,7 +6,8 @@ elements bondid also relies on: ``<transmission>`` (actuators = FRF inputs) and 
 element yourdfpy does not model, verbatim, and writes it back, and restores what yourdfpy's
 writer drops inside links and joints (``<mimic>``, ``<safety_controller>``, ``<calibration>``,
 unknown elements and attributes; :mod:`.preserve`), so nothing in a user's file is lost by a
-read → write round trip.
+read → write round trip. The text is read and written by :mod:`.urdf_xml`; transmissions and
+springs are read and edited in the kept elements by :mod:`.joint_elements`.
 """
 
 from __future__ import annotations
@@ -15,7 +16,6 @@ import copy
 import os
 import sys
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +23,14 @@ import numpy as np
 
 from ..atomic import refuse_overwrite, write_text_atomic
 from ..exceptions import ModelError
+from .joint_elements import (
+    Spring,
+    Transmission,
+    set_spring,
+    springs_in,
+    transmission_element,
+    transmissions_in,
+)
 from .points import (
     GAIN_TAG,
     POINT_TAG,
@@ -31,27 +39,10 @@ from .points import (
     gain_from_element,
     point_from_element,
 )
-from .preserve import LostPart, lost_parts, restore
-from .structure import check_structure
+from .preserve import LostPart
+from .urdf_xml import parse_urdf, urdf_text
 
 MOVABLE_TYPES = ("revolute", "continuous", "prismatic")
-_YOURDFPY_TAGS = ("link", "joint", "material")
-
-
-@dataclass(frozen=True)
-class Transmission:
-    """One actuator: a generalised force on ``joint`` (an FRF input)."""
-
-    name: str
-    joint: str
-
-
-@dataclass(frozen=True)
-class Spring:
-    """A joint spring from Gazebo's URDF extension: torque = −stiffness·(q − reference)."""
-
-    stiffness: float
-    reference: float = 0.0
 
 
 class UrdfDocument:
@@ -98,34 +89,7 @@ class UrdfDocument:
     @classmethod
     def from_string(cls, xml: str, source: str | None = None) -> UrdfDocument:
         """Parse URDF text; ``source`` names it in error messages."""
-        yourdfpy = _import_yourdfpy()
-
-        where = source or "<URDF string>"
-        check_structure(xml, where)  # before any tree: depth and chain limits
-        try:
-            root = ET.fromstring(xml)
-        except ET.ParseError as exc:
-            raise ModelError(f"{where}: not well-formed XML ({exc})") from exc
-        if root.tag != "robot":
-            raise ModelError(f"{where}: root element is <{root.tag}>, expected <robot>")
-        extras = [copy.deepcopy(el) for el in root if el.tag not in _YOURDFPY_TAGS]
-        core = ET.Element("robot", root.attrib)
-        core.extend(el for el in root if el.tag in _YOURDFPY_TAGS)
-        try:
-            import io
-
-            urdf = yourdfpy.URDF.load(
-                io.BytesIO(ET.tostring(_writable(core))),
-                build_scene_graph=False,
-                load_meshes=False,
-                filename_handler=yourdfpy.filename_handler_null,
-            )
-        except Exception as exc:  # yourdfpy raises assorted errors on bad files
-            raise ModelError(f"{where}: yourdfpy could not read the URDF ({exc})") from exc
-        try:
-            lost = lost_parts(core, ET.fromstring(urdf.write_xml_string()))
-        except Exception:  # yourdfpy cannot write it back: to_string will say so
-            lost = []
+        urdf, extras, lost = parse_urdf(xml, source or "<URDF string>")
         return cls(urdf, extras, source, lost)
 
     def _check(self) -> None:
@@ -223,46 +187,12 @@ class UrdfDocument:
     @property
     def transmissions(self) -> list[Transmission]:
         """Actuators in file order; a transmission with several joints gives several."""
-        out = []
-        for el in self.extras:
-            if el.tag != "transmission":
-                continue
-            for jel in el.findall("joint"):
-                out.append(Transmission(el.get("name", ""), jel.get("name", "")))
-        return out
-
-    def _spring_element(self, joint: str) -> ET.Element | None:
-        for el in self.extras:
-            if (
-                el.tag == "gazebo"
-                and el.get("reference") == joint
-                and el.find("springStiffness") is not None
-            ):
-                return el
-        return None
+        return transmissions_in(self.extras)
 
     @property
     def springs(self) -> dict[str, Spring]:
         """Joint springs by joint name (joints without one are absent = stiffness 0)."""
-        out = {}
-        for el in self.extras:
-            if el.tag != "gazebo" or el.get("reference") is None:
-                continue
-            k_el = el.find("springStiffness")
-            if k_el is None:
-                continue
-            ref_el = el.find("springReference")
-            name = str(el.get("reference"))
-            try:
-                k = float(k_el.text or "")
-                ref = float(ref_el.text or "0") if ref_el is not None else 0.0
-            except ValueError as exc:
-                raise ModelError(
-                    f"{self.source or '<URDF>'}: <gazebo reference={name!r}> has a"
-                    f" non-numeric springStiffness/springReference ({exc})"
-                ) from exc
-            out[name] = Spring(k, ref)
-        return out
+        return springs_in(self.extras, self.source or "<URDF>")
 
     def stiffness(self, joint: str) -> float:
         """Spring stiffness of ``joint`` [N/m or N·m/rad]; 0 when it has no spring."""
@@ -273,20 +203,7 @@ class UrdfDocument:
     def set_stiffness(self, joint: str, value: float, reference: float | None = None) -> None:
         """Set (or create) the Gazebo spring of ``joint``."""
         self.joint(joint)
-        el = self._spring_element(joint)
-        if el is None:
-            el = ET.Element("gazebo", {"reference": joint})
-            ET.SubElement(el, "springStiffness")
-            ET.SubElement(el, "springReference").text = "0.0"
-            self.extras.append(el)
-        k_el = el.find("springStiffness")
-        assert k_el is not None
-        k_el.text = repr(float(value))
-        if reference is not None:
-            r_el = el.find("springReference")
-            if r_el is None:
-                r_el = ET.SubElement(el, "springReference")
-            r_el.text = repr(float(reference))
+        set_spring(self.extras, joint, value, reference)
 
     def damping(self, joint: str) -> float:
         """Viscous damping of ``joint`` [N·s/m or N·m·s/rad]; 0 when absent."""
@@ -307,13 +224,7 @@ class UrdfDocument:
     def add_transmission(self, joint: str, name: str | None = None) -> None:
         """Append an effort transmission on ``joint`` (a new FRF input, last in order)."""
         self.joint(joint)
-        el = ET.Element("transmission", {"name": name or f"{joint}_trans"})
-        ET.SubElement(el, "type").text = "transmission_interface/SimpleTransmission"
-        jel = ET.SubElement(el, "joint", {"name": joint})
-        ET.SubElement(jel, "hardwareInterface").text = "hardware_interface/EffortJointInterface"
-        act = ET.SubElement(el, "actuator", {"name": f"{joint}_motor"})
-        ET.SubElement(act, "mechanicalReduction").text = "1"
-        self.extras.append(el)
+        self.extras.append(transmission_element(joint, name))
 
     def mimic_joints(self) -> dict[str, str]:
         """Joints with a ``<mimic>`` element → the joint they mimic."""
@@ -363,12 +274,7 @@ class UrdfDocument:
     # -- writing ------------------------------------------------------------------------
     def to_string(self) -> str:
         """The whole model as URDF text (pretty-printed, full double precision)."""
-        core = ET.fromstring(self._urdf.write_xml_string())  # type: ignore[attr-defined]
-        restore(core, self.lost)
-        for el in self.extras:
-            core.append(copy.deepcopy(el))
-        ET.indent(core, space="  ")
-        return '<?xml version="1.0"?>\n' + ET.tostring(core, encoding="unicode") + "\n"
+        return urdf_text(self._urdf, self.lost, self.extras)
 
     def write(self, path: str | os.PathLike[str], *, overwrite_source: bool = False) -> Path:
         """Write the model atomically to ``path``.
@@ -405,36 +311,6 @@ class UrdfDocument:
         if said.text.strip():  # warnings of a model that was built: pass them on
             print(f"{self.source or '<URDF>'}: urdfdom: {said.one_line()}", file=sys.stderr)
         return model
-
-
-def _import_yourdfpy() -> Any:
-    """``import yourdfpy``, interruptible. trimesh (which yourdfpy imports) wraps its own
-    imports of SciPy, networkx and others in ``except BaseException``: a Ctrl-C landing
-    there is swallowed and the command goes on for seconds. So those are imported first,
-    where an interrupt goes through, and the rest of the import runs with the interrupt
-    held until it ends (:func:`bondid.interrupt.signals_deferred`, a fraction of a second)."""
-    import contextlib
-    import importlib
-
-    from ..interrupt import signals_deferred
-
-    for name in ("scipy.sparse", "scipy.spatial", "scipy.optimize", "networkx"):
-        with contextlib.suppress(ImportError):
-            importlib.import_module(name)
-    with signals_deferred():
-        import yourdfpy
-    return yourdfpy
-
-
-def _writable(core: ET.Element) -> ET.Element:
-    """A copy of ``core`` without what yourdfpy reads but cannot write back (a ``<texture>``
-    without ``filename``); :mod:`.preserve` restores it on writing."""
-    out = copy.deepcopy(core)
-    for mat in out.iter("material"):
-        for tex in mat.findall("texture"):
-            if tex.get("filename") is None:
-                mat.remove(tex)
-    return out
 
 
 def rotation_and_translation(T: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:

@@ -4,7 +4,8 @@
   cost options): linearisations, decision vector, residual with exact Jacobian, constraints
   with labels; :meth:`FitProblem.restrict` to names, bands or a residual kind without
   linearising again.
-* :func:`solve` (:mod:`.ipopt`, the only module that talks to CasADi/IPOPT) → :class:`Solution`.
+* :func:`solve` (:mod:`.ipopt`, the only module that runs IPOPT, on the problem's CasADi
+  functions of :mod:`.nlp`) → :class:`Solution`.
 * :func:`run_search` (:mod:`.search`) over a schedule of :class:`Step` (:mod:`.schedules`:
   ``direct``, ``staged``, ``continuation``) → :class:`SearchResult`;
 * :func:`keep_best` (:mod:`.multistart`): the one way out of a bad basin — searches from
@@ -19,7 +20,7 @@ from __future__ import annotations
 from ..lazy import lazy_getattr
 
 _LAZY = {
-    "Constraints": "problem",
+    "Constraints": "constraints",
     "FitProblem": "problem",
     "Solution": "ipopt",
     "solve": "ipopt",

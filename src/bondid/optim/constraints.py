@@ -7,12 +7,37 @@ inertia components, and the CoM-in-hull inequalities ``(A t − b)/L ≤ 0`` (li
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from ..model.parameters import INERTIA_COMPONENTS
-from .layout import _DIAG, _IJ, _OFF, _T, BodyBlock, Layout
+from .layout import Layout
+from .variables import _DIAG, _IJ, _OFF, _T, BodyBlock
+
+
+@dataclass(frozen=True)
+class Constraints:
+    """The constraints ``lower ≤ g(z) ≤ upper`` of a fit problem, symbolic in CasADi.
+
+    Attributes:
+        zsym: the CasADi SX symbol of ``z`` ``(size,)`` the expressions are written in.
+        expr: ``g(z)`` as a CasADi SX column ``(ng,)`` (each row scaled to O(1)).
+        lower, upper: bounds ``(ng,)`` (equal for an equality, ±inf allowed).
+        labels: a readable name per row (``"x_stage.inertia.ixx"``, ``"x_stage com in
+            hull"``, ``"x_stage.inertia.iyy fixed"``).
+    """
+
+    zsym: Any
+    expr: Any
+    lower: np.ndarray
+    upper: np.ndarray
+    labels: tuple[str, ...]
+
+    @property
+    def size(self) -> int:
+        return len(self.labels)
 
 
 def layout_constraints(

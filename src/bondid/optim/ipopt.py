@@ -1,16 +1,7 @@
-"""The one module that talks to CasADi/IPOPT: :func:`solve` a :class:`~.problem.FitProblem`.
+"""The one place where IPOPT runs: :func:`solve` a :class:`~.problem.FitProblem`.
 
-The FRF residual ``r(z)`` is computed in numpy (exact Jacobian ``J = ∂r/∂z``, see
-:class:`~.evaluator.Evaluator`) and enters CasADi through :class:`casadi.Callback` objects:
-
-* objective ``f(z) = ‖r‖²`` (residual only, no Jacobian: IPOPT's line-search trial points),
-* ``grad_f``: ``(f, 2 Jᵀ r)``,
-* ``hess_lag``: the Gauss–Newton Hessian of the Lagrangian ``λ_f · 2 JᵀJ + Σ λ_g,i ∇² g_i``
-  (objective part Levenberg–Marquardt damped far from the solution, see
-  :class:`~.evaluator.Evaluator`; constraint part from CasADi's symbolic Hessians, by default
-  CONVEXIFIED: the exact ``Σ λ ∇² g`` of the inertia equalities is indefinite, which made
-  IPOPT regularise the whole Hessian by ``δ ≈ 1…100`` every iteration and crawl).
-  Limited-memory quasi-Newton needs hundreds of iterations on this problem; Gauss–Newton tens.
+IPOPT is given the problem's CasADi functions (:class:`~.nlp.Nlp`: the objective ``‖r(z)‖²``,
+its gradient and a Gauss–Newton Hessian of the Lagrangian, the residual computed in numpy).
 
 :func:`solve` never raises for an IPOPT status: every outcome is a :class:`Solution`. A solve
 that failed (infeasible, restoration failed, CasADi error ...) keeps the lowest-cost iterate
@@ -28,14 +19,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .. import interrupt
-from ..exceptions import ConfigError, SolverError
-from .casadi_callbacks import iteration_callback_class, numpy_callback_class
+from ..exceptions import SolverError
 from .recorder import Recorder
-from .stall import DEFAULT_RULE, STALLED, StallMonitor, StallRule, gauss_newton_decrement
+from .stall import DEFAULT_RULE, STALLED, StallMonitor, StallRule
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
-    from .evaluator import Evaluator
-    from .problem import Constraints, FitProblem
+    from .problem import FitProblem
 
 #: IPOPT statuses counted as success, and the stall test's (:mod:`.stall`)
 SUCCESS_STATUSES = frozenset({"Solve_Succeeded", "Solved_To_Acceptable_Level", STALLED})
@@ -61,8 +50,6 @@ TINY_STEP = "Search_Direction_Becomes_Too_Small"
 #: the three designs, 6 cases) ended at the same db_rms with either; the diagnosis's search
 #: keeps the default until its benchmark is run with it.
 WARM_START: dict[str, float] = {"mu_init": 1e-4}
-#: ways of putting the constraints' second derivatives into ``hess_lag``
-CONSTRAINT_HESSIANS = ("convexified", "exact", "none")
 
 
 @dataclass
@@ -112,135 +99,6 @@ class Solution:
         return SolverError(self.failure or f"IPOPT stopped with {self.status}", status=self.status)
 
 
-class Nlp:
-    """``min ‖r(z)‖²`` s.t. ``lbz ≤ z ≤ ubz``, ``lbg ≤ g(z) ≤ ubg`` as CasADi functions.
-
-    Args:
-        evaluator: residuals and Jacobian (numpy).
-        constraints: the symbolic constraints ``g(z)`` with their bounds and labels.
-        constraint_hessian: ``"convexified"`` (default), ``"exact"`` or ``"none"``: how
-            ``Σ λ_g ∇² g`` enters ``hess_lag``.
-
-    Attributes:
-        cost_fn: CasADi ``z -> f`` (the NLP's objective).
-        grad_fn: CasADi ``(z, p) -> (f, ∇f)`` (IPOPT's ``grad_f``; ``p`` is empty).
-        hess_fn: CasADi ``(z, p, λ_f, λ_g) -> triu(∇²L)`` (IPOPT's ``hess_lag``).
-        g_fn: CasADi ``z -> g``.
-    """
-
-    def __init__(
-        self,
-        evaluator: Evaluator,
-        constraints: Constraints,
-        constraint_hessian: str = "convexified",
-    ):
-        import casadi
-
-        if constraint_hessian not in CONSTRAINT_HESSIANS:
-            raise ConfigError(
-                f"constraint_hessian {constraint_hessian!r} is invalid; "
-                f"valid: {', '.join(CONSTRAINT_HESSIANS)}"
-            )
-        NumpyCallback = numpy_callback_class()
-        self.evaluator, self.constraints = evaluator, constraints
-        self.n = n = int(constraints.zsym.shape[0])
-        self.ng = ng = constraints.size
-        self.g_fn = casadi.Function("fit_g", [constraints.zsym], [constraints.expr])
-        self._jac_g: Any = None  # the constraints' Jacobian, built when the stall test asks
-        self._grad_cb = NumpyCallback(
-            "fit_grad", [n], [(1, 1), (n, 1)], lambda z: list(evaluator.cost_and_gradient(z))
-        )
-        # the objective's Jacobian (needed by CasADi's own derivative machinery) is grad_f
-        self._cost_cb = NumpyCallback(
-            "fit_cost", [n], [(1, 1)], lambda z: [evaluator.cost(z)],
-            jacobian=lambda z: self._grad_cb(z)[1].T,
-        )  # fmt: skip
-        hess_g = _constraint_hessian(constraints, constraint_hessian)
-        self._hess_cb = NumpyCallback(
-            "fit_hess_lag", [n, 1, ng], [(n, n)],
-            lambda z, lf, lg: [float(lf[0]) * evaluator.gauss_newton(z) + hess_g(z, lg)],
-        )  # fmt: skip
-        self._x = x = casadi.MX.sym("x", n)
-        self._p = p = casadi.MX.sym("p", 0, 1)
-        lam_f, lam_g = casadi.MX.sym("lam_f", 1), casadi.MX.sym("lam_g", ng)
-        self.cost_fn = casadi.Function("fit_f", [x], [self._cost_cb(x)])
-        f_val, g_val = self._grad_cb(x)
-        self.grad_fn = casadi.Function(
-            "nlp_grad_f", [x, p], [f_val, g_val], ["x", "p"], ["f", "grad"]
-        )
-        self.hess_fn = casadi.Function(
-            "nlp_hess_l", [x, p, lam_f, lam_g], [casadi.triu(self._hess_cb(x, lam_f, lam_g))],
-            ["x", "p", "lam_f", "lam_g"], ["hess"],
-        )  # fmt: skip
-
-    def gradient(self, z: np.ndarray) -> np.ndarray:
-        """∇f ``(n,)`` at ``z`` through the CasADi ``grad_f`` function IPOPT uses."""
-        import casadi
-
-        return np.asarray(self.grad_fn(z, casadi.DM(0, 1))[1], dtype=float).reshape(-1)
-
-    def cost(self, z: np.ndarray) -> float:
-        """f at ``z`` through the CasADi objective function IPOPT uses."""
-        return float(self.cost_fn(z))
-
-    def decrement(self, z: np.ndarray, lam_x: np.ndarray, lam_g: np.ndarray) -> float:
-        """The Gauss–Newton decrement at ``z`` of the Lagrangian's gradient
-        ``∇f + J_gᵀ λ_g + λ_x`` (CasADi's multiplier signs; :func:`.stall.
-        gauss_newton_decrement`); the residual Jacobian comes from the evaluator's cache
-        when IPOPT has just evaluated it there."""
-        import casadi
-
-        r, J = self.evaluator.residual_and_jacobian(z)
-        if not np.all(np.isfinite(r)):
-            return float("inf")
-        grad = 2.0 * (J.T @ r) + lam_x
-        if self.ng:
-            if self._jac_g is None:
-                zs = self.constraints.zsym
-                self._jac_g = casadi.Function(
-                    "fit_jac_g", [zs], [casadi.jacobian(self.constraints.expr, zs)]
-                )
-            grad = grad + np.asarray(self._jac_g(z), dtype=float).T @ lam_g
-        return gauss_newton_decrement(J, grad)
-
-    def solver(self, record: Callable[..., bool], ipopt: dict) -> tuple[Any, Any]:
-        """A ``casadi.nlpsol`` IPOPT instance calling ``record(f, z, g, lam_x, lam_g)`` every
-        iteration (True stops it), and its iteration callback (which must outlive the
-        solver's calls)."""
-        import casadi
-
-        it_cb = iteration_callback_class()(self.n, self.ng, record)
-        opts: dict[str, Any] = {
-            "grad_f": self.grad_fn, "hess_lag": self.hess_fn, "iteration_callback": it_cb,
-            "print_time": False, "show_eval_warnings": False, "ipopt": ipopt,
-        }  # fmt: skip
-        nlp = {"x": self._x, "p": self._p, "f": self._cost_cb(self._x), "g": self.g_fn(self._x)}
-        return casadi.nlpsol("bondid_fit", "ipopt", nlp, opts), it_cb
-
-
-def _constraint_hessian(
-    constraints: Constraints, mode: str
-) -> Callable[[np.ndarray, np.ndarray], Any]:
-    """``(z, λ_g) -> Σ λ_g,i ∇² g_i`` ``(n, n)`` (convexified, exact or 0, see :class:`Nlp`)."""
-    import casadi
-
-    n = int(constraints.zsym.shape[0])
-    if constraints.size == 0 or mode == "none":
-        return lambda z, lg: np.zeros((n, n))
-    lam = casadi.SX.sym("lam_g", constraints.size)
-    expr = casadi.hessian(casadi.dot(lam, constraints.expr), constraints.zsym)[0]
-    fn = casadi.Function("fit_hess_g", [constraints.zsym, lam], [expr])
-
-    def hess(z: np.ndarray, lg: np.ndarray) -> np.ndarray:
-        Hg = np.asarray(fn(z, lg), dtype=float)
-        if mode == "convexified":
-            w, V = np.linalg.eigh(0.5 * (Hg + Hg.T))
-            Hg = (V * np.maximum(w, 0.0)) @ V.T
-        return Hg
-
-    return hess
-
-
 def solve(
     problem: FitProblem,
     z0: np.ndarray | None = None,
@@ -260,7 +118,7 @@ def solve(
         max_iter, tol: IPOPT's ``max_iter`` and ``tol``.
         progress: called as ``progress(iteration, cost)`` at every IPOPT iteration.
         ipopt_options: extra IPOPT options (override the defaults).
-        constraint_hessian: see :class:`Nlp`.
+        constraint_hessian: see :class:`~.nlp.Nlp`.
         stall: the stall test (:mod:`.stall`): a solve whose cost, steps and projected
             gradient have gone flat stops converged with status :data:`.stall.STALLED` and
             its reason in ``stop_reason``; None = IPOPT's own tests only.

@@ -22,6 +22,8 @@ Layout of the decision vector ``z`` (all entries O(1)):
   ``(μ − μ₀) / s`` (``s`` = ``max(|μ₀|, 1)``: a mix may change sign), for every free Rayleigh
   coefficient one entry ``α / s`` (``β / s``) (:mod:`.model_vars`).
 
+Each body block and each joint, gain, mix or Rayleigh entry is a record of :mod:`.variables`.
+
 :class:`Layout` is a *parameter model* for :class:`bondid.cost.FrfProblem` (``size``,
 ``values``, ``jacobian``); :mod:`bondid.optim.constraints` builds the NLP's constraint
 expressions on it: equalities for fixed inertia components of a body whose other inertia
@@ -32,7 +34,6 @@ components are free, bounds on free inertia components, and the CoM-in-hull ineq
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -43,77 +44,23 @@ from ..consistency.pseudo_inertia import pi_from_urdf, urdf_from_pi
 from ..linear.affine import AffineModel
 from ..model.document import UrdfDocument
 from ..model.parameters import COM_AXES, INERTIA_COMPONENTS, ParameterInfo, link_inertial
-from .model_vars import GainVar, MixVar, ModelVars, RayleighVar
-
-# (row, col) of each URDF inertia component
-_IJ = {"ixx": (0, 0), "ixy": (0, 1), "ixz": (0, 2), "iyy": (1, 1), "iyz": (1, 2), "izz": (2, 2)}
-_ALPHA, _T = 0, 7  # index of α and of t₁ in θ and ζ
-_DIAG = (1, 2, 3)  # δ (ζ) / d (θ)
-_OFF = ((4, 0, 1), (5, 1, 2), (6, 0, 2))  # σ₁₂, σ₂₃, σ₁₃ (ζ index, row, col of V)
+from .model_vars import ModelVars
+from .variables import (
+    _ALPHA,
+    _IJ,
+    _T,
+    BodyBlock,
+    GainVar,
+    JointVar,
+    MixVar,
+    RayleighVar,
+    named_from_pi,
+)
 
 
 def _component(info: ParameterInfo) -> str:
     """``mass``, ``com.x``… or ``inertia.ixx``… of an inertial parameter."""
     return "mass" if info.kind == "mass" else f"{info.kind}.{info.component}"
-
-
-@dataclass
-class BodyBlock:
-    """One fitted body: where its θ lives in ``z`` and which named parameters are free."""
-
-    link: str
-    body: int  # index in AffineModel.bodies
-    offset: int  # first index in z
-    shift: np.ndarray  # (10,)
-    scale: np.ndarray  # (10,)
-    length: float  # L, m
-    inertia_scale: float  # kg·m², for scaling inertia constraints
-    hull: Hull | None
-    free: dict[str, int] = field(default_factory=dict)  # component -> index in names
-    fixed: dict[str, float] = field(default_factory=dict)  # component -> URDF value
-    fixed_v: np.ndarray | None = None  # z of δ, σ when no inertia component is free
-
-    def zeta(self, z: np.ndarray) -> np.ndarray:
-        return self.shift + self.scale * z[self.offset : self.offset + 10]
-
-    def theta(self, z: np.ndarray) -> np.ndarray:
-        """Log-Cholesky θ (10,) of this body at ``z``."""
-        ze = self.zeta(z)
-        th = ze.copy()
-        th[1:4] = ze[1:4] - ze[0]
-        th[4:7] = ze[4:7] * np.exp(-ze[0])
-        return th
-
-    def dtheta_dz(self, z: np.ndarray) -> np.ndarray:
-        """∂θ/∂z_b (10, 10)."""
-        ze = self.zeta(z)
-        D = np.eye(10)
-        D[1:4, 0] = -1.0
-        e = np.exp(-ze[0])
-        D[4:7, 4:7] *= e
-        D[4:7, 0] = -ze[4:7] * e
-        return D * self.scale
-
-
-@dataclass
-class JointVar:
-    name: str
-    kind: str  # stiffness / damping
-    dof: int  # index into the affine model's velocity coordinates
-    index: int  # index in z
-    name_index: int  # index in names (-1: a tied member, not a free name)
-    scale: float
-    factor: float = 1.0  # a tied member: value = factor · its leader's value
-    leader: int = -1  # a tied member: its leader's position in Layout.joints
-
-
-def named_from_pi(pi: np.ndarray) -> dict[str, float]:
-    """URDF-form values ``{component: value}`` of one body's ``pi`` (10,)."""
-    m, c, I_c = urdf_from_pi(pi)
-    out = {"mass": m}
-    out.update({f"com.{a}": float(c[k]) for k, a in enumerate(COM_AXES)})
-    out.update({f"inertia.{n}": float(I_c[_IJ[n]]) for n in INERTIA_COMPONENTS})
-    return out
 
 
 def _new_block(doc: UrdfDocument, affine: AffineModel, link: str, hull: Hull | None) -> BodyBlock:

@@ -9,51 +9,18 @@ Each is one entry of the decision vector ``z`` (after the bodies and the joint p
   at 0, the model's reference coefficient (:func:`bondid.linear.rayleigh.reference`): a zero
   start then moves off its bound by a fraction of a light damping, not of 1 s.
 
-:class:`ModelVars` gives :class:`~.layout.Layout` the optional parts of the parameter-model
-protocol (:class:`bondid.cost.ParameterModel`): ``gain_values``/``gain_jacobian``,
-``mix_values``/``mix_jacobian`` and ``rayleigh_values``/``rayleigh_jacobian``.
+Their records are in :mod:`.variables`; :class:`ModelVars` gives :class:`~.layout.Layout`
+the optional parts of the parameter-model protocol (:class:`bondid.cost.ParameterModel`):
+``gain_values``/``gain_jacobian``, ``mix_values``/``mix_jacobian`` and
+``rayleigh_values``/``rayleigh_jacobian``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from ..linear.affine import AffineModel
-
-
-@dataclass
-class GainVar:
-    """A free transducer gain: ``g = g0 · e^z`` (log scale, the sign of ``g0`` kept)."""
-
-    name: str
-    index: int  # index in z
-    name_index: int  # index in names
-    g0: float = 1.0
-
-
-@dataclass
-class MixVar:
-    """A free point mix (:mod:`bondid.cost.mixing`): ``μ = μ₀ + s · z``."""
-
-    name: str  # mix.<point>
-    point: str
-    index: int  # index in z
-    name_index: int  # index in names
-    mu0: float = 0.0
-    scale: float = 1.0
-
-
-@dataclass
-class RayleighVar:
-    """A free Rayleigh coefficient (``component`` ``alpha`` or ``beta``): value ``= s · z``."""
-
-    name: str  # rayleigh.alpha / rayleigh.beta
-    component: str
-    index: int  # index in z
-    name_index: int  # index in names
-    scale: float = 1.0
+from .variables import GainVar, MixVar, RayleighVar
 
 
 class ModelVars:

@@ -48,7 +48,8 @@ from ..cost.noise_level import noise_level_cost
 from ..cost.problem import FrfProblem
 from ..model.document import UrdfDocument
 from ..model.parameters import get_parameter, link_inertial
-from .layout import BodyBlock, JointVar, Layout
+from .layout import Layout
+from .variables import BodyBlock, JointVar
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from .problem import FitProblem

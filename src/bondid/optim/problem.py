@@ -8,7 +8,8 @@ Built from ``(model, data sets, free names, bounds, cost options)``, it owns
   body, scaled joint parameters and gains) with its start ``z0`` and bounds ``lbz``, ``ubz``,
 * the residual ``r(z)`` with its exact Jacobian (:class:`~.evaluator.Evaluator`),
 * the physical-consistency constraints ``g(z)`` and their labels (:meth:`FitProblem.constraints`,
-  returned as a :class:`Constraints` value),
+  returned as a :class:`~.constraints.Constraints` value), and the CasADi functions IPOPT
+  is given (:meth:`FitProblem.nlp`),
 
 and can be restricted to a subset of the names, to other bands, or to another residual kind
 without linearising again (:meth:`FitProblem.restrict`). Extra (candidate) parameters are just
@@ -21,8 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -33,42 +33,17 @@ from ..data.measurement import FrfData
 from ..exceptions import ConfigError, ParameterError
 from ..model.document import UrdfDocument
 from ..model.parameters import ParameterInfo, get_parameters, set_parameter
-from .constraints import layout_constraints
+from .constraints import Constraints, layout_constraints
 from .evaluator import Evaluator, ExtraRows
 from .layout import Layout
 from .modified import ModifiedLayout
+from .nlp import Nlp
 from .tied import TiedParameters, check_ties, fitted_document
-
-if TYPE_CHECKING:  # pragma: no cover - typing only
-    from .ipopt import Nlp
 
 #: ``restrict(bands=KEEP)``: keep the problem's bands
 KEEP: Any = object()
 #: a parameter tie: ``{leader: [(member, factor), ...]}`` — each member = factor × leader
 Ties = Mapping[str, Sequence[tuple[str, float]]]
-
-
-@dataclass(frozen=True)
-class Constraints:
-    """The constraints ``lower ≤ g(z) ≤ upper`` of a fit problem, symbolic in CasADi.
-
-    Attributes:
-        zsym: the CasADi SX symbol of ``z`` ``(size,)`` the expressions are written in.
-        expr: ``g(z)`` as a CasADi SX column ``(ng,)`` (each row scaled to O(1)).
-        lower, upper: bounds ``(ng,)`` (equal for an equality, ±inf allowed).
-        labels: a readable name per row (``"x_stage.inertia.ixx"``, ``"x_stage com in
-            hull"``, ``"x_stage.inertia.iyy fixed"``).
-    """
-
-    zsym: Any
-    expr: Any
-    lower: np.ndarray
-    upper: np.ndarray
-    labels: tuple[str, ...]
-
-    @property
-    def size(self) -> int:
-        return len(self.labels)
 
 
 class FitProblem:
@@ -324,10 +299,8 @@ class FitProblem:
         return self._constraints
 
     def nlp(self, constraint_hessian: str = "convexified") -> Nlp:
-        """The CasADi functions IPOPT is given (:class:`~.ipopt.Nlp`), cached per
+        """The CasADi functions IPOPT is given (:class:`~.nlp.Nlp`), cached per
         ``constraint_hessian``."""
-        from .ipopt import Nlp
-
         if constraint_hessian not in self._nlp:
             self._nlp[constraint_hessian] = Nlp(
                 self.evaluator, self.constraints(), constraint_hessian

@@ -21,7 +21,8 @@ from ..model.document import UrdfDocument
 from ..model.parameters import COM_AXES, parameter_infos, set_link_inertial, set_parameter
 from ..model.ties import TIEABLE as _TIEABLE
 from ..model.ties import leader_ties, model_ties
-from .layout import _IJ, Layout
+from .layout import Layout
+from .variables import _IJ
 
 
 def check_ties(

@@ -1,8 +1,9 @@
 """What the report's templates draw: tables, notes, figures and sections as plain dataclasses.
 
-The section builders (:mod:`.sections`, :mod:`.sensitivity_section`) turn result files into
-these; ``templates/blocks.html.j2`` renders them. Every cell holds text (the template escapes
-it), never markup and never a Python repr of a dict or list.
+The section builders (:mod:`.fit_section`, :mod:`.diagnosis_section`, :mod:`.fleet_section`,
+:mod:`.modes_section`, :mod:`.sensitivity_section`) turn result files into these;
+``templates/blocks.html.j2`` renders them. Every cell holds text (the template escapes it),
+never markup and never a Python repr of a dict or list.
 """
 
 from __future__ import annotations
@@ -87,3 +88,8 @@ def table_block(t: Table) -> Block:
 def cells(*values: str, left: tuple[int, ...] = (0,)) -> list[Cell]:
     """Cells of ``values``, the columns in ``left`` left-aligned."""
     return [Cell(v, left=i in left) for i, v in enumerate(values)]
+
+
+def summary_table(items: list[tuple[str, str]]) -> Block:
+    """A two-column table of ``(what, value)`` rows, both left-aligned, without a header."""
+    return table_block(Table([], [Row(cells(k, v, left=(0, 1))) for k, v in items], left=(0, 1)))

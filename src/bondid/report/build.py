@@ -22,10 +22,13 @@ from typing import Any
 
 from ..atomic import write_text_atomic
 from ..exceptions import ConfigError
-from . import sections
 from .blocks import Block, Section, note, warn
+from .diagnosis_section import diagnosis_section
+from .fit_section import fit_section
+from .fleet_section import fleet_section
 from .headline import diagnosis_headline, fit_headline
 from .html import png_figure, render
+from .modes_section import modes_section
 from .sensitivity_section import sensitivity_section
 
 RESULT_FILES = ("fit.json", "sensitivity.json", "diagnosis.json", "modes.json", "fleet.json")
@@ -138,12 +141,12 @@ def _load(path: Path) -> tuple[Any, str | None]:
 
 # (section key and title, its result file, its renderer, what to run when it is missing)
 _SECTIONS: tuple[tuple[str, str, str, Callable[[Any], list[Block]], str], ...] = (
-    ("fit", "Fit", "fit.json", sections.fit_section, "run python -m bondid.fit"),
+    ("fit", "Fit", "fit.json", fit_section, "run python -m bondid.fit"),
     (
         "diagnosis",
         "Diagnosis",
         "diagnosis.json",
-        sections.diagnosis_section,
+        diagnosis_section,
         "run python -m bondid.diagnose",
     ),
     (
@@ -170,7 +173,7 @@ def build_report_html(results: Path, out_dir: Path) -> tuple[str, Found]:
         )
     pg = _Page(results, found)
     if "fleet.json" in found.json_paths:
-        pg.add("fleet", "Fleet", "fleet.json", sections.fleet_section, "run python -m bondid.fleet")
+        pg.add("fleet", "Fleet", "fleet.json", fleet_section, "run python -m bondid.fleet")
     for key, title, name, render_fn, hint in _SECTIONS:
         pg.add(key, title, name, render_fn, hint)
     modes_path = found.json_paths.get("modes.json")
@@ -179,7 +182,7 @@ def build_report_html(results: Path, out_dir: Path) -> tuple[str, Found]:
         "modes",
         "Modes",
         "modes.json",
-        lambda d: sections.modes_section(d, modes_dir, out_dir),
+        lambda d: modes_section(d, modes_dir, out_dir),
         "run python -m bondid.modes --out DIR",
     )
     if found.figures.get("other"):

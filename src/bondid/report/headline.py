@@ -38,6 +38,11 @@ def _num(record: Any, key: str) -> float | None:
     return number(record.get(key)) if isinstance(record, Mapping) else None
 
 
+def value_of(record: Mapping[str, Any], key: str) -> float | None:
+    """The number under ``key`` (NaN and ±inf kept: the report shows them)."""
+    return number(record.get(key), finite=False)
+
+
 def mapping(v: Any) -> Mapping[str, Any]:
     """``v`` when it is a JSON object, else an empty one."""
     return v if isinstance(v, Mapping) else {}

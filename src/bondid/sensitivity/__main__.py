@@ -14,7 +14,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..data.reduce import AUTO_ABOVE, AUTO_LINES
+from ..data.lines import AUTO_ABOVE, AUTO_LINES
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..data.measurement import FrfData
