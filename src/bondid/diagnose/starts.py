@@ -177,10 +177,15 @@ def candidate_starts(
         state = refit.with_new(refit.state0, v0 * s**exps)
         # a placed start stays where it was placed: where the parameter refit has bent the
         # model around the missing mode, a solve of the new parameters alone runs the spring
-        # out of the band; the held schedule of the refit lets the model relax around it
-        if not label.startswith("mode at"):
+        # out of the band; the held schedule of the refit lets the model relax around it.
+        # Its parameters the placing does not set (a damping ratio, how the effect shows in
+        # each channel) are settled with the placed ones held: at their start values a mode
+        # at the right frequency can fit worse than none and its figure would rank it last
+        placed = label.startswith("mode at")
+        hold = tuple(int(k) for k in np.flatnonzero(exps > 0)) if placed else ()
+        if not placed or len(hold) < len(exps):
             try:
-                state, _ = refit.solve_new(state, NEW_ITER)
+                state, _ = refit.solve_new(state, NEW_ITER, hold)
             except FAILURES:
                 continue
         new = refit.new_values(state)
