@@ -19,12 +19,12 @@ from the physics and the data, so the starts come from there:
   bent nominal parameters to mimic what the candidate does, and from there the candidate
   first makes the fit worse; from the nominal values they can unbend.
 
-Each scanned start's new parameters are first fitted alone for a few iterations (the
-nominal ones held; a placed start stays placed), then every start gets its **figure**: the
-training objective after one Levenberg–Marquardt step over every parameter on the
-linearised residual (:func:`predicted_cost`), i.e. the score-test idea taken where the new
-parameters are no longer "absent" (a compliance at infinite stiffness has no gradient),
-plus the first-order gain of letting the nominal parameters follow. The figure ranks the
+Each start's new parameters are first fitted alone for a few iterations (the nominal ones
+held; a placed start keeps the ones it places and settles the others), then every start gets
+its **figure**: the training objective after one Levenberg–Marquardt step over every
+parameter on the linearised residual (:func:`predicted_cost`), i.e. the score-test idea taken
+where the new parameters are no longer "absent" (a compliance at infinite stiffness has no
+gradient), plus the first-order gain of letting the nominal parameters follow. The figure ranks the
 starts of a candidate and, through its best start, the candidates of a step; it is a
 training figure, so nothing here looks at the held-out data that decide the verdict.
 
