@@ -19,12 +19,12 @@ from the physics and the data, so the starts come from there:
   bent nominal parameters to mimic what the candidate does, and from there the candidate
   first makes the fit worse; from the nominal values they can unbend.
 
-Each scanned start's new parameters are first fitted alone for a few iterations (the
-nominal ones held; a placed start stays placed), then every start gets its **figure**: the
-training objective after one Levenberg–Marquardt step over every parameter on the
-linearised residual (:func:`predicted_cost`), i.e. the score-test idea taken where the new
-parameters are no longer "absent" (a compliance at infinite stiffness has no gradient),
-plus the first-order gain of letting the nominal parameters follow. The figure ranks the
+Each start's new parameters are first fitted alone for a few iterations (the nominal ones
+held; a placed start keeps the ones it places and settles the others), then every start gets
+its **figure**: the training objective after one Levenberg–Marquardt step over every
+parameter on the linearised residual (:func:`predicted_cost`), i.e. the score-test idea taken
+where the new parameters are no longer "absent" (a compliance at infinite stiffness has no
+gradient), plus the first-order gain of letting the nominal parameters follow. The figure ranks the
 starts of a candidate and, through its best start, the candidates of a step; it is a
 training figure, so nothing here looks at the held-out data that decide the verdict.
 
@@ -177,10 +177,15 @@ def candidate_starts(
         state = refit.with_new(refit.state0, v0 * s**exps)
         # a placed start stays where it was placed: where the parameter refit has bent the
         # model around the missing mode, a solve of the new parameters alone runs the spring
-        # out of the band; the held schedule of the refit lets the model relax around it
-        if not label.startswith("mode at"):
+        # out of the band; the held schedule of the refit lets the model relax around it.
+        # Its parameters the placing does not set (a damping ratio, how the effect shows in
+        # each channel) are settled with the placed ones held: at their start values a mode
+        # at the right frequency can fit worse than none and its figure would rank it last
+        placed = label.startswith("mode at")
+        hold = tuple(int(k) for k in np.flatnonzero(exps > 0)) if placed else ()
+        if not placed or len(hold) < len(exps):
             try:
-                state, _ = refit.solve_new(state, NEW_ITER)
+                state, _ = refit.solve_new(state, NEW_ITER, hold)
             except FAILURES:
                 continue
         new = refit.new_values(state)
