@@ -187,3 +187,22 @@ def test_summary_initial_column_is_the_models_value():
     row = next(line for line in text.splitlines() if line.startswith("k "))
     assert row.split()[1:4] == ["100", "110", "+10.00"]
     assert "started from start 2 at 7" in text
+
+
+def test_an_error_of_the_iteration_hook_stops_the_solve_quietly(chain_problem, capfd):
+    """A progress hook that raises (a diagnosis cancelling a refit it no longer needs) ends
+    the solve as failed with the hook's message, at the iterate it had reached, and CasADi
+    prints nothing (no traceback, no dump of the iterate)."""
+    calls = []
+
+    def hook(iteration: int, cost: float) -> None:
+        calls.append(cost)
+        if iteration == 3:
+            raise RuntimeError("no longer needed")
+
+    out = solve(chain_problem, max_iter=200, progress=hook)
+    assert not out.success and out.failure == "no longer needed"
+    assert len(calls) == 4 and out.iterations <= 4
+    assert out.cost <= calls[0]
+    err = capfd.readouterr().err
+    assert "Traceback" not in err and "fit_iteration" not in err

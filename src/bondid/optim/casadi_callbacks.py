@@ -72,6 +72,8 @@ def iteration_callback_class() -> Any:
         def __init__(self, nx: int, ng: int, record: Callable[..., bool]):
             casadi.Callback.__init__(self)
             self._nx, self._ng, self._record = nx, ng, record
+            #: the error ``record`` raised, which stopped the solve (None: none)
+            self.error: Exception | None = None
             self.construct("fit_iteration", {})
 
         def get_n_in(self) -> int:
@@ -102,9 +104,15 @@ def iteration_callback_class() -> Any:
             def col(name: str) -> np.ndarray:
                 return np.asarray(arg[names.index(name)], dtype=float).reshape(-1)
 
-            stop = self._record(
-                float(arg[names.index("f")]), col("x"), col("g"), col("lam_x"), col("lam_g")
-            )
+            try:
+                stop = self._record(
+                    float(arg[names.index("f")]), col("x"), col("g"), col("lam_x"), col("lam_g")
+                )
+            except Exception as exc:  # handed to the solve's caller
+                # an error raised through CasADi is printed there with the whole iterate and
+                # a traceback; kept here instead, it stops IPOPT and the solve reports it
+                self.error = exc
+                stop = True
             # non-zero asks IPOPT to stop (User_Requested_Stop): the caller's own reason, or
             # a Ctrl-C that CasADi caught
             return [1 if stop or interrupt.requested() else 0]

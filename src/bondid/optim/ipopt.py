@@ -144,7 +144,7 @@ def solve(
     ipopt.update(ipopt_options or {})
     t0 = time.perf_counter()
     try:
-        solver, _callback = nlp.solver(on_iteration, ipopt)
+        solver, callback = nlp.solver(on_iteration, ipopt)
         sol = solver(x0=z_start, lbx=problem.lbz, ubx=problem.ubz, lbg=cons.lower, ubg=cons.upper)
     except RuntimeError as exc:
         interrupt.check()  # CasADi turned a Ctrl-C into an error: it is an interrupt
@@ -152,6 +152,9 @@ def solve(
         return _failed(problem, z_start, rec, "exception", why, time.perf_counter() - t0)
     interrupt.check()  # a Ctrl-C during the solve stopped IPOPT: stop the run too
     wall = time.perf_counter() - t0
+    if callback.error is not None:  # the per-iteration hook stopped the solve (e.g. cancelled)
+        status, _ = _stats(solver, len(rec.history))
+        return _failed(problem, z_start, rec, status, str(callback.error), wall)
     status, iterations = _stats(solver, len(rec.history))
     reason = None if monitor is None else monitor.reason
     if status == "User_Requested_Stop" and reason is not None:
