@@ -20,7 +20,8 @@ from the physics and the data, so the starts come from there:
   first makes the fit worse; from the nominal values they can unbend.
 
 Each start's new parameters are first fitted alone for a few iterations (the nominal ones
-held; a placed start keeps the ones it places and settles the others), then every start gets
+held; a placed start stays placed, and an FRF modifier's placed start settles the parameters
+the placing does not set), then every start gets
 its **figure**: the training objective after one Levenberg–Marquardt step over every
 parameter on the linearised residual (:func:`predicted_cost`), i.e. the score-test idea taken
 where the new parameters are no longer "absent" (a compliance at infinite stiffness has no
@@ -45,7 +46,7 @@ import numpy as np
 
 from ..exceptions import BondidError
 from ..optim.search import Step
-from .effects import Candidate
+from .effects import Candidate, get_effect
 from .refit import Refit, State
 from .scan_grid import hint_scales, scan_grid
 
@@ -171,6 +172,7 @@ def candidate_starts(
     fails is left out; an empty list means every one failed."""
     exps = np.array([p.scan for p in cand.parameters], float)
     v0 = refit.new_values(refit.state0)
+    modifier = get_effect(cand.effect).is_modifier
     out: list[StartSpec] = []
     seen: list[np.ndarray] = []
     for label, s in _scales(refit, cand, places):
@@ -178,12 +180,14 @@ def candidate_starts(
         # a placed start stays where it was placed: where the parameter refit has bent the
         # model around the missing mode, a solve of the new parameters alone runs the spring
         # out of the band; the held schedule of the refit lets the model relax around it.
-        # Its parameters the placing does not set (a damping ratio, how the effect shows in
-        # each channel) are settled with the placed ones held: at their start values a mode
-        # at the right frequency can fit worse than none and its figure would rank it last
+        # An FRF modifier has no structure for that schedule to relax: its parameters the
+        # placing does not set (a damping ratio, how the effect shows in each channel) are
+        # settled with the placed ones held, since at their start values a mode at the
+        # right frequency can fit worse than none and its figure would rank it last
         placed = label.startswith("mode at")
-        hold = tuple(int(k) for k in np.flatnonzero(exps > 0)) if placed else ()
-        if not placed or len(hold) < len(exps):
+        settle = placed and modifier
+        hold = tuple(int(k) for k in np.flatnonzero(exps > 0)) if settle else ()
+        if not placed or (settle and len(hold) < len(exps)):
             try:
                 state, _ = refit.solve_new(state, NEW_ITER, hold)
             except FAILURES:
