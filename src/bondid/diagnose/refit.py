@@ -306,24 +306,17 @@ class Refit:
         out = State(res.result.fitted.copy(), self.state_theta(res.result))
         return out, self.cost(out), res
 
-    def solve_new(
-        self, state: State, max_iter: int, hold: Sequence[int] = ()
-    ) -> tuple[State, float]:
+    def solve_new(self, state: State, max_iter: int) -> tuple[State, float]:
         """One IPOPT solve of the candidate's own new parameters (the others held; the FRF
-        modifier's θ free) from ``state``, those of ``hold`` (indices into the own ones)
-        held too; returns the new state and its objective over every name (:meth:`cost`)."""
+        modifier's θ free) from ``state``; returns the new state and its objective over
+        every name (:meth:`cost`)."""
         from ..optim.ipopt import solve
 
-        free = [v for k, v in enumerate(self.own) if k not in hold]
-        names = [str(v.leader) for v in free if v.leader is not None and not v.held]
-        fixed = [v.theta for k, v in enumerate(self.own) if k in hold and v.theta is not None]
-        if not names and not any(v.theta is not None for v in free):
+        names = [str(v.leader) for v in self.own if v.leader is not None and not v.held]
+        if not names and not any(v.theta is not None for v in self.own):
             return state, self.cost(state)
         th = state.theta if state.theta.size else None
         sub = self.problem.restrict(names, start=state.x, theta=th)
-        first = sub.size - state.theta.size
-        for t in fixed:  # a held θ: its variable pinned at the start (u = 0)
-            sub.lbz[first + t] = sub.ubz[first + t] = 0.0
         sol = solve(sub, max_iter=max_iter, ipopt_options=self.ipopt_options())
         out = state.copy()
         out.x[[self.problem.names.index(n) for n in names]] = sub.values(sol.z)

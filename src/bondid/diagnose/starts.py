@@ -19,13 +19,12 @@ from the physics and the data, so the starts come from there:
   bent nominal parameters to mimic what the candidate does, and from there the candidate
   first makes the fit worse; from the nominal values they can unbend.
 
-Each start's new parameters are first fitted alone for a few iterations (the nominal ones
-held; a placed start stays placed, and an FRF modifier's placed start settles the parameters
-the placing does not set), then every start gets
-its **figure**: the training objective after one Levenberg–Marquardt step over every
-parameter on the linearised residual (:func:`predicted_cost`), i.e. the score-test idea taken
-where the new parameters are no longer "absent" (a compliance at infinite stiffness has no
-gradient), plus the first-order gain of letting the nominal parameters follow. The figure ranks the
+Each scanned start's new parameters are first fitted alone for a few iterations (the
+nominal ones held; a placed start stays placed), then every start gets its **figure**: the
+training objective after one Levenberg–Marquardt step over every parameter on the
+linearised residual (:func:`predicted_cost`), i.e. the score-test idea taken where the new
+parameters are no longer "absent" (a compliance at infinite stiffness has no gradient),
+plus the first-order gain of letting the nominal parameters follow. The figure ranks the
 starts of a candidate and, through its best start, the candidates of a step; it is a
 training figure, so nothing here looks at the held-out data that decide the verdict.
 
@@ -46,7 +45,7 @@ import numpy as np
 
 from ..exceptions import BondidError
 from ..optim.search import Step
-from .effects import Candidate, get_effect
+from .effects import Candidate
 from .refit import Refit, State
 from .scan_grid import hint_scales, scan_grid
 
@@ -172,24 +171,16 @@ def candidate_starts(
     fails is left out; an empty list means every one failed."""
     exps = np.array([p.scan for p in cand.parameters], float)
     v0 = refit.new_values(refit.state0)
-    modifier = get_effect(cand.effect).is_modifier
     out: list[StartSpec] = []
     seen: list[np.ndarray] = []
     for label, s in _scales(refit, cand, places):
         state = refit.with_new(refit.state0, v0 * s**exps)
         # a placed start stays where it was placed: where the parameter refit has bent the
         # model around the missing mode, a solve of the new parameters alone runs the spring
-        # out of the band; the held schedule of the refit lets the model relax around it.
-        # An FRF modifier has no structure for that schedule to relax: its parameters the
-        # placing does not set (a damping ratio, how the effect shows in each channel) are
-        # settled with the placed ones held, since at their start values a mode at the
-        # right frequency can fit worse than none and its figure would rank it last
-        placed = label.startswith("mode at")
-        settle = placed and modifier
-        hold = tuple(int(k) for k in np.flatnonzero(exps > 0)) if settle else ()
-        if not placed or (settle and len(hold) < len(exps)):
+        # out of the band; the held schedule of the refit lets the model relax around it
+        if not label.startswith("mode at"):
             try:
-                state, _ = refit.solve_new(state, NEW_ITER, hold)
+                state, _ = refit.solve_new(state, NEW_ITER)
             except FAILURES:
                 continue
         new = refit.new_values(state)
