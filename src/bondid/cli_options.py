@@ -64,6 +64,21 @@ def add_drop_nan_arg(p: argparse.ArgumentParser) -> None:
     )  # fmt: skip
 
 
+def add_lines_arg(
+    p: argparse.ArgumentParser, what: str, default: str | None = "auto", tail: str = ""
+) -> None:
+    """``--lines auto|all|N``: the frequency lines per file ``what`` works on (the line
+    reduction of :mod:`bondid.data.reduce`); ``tail`` ends the help text."""
+    from .data.lines import AUTO_ABOVE, AUTO_LINES
+
+    p.add_argument(
+        "--lines", default=default, metavar="auto|all|N",
+        help=f"frequency lines per file {what}: auto (default: files above {AUTO_ABOVE} lines"
+        f" keep {AUTO_LINES}: every line near each resonance and anti-resonance, log-spaced"
+        f" elsewhere), all, or at most N{tail}",
+    )  # fmt: skip
+
+
 def add_weighting_arg(p: argparse.ArgumentParser, default: str | None = None) -> None:
     """``--weighting``: the point weights (:mod:`bondid.data.weights`)."""
     from .data.weights import WEIGHTINGS

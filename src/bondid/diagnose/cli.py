@@ -10,7 +10,6 @@ from pathlib import Path
 
 def build_parser() -> argparse.ArgumentParser:
     from .. import cli
-    from ..data.lines import AUTO_ABOVE, AUTO_LINES
     from ..fit.damping import add_damping_arg
     from ..fit.operating_points import add_operating_point_arg
     from .effects import available
@@ -47,12 +46,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="run the screenings and refits on the workers of a Dask cluster "
         "(tcp://HOST:PORT; needs pip install 'bondid[fleet]'); default: local processes",
     )  # fmt: skip
-    p.add_argument(
-        "--lines", default="auto", metavar="auto|all|N",
-        help="frequency lines per file the diagnosis works on: auto (default: files above"
-        f" {AUTO_ABOVE} lines keep {AUTO_LINES}: every line near each resonance and"
-        " anti-resonance, log-spaced elsewhere, as bondid.fit does), all, or at most N",
-    )  # fmt: skip
+    cli.add_lines_arg(p, "the diagnosis works on", tail=" (as bondid.fit does)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     cli.add_weighting_arg(p, "auto")
     cli.add_drop_nan_arg(p)

@@ -11,6 +11,7 @@ from ..cli import (
     add_channels_arg,
     add_drop_nan_arg,
     add_floating_base_arg,
+    add_lines_arg,
     add_package_path_arg,
     add_points_arg,
     add_uff_map_arg,
@@ -21,7 +22,7 @@ from ..cli import (
     split_names,
 )
 from ..cost.residuals import NORMS, RESIDUAL_KINDS
-from ..data.lines import AUTO_ABOVE, AUTO_LINES, parse_lines
+from ..data.lines import parse_lines
 from ..exceptions import ConfigError
 from .defaults import add_prior_arg, check_prior
 from .operating_points import add_operating_point_arg, operating_points_of
@@ -82,13 +83,12 @@ def build_parser() -> argparse.ArgumentParser:
         " --no-coherence ignores it (the weights then come from the estimated noise)",
     )  # fmt: skip
     add_weighting_arg(p)
-    p.add_argument(
-        "--lines", metavar="auto|all|N",
-        help="frequency lines per file the fit uses: auto (default: files above"
-        f" {AUTO_ABOVE} lines keep {AUTO_LINES}: every line near each resonance and"
-        " anti-resonance, log-spaced elsewhere), all, or at most N; the figures (db_rms, noise"
-        " level) are always on all lines",
-    )  # fmt: skip
+    add_lines_arg(
+        p,
+        "the fit uses",
+        default=None,
+        tail="; the figures (db_rms, noise level) are always on all lines",
+    )
     p.add_argument("--multistart", type=int, metavar="N", help="number of starts (default 1)")
     p.add_argument("--seed", type=int, help="Latin-hypercube seed (default 0)")
     p.add_argument("--workers", type=int, help="parallel processes for --multistart (default 2)")

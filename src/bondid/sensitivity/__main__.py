@@ -14,8 +14,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..data.lines import AUTO_ABOVE, AUTO_LINES
-
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..data.measurement import FrfData
     from ..model.document import UrdfDocument
@@ -77,12 +75,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--no-sweep", action="store_true", help="skip the one-at-a-time sweep")
     p.add_argument("--scales", type=_scales, default=None, help="sweep LO:HI:STEP (0.5:1.5:0.1)")
     p.add_argument("--workers", type=int, default=2, help="processes for the sweep (default 2)")
-    p.add_argument(
-        "--lines", default="auto", metavar="auto|all|N",
-        help="frequency lines per file analysed: auto (default: files above"
-        f" {AUTO_ABOVE} lines keep {AUTO_LINES}: every line near each resonance and"
-        " anti-resonance, log-spaced elsewhere, as bondid.fit does), all, or at most N",
-    )  # fmt: skip
+    cli.add_lines_arg(p, "analysed", tail=" (as bondid.fit does)")
     cli.add_drop_nan_arg(p)
     return p
 
