@@ -14,6 +14,7 @@ import numpy as np
 from ..exceptions import ChannelError, DataError
 from ..frf.quantity import QUANTITIES
 from ._common import new_figure, save_png, style_axes
+from .units import channel_unit, magnitude_label
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from matplotlib.figure import Figure
@@ -36,10 +37,6 @@ _KIND_STYLE: dict[str, dict[str, Any]] = {
     "model": {"linewidth": 1.5, "zorder": 3},
     "noise": {"color": "0.3", "linewidth": 1.1, "linestyle": ":", "zorder": 2},
 }
-
-# response unit -> excitation unit (the generalised force dual), and the reverse
-_DUAL = {"m": "N", "rad": "N·m", "N": "m", "N·m": "rad", "N*m": "rad", "Nm": "rad"}
-_RESPONSE = {"m", "rad"}
 
 
 @dataclass
@@ -68,44 +65,6 @@ class Curve:
 #: the legend (bottom), the figure's title
 _LEFT_IN, _RIGHT_IN, _TOP_IN, _TITLE_IN = 0.85, 0.3, 0.3, 0.35
 _BOTTOM_IN, _WSPACE_IN, _HSPACE_IN = 0.95, 0.85, 0.75
-
-
-def _unit_pair(units: Mapping[str, Any], joint: str) -> tuple[str, str] | None:
-    """(response unit, excitation unit) of ``joint`` from a user ``units`` mapping."""
-    if joint not in units:
-        return None
-    val = units[joint]
-    if isinstance(val, tuple | list) and len(val) == 2:
-        return str(val[0]), str(val[1])
-    val = str(val)
-    if val in _RESPONSE:
-        return val, _DUAL[val]
-    if val in _DUAL:
-        return _DUAL[val], "N·m" if _DUAL[val] == "rad" else "N"
-    raise DataError(
-        f"units[{joint!r}] = {val!r} is not a unit; valid: 'm', 'rad', 'N', 'N·m' "
-        "or a (response, excitation) pair"
-    )
-
-
-def channel_unit(
-    units: Mapping[str, Any] | None, out: str, inp: str, quantity: str = "receptance"
-) -> str | None:
-    """The SI unit of channel ``out.inp`` of ``quantity``, e.g. ``'m/N'``, or None if unknown."""
-    if not units:
-        return None
-    ro = _unit_pair(units, out)
-    ri = _unit_pair(units, inp)
-    if ro is None or ri is None:
-        return None
-    num, den = ro[0], ri[1]
-    if quantity == "mobility":
-        num = f"({num}/s)"
-    elif quantity == "accelerance":
-        num = f"({num}/s²)"
-    if "·" in den or "*" in den:
-        den = f"({den})"
-    return f"{num}/{den}"
 
 
 def _wrap_phase_deg(freq: np.ndarray, H: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -293,20 +252,6 @@ def _style_cell(ax_m: Any, ax_p: Any, f_range: tuple[float, float], mag_label: s
     ax_m.tick_params(labelbottom=False)
     ax_m.set_ylabel(mag_label, fontsize=9)
     ax_p.set_ylabel("phase [°]", fontsize=9)
-
-
-#: what a magnitude axis shows, per quantity
-QUANTITY_WORDS = {
-    "receptance": "receptance",
-    "mobility": "mobility",
-    "accelerance": "accelerance",
-}
-
-
-def magnitude_label(quantity: str, unit: str | None) -> str:
-    """The magnitude axis label: the quantity and ``dB re 1 UNIT`` (or ``[dB]``)."""
-    word = QUANTITY_WORDS.get(quantity, quantity)
-    return f"{word} [dB re 1 {unit}]" if unit else f"|{word}| [dB]"
 
 
 def _mark_left_out(ax_m: Any, ax_p: Any) -> None:
