@@ -79,9 +79,12 @@ def mixed_affine(affine: AffineModel, rows: MixRows, mixes: dict[str, float]) ->
 def mix_columns(
     affine: AffineModel, rows: MixRows, dmix: dict[str, np.ndarray], freq_hz: np.ndarray,
     sel: tuple[np.ndarray, np.ndarray, np.ndarray],
+    solved: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:  # fmt: skip
     """``∂Hs/∂x`` ``(n_sel, size)`` complex through the mixes (module docstring); ``sel`` =
-    the selected points' (output rows, input columns, frequency indices) of ``freq_hz``."""
+    the selected points' (output rows, input columns, frequency indices) of ``freq_hz``;
+    ``solved`` = ``(X = Z⁻¹B (n_f, nv, n_in), Yt = Z⁻ᵀCᵀ (n_f, nv, n_out))`` at ``freq_hz``
+    when the caller has them (the extra column and row then cost no solve)."""
     o_sel, i_sel, f_sel = sel
     n_p = next(iter(dmix.values())).size
     out = np.zeros((o_sel.size, n_p), dtype=complex)
@@ -93,14 +96,20 @@ def mix_columns(
         r2 = rows[name][1]
         if name in affine.inputs:  # C Z⁻¹ (g_i r₂): one more input column
             k = affine.inputs.index(name)
-            col = replace(affine, B_kin=r2[:, None]).with_gains(gi[k : k + 1], go)
-            H2 = col.linear_model().frf(freq_hz)[:, 0]  # (n_out, nf)
+            if solved is not None:
+                H2 = gi[k] * np.einsum("fno,n->of", solved[1], r2)  # (n_out, nf)
+            else:
+                col = replace(affine, B_kin=r2[:, None]).with_gains(gi[k : k + 1], go)
+                H2 = col.linear_model().frf(freq_hz)[:, 0]
             hit = i_sel == k
             out[hit] += H2[o_sel[hit], f_sel[hit]][:, None] * dmu[None, :]
         if name in affine.outputs:  # (g_o r₂)ᵀ Z⁻¹ B: one more output row
             k = affine.outputs.index(name)
-            row = replace(affine, C_kin=r2[None, :]).with_gains(gi, go[k : k + 1])
-            H2 = row.linear_model().frf(freq_hz)[0]  # (n_in, nf)
+            if solved is not None:
+                H2 = go[k] * np.einsum("n,fni->if", r2, solved[0])  # (n_in, nf)
+            else:
+                row = replace(affine, C_kin=r2[None, :]).with_gains(gi, go[k : k + 1])
+                H2 = row.linear_model().frf(freq_hz)[0]
             hit = o_sel == k
             out[hit] += H2[i_sel[hit], f_sel[hit]][:, None] * dmu[None, :]
     return out

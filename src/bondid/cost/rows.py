@@ -90,7 +90,7 @@ class Rows:
         Hm, scale = b.Hm.reshape(grid), b.scale.reshape(grid)
         sw = (np.sqrt(b.weight) * self.norm).reshape(grid)
         rg, Jg = r.reshape(k, *grid), J.reshape(k, *grid, J.shape[-1])
-        for sl, H, dH in jacobian_blocks(affine, b.freq_hz, *derivatives):
+        for sl, H, dH, _ in jacobian_blocks(affine, b.freq_hz, *derivatives):
             res = residual(kind, H, Hm[:, :, sl], scale[:, :, sl])
             rt, drt = robust(res, self.options.norm, self.options.l1_delta)
             rg[:, :, :, sl] = rt * sw[:, :, sl]
@@ -122,7 +122,7 @@ class Rows:
         order = np.argsort(b.fidx, kind="stable")
         fsorted = b.fidx[order]
         G, dtheta = modifier
-        for sl, H, dH in jacobian_blocks(affine, b.freq_hz, *derivatives):
+        for sl, H, dH, solved in jacobian_blocks(affine, b.freq_hz, *derivatives):
             lo, hi = np.searchsorted(fsorted, [sl.start, sl.stop])
             pts = order[lo:hi]
             if pts.size == 0:
@@ -134,8 +134,8 @@ class Rows:
             if gains[0]:
                 dHs = dHs + gain_columns(affine, gains[0], gains[1], rows, cols, Hs)
             if mix is not None:
-                fsl = b.freq_hz[sl]
-                dHs = dHs + mix_columns(affine, mix[0], mix[1], fsl, (rows, cols, fidx - sl.start))
+                at_block = (rows, cols, fidx - sl.start)
+                dHs = dHs + mix_columns(affine, mix[0], mix[1], b.freq_hz[sl], at_block, solved)
             if G is not None:
                 Hs, dHs = self.modified(G, (rows, cols, fidx), dtheta, Hs, dHs)
             res = residual(kind, Hs, b.Hm[pts], b.scale[pts])

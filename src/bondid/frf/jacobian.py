@@ -47,9 +47,11 @@ def jacobian_blocks(
     Args: as for :func:`frf_and_jacobian` (no quantity: receptance only).
 
     Yields:
-        ``(sl, H, dH)``: the slice of ``freq_hz`` the block covers, ``H`` ``(n_out, n_in, nf)``
-        complex and ``dH`` ``(2, n_out, n_in, nf, n_p)`` real (real and imaginary parts of the
-        derivatives), both only valid until the next block is asked for.
+        ``(sl, H, dH, (X, Yt))``: the slice of ``freq_hz`` the block covers, ``H`` ``(n_out,
+        n_in, nf)`` complex, ``dH`` ``(2, n_out, n_in, nf, n_p)`` real (real and imaginary
+        parts of the derivatives), and the block's solves ``X = Z⁻¹B`` ``(nf, nv, n_in)`` and
+        ``Yt = Z⁻ᵀCᵀ`` ``(nf, nv, n_out)`` (complex), all only valid until the next block is
+        asked for.
     """
     w = omega(freq_hz)
     M = affine.mass_matrix()
@@ -84,7 +86,7 @@ def jacobian_blocks(
         Xr = np.transpose(X[:, :, ci], (2, 0, 1)).reshape(-1, X.shape[1])
         dH = dirs.derivatives(Yr, Xr, np.tile(ws, co.size)).reshape(2, co.size, nf, n_p)
         dH = dH[:, pair] if mirrored else dH.reshape(2, n_out, n_in, nf, n_p)
-        yield slice(s, s + nf), H, dH
+        yield slice(s, s + nf), H, dH, (X, Yt)
 
 
 def frf_and_jacobian(
@@ -116,7 +118,7 @@ def frf_and_jacobian(
     n_out, n_in, n_p = affine.C.shape[0], affine.B.shape[1], dpi.shape[2]
     H = np.empty((n_out, n_in, freq_hz.size), dtype=complex)
     J = np.empty((n_out, n_in, freq_hz.size, n_p), dtype=complex)
-    for sl, Hb, dH in jacobian_blocks(affine, freq_hz, dpi, dk, dd, drayleigh):
+    for sl, Hb, dH, _ in jacobian_blocks(affine, freq_hz, dpi, dk, dd, drayleigh):
         H[:, :, sl] = Hb
         J.real[:, :, sl] = dH[0]
         J.imag[:, :, sl] = dH[1]
