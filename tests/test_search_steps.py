@@ -1,6 +1,7 @@
 """Tests of the search's step loop (bondid.diagnose.search): a step whose base is already at
-the held-out noise level is recorded, not run; a step refits its candidates in the order of
-their screening figures and stops as soon as it is decided."""
+the held-out noise level is recorded, not run; a step probes its candidates in the order of
+their screening figures, refits them in full in the order the probes reached, and stops as
+soon as it is decided."""
 
 from __future__ import annotations
 
@@ -102,10 +103,13 @@ def _cand(loc: str) -> Candidate:
 
 
 def _step(monkeypatch, base_heldout: float, figures: dict[str, float],
-          heldout: dict[str, float], workers: int = 1, n_min: int = 2, n_max: int = 4):  # fmt: skip
+          heldout: dict[str, float], workers: int = 1, n_min: int = 2, n_max: int = 4,
+          probed: dict[str, float] | None = None, first_starts: list | None = None):  # fmt: skip
     """The real step with fake screenings (figure per candidate) and refits (held-out score
-    per candidate, strength determined)."""
+    per candidate, strength determined; ``probed``: a probe's score, default the same);
+    ``first_starts`` collects each refit's (candidate, probe, first start's label)."""
     cands = [_cand(loc) for loc in figures]
+    first_starts = [] if first_starts is None else first_starts
 
     def fake_screen(task):
         c = task.candidate
@@ -114,9 +118,13 @@ def _step(monkeypatch, base_heldout: float, figures: dict[str, float],
 
     def fake_refit(task):
         c = task.candidate
-        r = _result(c.label, heldout[c.location], (c,), cand=c)
+        # a probe reaches `probed` (default: its full refit's score); a full refit `heldout`
+        score = (probed or heldout)[c.location] if task.probe else heldout[c.location]
+        r = _result(c.label, score, (c,), cand=c)
         r.values, r.std, r.n_own, r.n_new = np.array([1e-5]), np.array([1e-7]), 1, 1
-        r.db_rms = heldout[c.location]
+        r.db_rms, r.objective = score, score
+        r.end = StartSpec(f"end of {c.location}", np.ones(1), np.zeros(0), score)
+        first_starts.append((c.location, task.probe, task.starts[0].label))
         return r
 
     monkeypatch.setattr(search, "screen", fake_screen)
@@ -124,7 +132,7 @@ def _step(monkeypatch, base_heldout: float, figures: dict[str, float],
     ctx = SimpleNamespace(
         max_effects=3, noise=REF, candidates=cands, n_min=n_min, n_max=n_max,
         train=[SimpleNamespace(outputs=("x",), inputs=("x",))],
-        task=lambda base, c, **kw: SimpleNamespace(candidate=c, **kw),
+        task=lambda base, c, **kw: SimpleNamespace(candidate=c, **{"probe": False, **kw}),
     )  # fmt: skip
     base = _result("refit", base_heldout)
     base.db_rms = base_heldout
@@ -144,34 +152,52 @@ def test_a_first_step_at_the_noise_level_screens_and_refits_nothing(monkeypatch)
     assert reason.startswith("held-out score of the base 1.020 dB:") and "nan" not in reason
 
 
-def test_refits_follow_the_screening_order_and_stop_once_explained(monkeypatch):
-    """The best-figured candidate is refitted first; at the held-out noise level it decides
+def test_probes_follow_the_screening_order_and_stop_once_explained(monkeypatch):
+    """The best-figured candidate is probed first; at the held-out noise level it decides
     the step at once, the others are not refitted."""
     figs = {"x": 0.9, "y": 0.2, "z": 0.5}
     step, pool = _step(monkeypatch, 3.0, figs, {"x": 2.9, "y": 1.0, "z": 2.9})
     refits = [label for name, label in pool.tasks if name == "fake_refit"]
     assert refits == ["sensor_delay@y"]
     assert step.winner is not None and step.winner.label == "sensor_delay@y"
-    assert step.stopped.startswith("decided: an accepted refit is at the held-out noise level")
+    assert step.stopped == (
+        "decided: an accepted refit is at the held-out noise level (first round)"
+    )
     assert pool.cancelled == [7]
 
 
-def test_an_accepted_refit_above_the_level_waits_for_n_min_refits(monkeypatch):
+def test_full_refits_follow_the_probes_and_continue_from_their_end(monkeypatch):
+    """A candidate the screening ranked last but whose probe reached lowest is refitted in
+    full first, from the probe's end point."""
+    figs = {"x": 0.2, "y": 0.3, "z": 0.4}
+    probed = {"x": 2.8, "y": 2.7, "z": 1.6}
+    seen: list = []
+    step, pool = _step(monkeypatch, 3.0, figs, {"x": 2.8, "y": 2.7, "z": 1.0}, n_min=3,
+                       probed=probed, first_starts=seen)  # fmt: skip
+    assert seen[:3] == [(k, True, "s") for k in "xyz"]  # probes: screening order, best start
+    assert seen[3] == ("z", False, "end of z")  # the first full refit: the best probe's
+    assert step.winner is not None and step.winner.label == "sensor_delay@z"
+    assert step.stopped == "decided: an accepted refit is at the held-out noise level"
+
+
+def test_an_accepted_refit_above_the_level_waits_for_n_min_full_refits(monkeypatch):
     figs = {"x": 0.2, "y": 0.3, "z": 0.4, "w": 0.5}
     held = {"x": 2.0, "y": 1.5, "z": 2.9, "w": 2.9}
     step, pool = _step(monkeypatch, 3.0, figs, held, n_min=3)
     refits = [label for name, label in pool.tasks if name == "fake_refit"]
-    assert refits == ["sensor_delay@x", "sensor_delay@y", "sensor_delay@z"]
+    # four probes in the screening's order, then full refits in the probes' order
+    probes = ["sensor_delay@x", "sensor_delay@y", "sensor_delay@z", "sensor_delay@w"]
+    assert refits == [*probes, "sensor_delay@y", "sensor_delay@x", "sensor_delay@z"]
     # the best held-out score wins, not the best figure
     assert step.winner is not None and step.winner.label == "sensor_delay@y"
-    assert step.stopped == "decided: an accepted refit after 3 refits"
+    assert step.stopped == "decided: an accepted refit after 3 full refits"
 
 
-def test_an_undecided_step_refits_at_most_n_max(monkeypatch):
+def test_an_undecided_step_probes_and_refits_at_most_n_max(monkeypatch):
     figs = {k: 0.1 * (i + 1) for i, k in enumerate("abcdef")}
     step, pool = _step(monkeypatch, 3.0, figs, dict.fromkeys(figs, 2.99), n_max=4)
-    assert len([t for t in pool.tasks if t[0] == "fake_refit"]) == 4
-    assert step.winner is None and step.stopped == "4 refits, the most of a step"
+    assert len([t for t in pool.tasks if t[0] == "fake_refit"]) == 2 * 4
+    assert step.winner is None and step.stopped == "every probed candidate refitted"
 
 
 def test_a_pool_with_more_workers_refits_that_many_at_once(monkeypatch):
@@ -179,5 +205,5 @@ def test_a_pool_with_more_workers_refits_that_many_at_once(monkeypatch):
     figs = {k: 0.1 * (i + 1) for i, k in enumerate("abcdef")}
     step, pool = _step(monkeypatch, 3.0, figs, dict.fromkeys(figs, 2.99), workers=8,
                        n_max=4)  # fmt: skip
-    assert len([t for t in pool.tasks if t[0] == "fake_refit"]) == 6
-    assert step.stopped == "every screened candidate refitted"
+    assert len([t for t in pool.tasks if t[0] == "fake_refit"]) == 2 * 6
+    assert step.stopped == "every probed candidate refitted"

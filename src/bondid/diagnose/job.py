@@ -44,6 +44,8 @@ class Task:
         budget_starts: the loop's budget in starts' worth of iterations.
         fallbacks: also try the band continuation and the staged schedule (the parameter
             refit, which has no candidate starts; the final fit).
+        probe: run the first of ``starts`` only (a search step's first round, see
+            :mod:`.search`).
         warm: the refit starts where the model is (no held step: the elimination's and the
             final fit's warm refits).
         token: the cancellation token of the work this task belongs to (0: never
@@ -63,6 +65,7 @@ class Task:
     max_iter: int = REFIT_ITER
     budget_starts: int = REFIT_BUDGET_STARTS
     fallbacks: bool = False
+    probe: bool = False
     warm: bool = False
     token: int = 0
 
@@ -109,6 +112,8 @@ class JobResult:
         noise_ratio: the training db_rms over the predicted noise level (None unknown).
         attempts: the starts tried, in order; ``stopped``: why the loop stopped.
         variant: the variant kept, in words ("" for the candidate itself).
+        end: where the kept attempt ended, as a start a later refit of the same candidate
+            continues from (None for a failed refit).
     """
 
     label: str
@@ -137,6 +142,7 @@ class JobResult:
     attempts: tuple[AttemptNote, ...] = ()
     stopped: str = ""
     variant: str = ""
+    end: StartSpec | None = None
 
     @classmethod
     def failed(cls, task: Task, error: str, wall_s: float) -> JobResult:

@@ -146,10 +146,12 @@ def _starts(task: Task, models: Models) -> Iterator[Start]:
                         payload=0)  # fmt: skip
         return
     specs = list(task.starts) or screening_starts(models, task.places)
+    if task.probe:
+        specs = specs[:1]
     for s in specs:
         refit = models[s.variant].refit
         yield Start(s.label, s.x, s.theta, held_schedule(refit), s.figure, payload=s.variant)
-    if specs:
+    if specs and not task.probe:
         s = specs[0]
         yield Start(f"{s.label}, staged schedule", s.x, s.theta,
                     lambda p: staged(p, max_iter=task.max_iter), payload=s.variant)  # fmt: skip
@@ -275,7 +277,14 @@ def finish(task: Task, models: Models, outcome: Outcome, t0: float) -> JobResult
         attempts=notes,
         stopped=outcome.stopped,
         variant=variant,
+        end=StartSpec(_continued(best.start.label), best.x_end.copy(), best.theta_end.copy(),
+                      best.objective, k),
     )  # fmt: skip
+
+
+def _continued(label: str) -> str:
+    """The label of a start that continues the search begun at ``label``."""
+    return label if label.endswith(", continued") else f"{label}, continued"
 
 
 def task_with(task: Task, **changes: Any) -> Task:

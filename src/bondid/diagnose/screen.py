@@ -7,8 +7,9 @@ at: its starts (:func:`.refit_job.screening_starts`: the scale scan, the mode pl
 measured modes, the nominal origin, over the candidate and its variants) with their figure,
 the training objective one Levenberg–Marquardt step over every parameter predicts
 (:func:`.starts.predicted_cost`). The candidate's figure is its best start's; the search
-refits the candidates in the order of their figures (:mod:`.search`), each from its
-screened starts in their order, so the screening's work is not done again.
+probes the best-figured candidates from their best start, then refits them in the order
+the probes reached (:mod:`.search`), each from its screened starts in their order, so the
+screening's work is not done again.
 """
 
 from __future__ import annotations

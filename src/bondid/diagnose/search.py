@@ -5,13 +5,17 @@ accepted so far) and runs three stages:
 
 1. **screen** every open candidate (:mod:`.screen`, in parallel): its starts and the figure
    of its best one;
-2. **refit** the candidates in the order of their figures through the one loop of
-   :mod:`.refit_job`, at most one per worker at a time, so that the work stops as soon as
-   the step is decided: after at least :attr:`Context.n_min` refits (all of them when a pool
-   has that many workers) once the best refit passes the rule, at once when it passes it and
-   is at the held-out noise level (no later candidate could be told from it), and after
-   :attr:`Context.n_max` refits in any case (or as many as the pool has workers, whichever is
-   more: a cluster refits every candidate at once);
+2. **refit** in two rounds through the one loop of :mod:`.refit_job`, at most one refit per
+   worker at a time. The first round (the *probes*) refits the :attr:`Context.n_max` best
+   screened candidates (or as many as the pool has workers, whichever is more) from their
+   best start only: the screening's figure is a one-step prediction, and a missing spring's
+   basin is often reached only by iterating, so what a start really reaches ranks the
+   candidates better. The second round refits them in full (every screened start, the
+   probe's end point first) in the order of the probes' training objectives. The work stops
+   as soon as the step is decided: at once, in either round, when a refit passes the rule
+   at the held-out noise level (no later candidate could be told from it); after at least
+   :attr:`Context.n_min` full refits (all of them when a pool has that many workers) once
+   the best passes the rule; after the probed candidates in any case;
 3. **decide** with the rule of :mod:`.scoring`: the best-scoring refit whose effect strength
    the data determine is tested against the base; it is accepted only when the base is above
    the held-out noise level, the gain is significant, it removes a good share of the excess
@@ -41,7 +45,7 @@ from .pool import Pool, as_completed
 from .refit import Nominal
 from .refit_job import run_refit
 from .screen import Screening, screen
-from .starts import Places
+from .starts import Places, StartSpec
 
 #: refits of a step before the rule may end it (when it is not yet at the noise level)
 N_MIN = 4
@@ -193,53 +197,100 @@ def _explained(ctx: Context, r: JobResult) -> bool:
     return not scoring.above_level(s, ctx.noise)
 
 
+def _submit(ctx: Context, pool: Pool, step: Step, cands: list[Candidate], i: int,
+            starts: tuple[StartSpec, ...], token: int, **kw: Any) -> Any:  # fmt: skip
+    task = ctx.task(step.base, cands[i], starts=starts, token=token, **kw)
+    return pool.submit(run_refit, task)
+
+
+def _at_level(ctx: Context, step: Step, results: list[JobResult]) -> bool:
+    """Does the rule accept the best of ``results``, at the held-out noise level?"""
+    winner = decide(ctx, step.base, step.base_score, results)[3]
+    return winner is not None and _explained(ctx, winner)
+
+
+def _probe(ctx: Context, pool: Pool, step: Step, cands: list[Candidate], order: list[int],
+           token: int, say: Progress) -> tuple[dict[int, JobResult], str]:  # fmt: skip
+    """Round 1 (module docstring): each candidate of ``order`` refitted from its best
+    screened start only; stops at once when one is accepted at the noise level."""
+    lanes = max(1, pool.workers)
+    probes: dict[int, JobResult] = {}
+    running: dict[Any, int] = {}
+    queue, decided = list(order), ""
+    while queue or running:
+        while queue and not decided and len(running) < lanes:
+            i = queue.pop(0)
+            starts = step.screenings[i].starts
+            f = _submit(ctx, pool, step, cands, i, starts, token, probe=True, budget_starts=1)
+            running[f] = i
+            step.refitted.append(i)
+        if not running:
+            break
+        f = pool.first_done(running)
+        i = running.pop(f)
+        r = f.result()
+        if decided and r.error == "cancelled":
+            step.refitted.remove(i)
+            continue
+        probes[i] = r
+        say(f"step {step.index + 1}: probed {r.label}")
+        if not decided and _at_level(ctx, step, list(probes.values())):
+            decided = "an accepted refit is at the held-out noise level"
+            pool.cancel_level(token)  # the probes still running are no longer needed
+    return probes, decided
+
+
 def _refit_ranked(ctx: Context, pool: Pool, step: Step, cands: list[Candidate],
                   say: Progress) -> list[JobResult]:  # fmt: skip
-    """Stage 2 of the module docstring: the refits, in the order of the screening figures,
-    until the step is decided."""
+    """Stage 2 of the module docstring: the probes, then the full refits in the order the
+    probes reached, until the step is decided."""
     scr = step.screenings
     order = sorted((i for i, s in enumerate(scr) if math.isfinite(s.cost) and s.starts),
                    key=lambda i: scr[i].cost)  # fmt: skip
     lanes = max(1, pool.workers)
     n_max = max(ctx.n_max, lanes)
     n_min = min(max(ctx.n_min, lanes), n_max)
-    running: dict[Any, int] = {}
-    results: list[JobResult] = []
-    queue = list(order)
-    decided = ""
     token = pool.token()
+    probes, decided = _probe(ctx, pool, step, cands, order[:n_max], token, say)
+    if decided:
+        step.stopped = f"decided: {decided} (first round)"
+        return list(probes.values())
+    # the training objective a candidate's first start reached ranks it better than the
+    # screening's one-step prediction: a missing spring's basin is seldom reached in a step
+    queue = sorted(probes, key=lambda i: (bool(probes[i].error), probes[i].objective))
+    full: dict[int, JobResult] = {}
+    running: dict[Any, int] = {}
+
+    def results() -> list[JobResult]:  # full refits, and the probes not yet refitted in full
+        return [full.get(i, probes[i]) for i in probes]
+
     while queue or running:
-        while queue and not decided and len(running) < lanes and len(step.refitted) < n_max:
+        while queue and not decided and len(running) < lanes and len(full) + len(running) < n_max:
             i = queue.pop(0)
-            task = ctx.task(step.base, cands[i], starts=scr[i].starts, token=token)
-            running[pool.submit(run_refit, task)] = i
-            step.refitted.append(i)
+            end = probes[i].end
+            starts = scr[i].starts if end is None else (end, *scr[i].starts[1:])
+            running[_submit(ctx, pool, step, cands, i, starts, token)] = i
         if not running:
             break
         f = pool.first_done(running)
-        running_index = running.pop(f)
+        i = running.pop(f)
         r = f.result()
         if decided and r.error == "cancelled":
-            step.refitted.remove(running_index)
             continue
-        results.append(r)
+        full[i] = r
         say(f"step {step.index + 1}: refitted {r.label}")
         if decided:
             continue
-        winner = decide(ctx, step.base, step.base_score, list(results))[3]
-        if winner is not None and _explained(ctx, winner):
+        if _at_level(ctx, step, results()):
             decided = "an accepted refit is at the held-out noise level"
-        elif winner is not None and len(results) >= n_min:
-            decided = f"an accepted refit after {len(results)} refits"
+        elif decide(ctx, step.base, step.base_score, results())[3] is not None and (
+            len(full) >= n_min
+        ):
+            decided = f"an accepted refit after {len(full)} full refits"
         if decided:  # the refits still running are no longer needed
             pool.cancel_level(token)
-    if decided:
-        step.stopped = f"decided: {decided}"
-    elif queue:
-        step.stopped = f"{n_max} refits, the most of a step"
-    else:
-        step.stopped = "every screened candidate refitted"
-    return results
+    step.stopped = f"decided: {decided}" if decided else "every probed candidate refitted"
+    return results()
 
 
 def run_step(ctx: Context, pool: Pool, index: int, base: JobResult, base_score: float,
