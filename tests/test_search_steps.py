@@ -172,7 +172,7 @@ def test_full_refits_follow_the_probes_and_continue_from_their_end(monkeypatch):
     figs = {"x": 0.2, "y": 0.3, "z": 0.4}
     probed = {"x": 2.8, "y": 2.7, "z": 1.6}
     seen: list = []
-    step, pool = _step(monkeypatch, 3.0, figs, {"x": 2.8, "y": 2.7, "z": 1.0}, n_min=3,
+    step, _pool = _step(monkeypatch, 3.0, figs, {"x": 2.8, "y": 2.7, "z": 1.0}, n_min=3,
                        probed=probed, first_starts=seen)  # fmt: skip
     assert seen[:3] == [(k, True, "s") for k in "xyz"]  # probes: screening order, best start
     assert seen[3] == ("z", False, "end of z")  # the first full refit: the best probe's

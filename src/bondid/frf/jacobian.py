@@ -41,7 +41,7 @@ def jacobian_blocks(
     dk: np.ndarray,
     dd: np.ndarray,
     drayleigh: np.ndarray | None = None,
-) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
+) -> Iterator[tuple[slice, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]]:
     """Receptance and its derivatives, one block of frequencies at a time.
 
     Args: as for :func:`frf_and_jacobian` (no quantity: receptance only).
