@@ -211,7 +211,7 @@ def _at_level(ctx: Context, step: Step, results: list[JobResult]) -> bool:
 
 def _probe(ctx: Context, pool: Pool, step: Step, cands: list[Candidate], order: list[int],
            token: int, say: Progress) -> tuple[dict[int, JobResult], str]:  # fmt: skip
-    """Round 1 (module docstring): each candidate of ``order`` refitted from its best
+    """The probes (module docstring): each candidate of ``order`` refitted from its best
     screened start only; stops at once when one is accepted at the noise level."""
     lanes = max(1, pool.workers)
     probes: dict[int, JobResult] = {}
