@@ -85,6 +85,44 @@ def test_stall_monitor_needs_all_three_conditions(costs, steps, decrement, stops
     assert bool(calls) is flat
 
 
+def _wandering(costs: list[float], step: float = 1e-2) -> tuple[StallMonitor, list[bool]]:
+    """A monitor fed ``costs`` with steps that never settle and a decrement that never
+    vanishes: only the no-progress test can stop it."""
+    mon = StallMonitor(StallRule(window=10), lambda z, lx, lg: 1.0)
+    return mon, _feed(mon, costs, [step] * (len(costs) - 1))
+
+
+#: the no-progress test's window (iterations) under the default rule
+PROGRESS_WINDOW = StallRule().progress_window
+
+
+def test_a_solve_that_makes_no_progress_stops_although_its_steps_still_move():
+    """The best cost stuck within 1e-8 (relative) for a whole progress window, the steps
+    still 1e-2: stopped where the window closes, converged with its reason."""
+    rng = np.random.default_rng(0)
+    n = PROGRESS_WINDOW + 20
+    costs = list(229.5 * (1.0 + 1e-8 * rng.random(n)))
+    costs[0] = 300.0  # the first iterate is far above: the window starts after it
+    mon, said = _wandering(costs)
+    assert said.index(True) == PROGRESS_WINDOW + 1
+    assert mon.reason is not None and "no more progress" in mon.reason
+    assert f"{PROGRESS_WINDOW} iterations" in mon.reason
+
+
+@pytest.mark.parametrize(
+    "costs",
+    [
+        # falling steadily by 1e-5 (relative) per iteration: progress
+        [100.0 * (1.0 - 1e-5 * k) for k in range(PROGRESS_WINDOW + 20)],
+        # flat at its best, but an iterate inside every window strays 1e-3 above it
+        [100.0] * 30 + [100.1] + [100.0] * (PROGRESS_WINDOW - 10),
+    ],
+)
+def test_progress_or_an_excursion_keeps_the_solve_going(costs):
+    mon, said = _wandering(costs)
+    assert not any(said) and mon.reason is None
+
+
 def test_still_falling():
     assert still_falling([5.0, 4.0, 3.0])  # too short to tell: falling
     assert still_falling([10.0 - k for k in range(20)])

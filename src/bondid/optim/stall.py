@@ -20,6 +20,15 @@ last :attr:`StallRule.window` iterations, all three hold:
   the active constraints forbid) would bring, ``¼ ∇Lᵀ (JᵀJ)⁺ ∇L``, is below ``decrement_rtol``
   times the objective (:func:`gauss_newton_decrement`).
 
+It also stops a solve that has stopped making progress at all: over the last
+:attr:`StallRule.progress_window` iterations the best cost fell by less than
+``progress_rtol`` and every cost stayed within ``spread_rtol`` of it, although the steps still
+move. An interior-point method reaches that state when its barrier subproblem cannot be
+solved to the tolerance that would let it lower the barrier parameter: typically where
+parameters the data barely determine press against a bound or a consistency constraint
+(the Gauss–Newton decrement, which ignores those constraints, then still promises a
+decrease the solver cannot take). More iterations only wander along that valley.
+
 The solve is then converged with a reason (status :data:`STALLED`), not failed. So is one
 IPOPT ended because its search direction became too small to move
 (``Search_Direction_Becomes_Too_Small``) when its cost is flat over its last iterations and the
@@ -28,6 +37,7 @@ Gauss–Newton decrement is small there (:meth:`StallMonitor.settled`).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -50,12 +60,19 @@ class StallRule:
         f_rtol: largest relative change of the objective over the window.
         x_rtol: largest step of any decision variable, relative to ``1 + ‖z‖∞``.
         decrement_rtol: largest Gauss–Newton decrement relative to the objective.
+        progress_window: iterations over which a solve that makes no progress is judged
+            (the second test of the module docstring; > ``window``).
+        progress_rtol: largest fall of the best cost over that window, relative to it.
+        spread_rtol: largest excess of any cost in that window over the best, relative.
     """
 
     window: int = 10
     f_rtol: float = 1e-9
     x_rtol: float = 1e-5
     decrement_rtol: float = 1e-6
+    progress_window: int = 50
+    progress_rtol: float = 1e-6
+    spread_rtol: float = 1e-5
 
 
 #: iterations over which a solve IPOPT ended with too small a search direction must be flat
@@ -98,6 +115,7 @@ class StallMonitor:
         self.rule = rule
         self._decrement = decrement
         self._f: list[float] = []
+        self._best: list[float] = []  # the best finite cost up to each iteration
         self._steps: list[float] = []
         self._last: np.ndarray | None = None
         self.reason: str | None = None
@@ -109,6 +127,8 @@ class StallMonitor:
             self._steps.append(float(np.max(np.abs(z - self._last), initial=0.0)))
         self._last = z.copy()
         self._f.append(float(f))
+        prev = self._best[-1] if self._best else math.inf
+        self._best.append(min(prev, float(f)) if np.isfinite(f) else prev)
         if len(self._f) <= rule.window or not np.isfinite(f):
             return False
         recent = self._f[-rule.window - 1 :]
@@ -116,14 +136,35 @@ class StallMonitor:
         change = (max(recent) - min(recent)) / scale
         step = max(self._steps[-rule.window :]) / (1.0 + float(np.max(np.abs(z), initial=0.0)))
         if not (change <= rule.f_rtol and step <= rule.x_rtol):
-            return False
+            return self._no_progress()
         dec = self._decrement(z, np.asarray(lam_x, float), np.asarray(lam_g, float)) / scale
         if not dec <= rule.decrement_rtol:
-            return False
+            return self._no_progress()
         self.reason = (
             f"stalled: over the last {rule.window} iterations the cost changed by"
             f" {change:.1e} (relative), no step exceeded {step:.1e}, and a Gauss-Newton step"
             f" would lower it by {dec:.1e} at most"
+        )
+        return True
+
+    def _no_progress(self) -> bool:
+        """The second test (module docstring); sets :attr:`reason` when it holds."""
+        rule = self.rule
+        n = rule.progress_window
+        if len(self._f) <= n:
+            return False
+        best, before = self._best[-1], self._best[-n - 1]
+        scale = max(abs(best), np.finfo(float).tiny)
+        fall = (before - best) / scale
+        spread = (max(self._f[-n - 1 :]) - best) / scale
+        if not (fall <= rule.progress_rtol and spread <= rule.spread_rtol):
+            return False
+        z = self._last if self._last is not None else np.zeros(0)
+        step = max(self._steps[-n:]) / (1.0 + float(np.max(np.abs(z), initial=0.0)))
+        self.reason = (
+            f"stalled: over the last {n} iterations the best cost fell by {fall:.1e}"
+            f" (relative) and no cost strayed more than {spread:.1e} from it, while steps of"
+            f" up to {step:.1e} still moved the parameters: the solver makes no more progress"
         )
         return True
 
