@@ -134,12 +134,12 @@ class StallMonitor:
         recent = self._f[-rule.window - 1 :]
         scale = max(abs(float(f)), np.finfo(float).tiny)
         change = (max(recent) - min(recent)) / scale
-        step = max(self._steps[-rule.window :]) / (1.0 + float(np.max(np.abs(z), initial=0.0)))
+        step = self._largest_step(rule.window, z)
         if not (change <= rule.f_rtol and step <= rule.x_rtol):
-            return self._no_progress()
+            return self._no_progress(z)
         dec = self._decrement(z, np.asarray(lam_x, float), np.asarray(lam_g, float)) / scale
         if not dec <= rule.decrement_rtol:
-            return self._no_progress()
+            return self._no_progress(z)
         self.reason = (
             f"stalled: over the last {rule.window} iterations the cost changed by"
             f" {change:.1e} (relative), no step exceeded {step:.1e}, and a Gauss-Newton step"
@@ -147,8 +147,13 @@ class StallMonitor:
         )
         return True
 
-    def _no_progress(self) -> bool:
-        """The second test (module docstring); sets :attr:`reason` when it holds."""
+    def _largest_step(self, n: int, z: np.ndarray) -> float:
+        """The largest of the last ``n`` steps, relative to ``1 + ‖z‖∞``."""
+        return max(self._steps[-n:]) / (1.0 + float(np.max(np.abs(z), initial=0.0)))
+
+    def _no_progress(self, z: np.ndarray) -> bool:
+        """The second test (module docstring) at the iterate ``z``; sets :attr:`reason`
+        when it holds."""
         rule = self.rule
         n = rule.progress_window
         if len(self._f) <= n:
@@ -159,8 +164,7 @@ class StallMonitor:
         spread = (max(self._f[-n - 1 :]) - best) / scale
         if not (fall <= rule.progress_rtol and spread <= rule.spread_rtol):
             return False
-        z = self._last if self._last is not None else np.zeros(0)
-        step = max(self._steps[-n:]) / (1.0 + float(np.max(np.abs(z), initial=0.0)))
+        step = self._largest_step(n, z)
         self.reason = (
             f"stalled: over the last {n} iterations the best cost fell by {fall:.1e}"
             f" (relative) and no cost strayed more than {spread:.1e} from it, while steps of"
