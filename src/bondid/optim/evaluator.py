@@ -14,6 +14,7 @@ import numpy as np
 
 from ..cost.problem import FrfProblem, ParameterModel
 from ..exceptions import ComputationError
+from .free_columns import FreeColumns
 
 
 class ExtraRows(Protocol):
@@ -48,29 +49,39 @@ class Evaluator:
         *,
         damping: bool = True,
         prior: ExtraRows | None = None,
+        free: np.ndarray | None = None,
     ):
+        """``free``: indices of the entries of ``z`` that can move (None: all)."""
         self.problem = problem
         self.pmodel = pmodel
         #: extra residual rows ``z -> (r (m,), J (m, n))`` appended to the data's (e.g. a
         #: prior toward the model's values); None = none
         self.prior = prior
-        self._jac: tuple[bytes, np.ndarray, np.ndarray] | None = None
+        n = pmodel.size
+        #: the entries of ``z`` that can move (all, unless ``free`` is given): Jacobians are
+        #: formed and kept along those alone (:mod:`.free_columns`); the columns of the
+        #: others are 0 wherever a whole Jacobian is returned
+        self.cols = np.arange(n) if free is None else np.asarray(free, dtype=int)
+        self._data_model: ParameterModel = (
+            pmodel if self.cols.size == n else FreeColumns(pmodel, self.cols)
+        )
+        self._jac: tuple[bytes, np.ndarray, np.ndarray] | None = None  # z, r, J (movable)
         self._res: tuple[bytes, np.ndarray] | None = None
         self.n_residual = 0
         self.n_jacobian = 0
         self.damping = damping
         self.lam = 1e-3 if damping else 0.0
-        self._prev: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # z, r, J
+        self._prev: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # z, r, J (movable)
 
     def reset(self) -> None:
         """Forget the damping history (the start of a new solve)."""
         self.lam = 1e-3 if self.damping else 0.0
         self._prev = None
 
-    def _fail(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+    def _fail(self) -> tuple[np.ndarray, np.ndarray]:
         extra = 0 if self.prior is None else int(self.prior.size)
         r = np.full(self.problem.n_residuals + extra, np.nan)
-        return r, np.full((r.size, n), np.nan)
+        return r, np.full((r.size, self.cols.size), np.nan)
 
     def residual(self, z: np.ndarray) -> np.ndarray:
         z = np.ascontiguousarray(z, dtype=float).reshape(-1)
@@ -85,26 +96,38 @@ class Evaluator:
                 if self.prior is not None:
                     r = np.concatenate([r, self.prior(z)[0]])
         except (np.linalg.LinAlgError, FloatingPointError, ValueError, ComputationError):
-            r = self._fail(z.size)[0]
+            r = self._fail()[0]
         self.n_residual += 1
         self._res = (key, r)
         return r
 
-    def residual_and_jacobian(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def movable_jacobian(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Residuals ``(n_r,)`` and their Jacobian along the movable entries ``(n_r,
+        cols.size)`` (:attr:`cols`) at ``z`` ``(n,)``."""
         z = np.ascontiguousarray(z, dtype=float).reshape(-1)
         key = z.tobytes()
         if self._jac is not None and self._jac[0] == key:
             return self._jac[1], self._jac[2]
         try:
             with np.errstate(all="ignore"):
-                r, J = self.problem.residual_and_jacobian(self.pmodel, z)
+                r, J = self.problem.residual_and_jacobian(self._data_model, z)
                 if self.prior is not None:
                     rp, Jp = self.prior(z)
-                    r, J = np.concatenate([r, rp]), np.vstack([J, Jp])
+                    r, J = np.concatenate([r, rp]), np.vstack([J, Jp[:, self.cols]])
         except (np.linalg.LinAlgError, FloatingPointError, ValueError, ComputationError):
-            r, J = self._fail(z.size)
+            r, J = self._fail()
         self.n_jacobian += 1
         self._jac = (key, r, J)
+        return r, J
+
+    def residual_and_jacobian(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Residuals ``(n_r,)`` and the whole Jacobian ``(n_r, n)`` at ``z`` (0 in the
+        columns of entries that cannot move)."""
+        r, Jm = self.movable_jacobian(z)
+        if self.cols.size == self.pmodel.size:
+            return r, Jm
+        J = np.zeros((r.size, self.pmodel.size))
+        J[:, self.cols] = Jm
         return r, J
 
     def cost(self, z: np.ndarray) -> float:
@@ -112,15 +135,17 @@ class Evaluator:
         return float(r @ r)
 
     def cost_and_gradient(self, z: np.ndarray) -> tuple[float, np.ndarray]:
-        r, J = self.residual_and_jacobian(z)
-        return float(r @ r), 2.0 * (J.T @ r)
+        r, J = self.movable_jacobian(z)
+        g = np.zeros(self.pmodel.size)
+        g[self.cols] = 2.0 * (J.T @ r)
+        return float(r @ r), g
 
     def _update_damping(self, z: np.ndarray, r: np.ndarray) -> None:
         prev = self._prev
         if prev is None or np.array_equal(prev[0], z):
             return
         z0, r0, J0 = prev
-        Js = J0 @ (z - z0)
+        Js = J0 @ (z - z0)[self.cols]
         predicted = -(2.0 * float(r0 @ Js) + float(Js @ Js))
         actual = float(r0 @ r0) - float(r @ r)
         rho = actual / predicted if predicted > 0 else -1.0
@@ -130,14 +155,19 @@ class Evaluator:
             self.lam = min(max(2.0 * self.lam, 1e-6), 1e6)
 
     def gauss_newton(self, z: np.ndarray) -> np.ndarray:
-        """``2 (JᵀJ + λ D)`` ``(n, n)`` at ``z`` (see the class docstring)."""
+        """``2 (JᵀJ + λ D)`` ``(n, n)`` at ``z`` (see the class docstring; 0 in the rows and
+        columns of entries that cannot move)."""
         z = np.ascontiguousarray(z, dtype=float).reshape(-1)
-        r, J = self.residual_and_jacobian(z)
-        H = J.T @ J
+        r, J = self.movable_jacobian(z)
+        Hm = J.T @ J
         if self.damping and np.all(np.isfinite(r)):
             self._update_damping(z, r)
             self._prev = (z.copy(), r, J)
             if self.lam > 0:
-                d = np.diag(H).copy()
-                H = H + self.lam * np.diag(d + 1e-9 * max(float(d.max()), 1e-300))
-        return 2.0 * H
+                d = np.diag(Hm).copy()
+                Hm = Hm + self.lam * np.diag(d + 1e-9 * max(float(d.max()), 1e-300))
+        if self.cols.size == self.pmodel.size:
+            return 2.0 * Hm
+        H = np.zeros((self.pmodel.size, self.pmodel.size))
+        H[np.ix_(self.cols, self.cols)] = 2.0 * Hm
+        return H

@@ -112,10 +112,12 @@ class Nlp:
         when IPOPT has just evaluated it there."""
         import casadi
 
-        r, J = self.evaluator.residual_and_jacobian(z)
+        ev = self.evaluator
+        r, J = ev.movable_jacobian(z)
         if not np.all(np.isfinite(r)):
             return float("inf")
-        grad = 2.0 * (J.T @ r) + lam_x
+        _, grad = ev.cost_and_gradient(z)
+        grad = grad + lam_x
         if self.ng:
             if self._jac_g is None:
                 zs = self.constraints.zsym
@@ -123,7 +125,8 @@ class Nlp:
                     "fit_jac_g", [zs], [casadi.jacobian(self.constraints.expr, zs)]
                 )
             grad = grad + np.asarray(self._jac_g(z), dtype=float).T @ lam_g
-        return gauss_newton_decrement(J, grad)
+        # entries that cannot move (fixed variables) take no Gauss–Newton step
+        return gauss_newton_decrement(J, grad[ev.cols])
 
     def solver(self, record: Callable[..., bool], ipopt: dict) -> tuple[Any, Any]:
         """A ``casadi.nlpsol`` IPOPT instance calling ``record(f, z, g, lam_x, lam_g)`` every

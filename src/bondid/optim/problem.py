@@ -35,6 +35,7 @@ from ..model.document import UrdfDocument
 from ..model.parameters import ParameterInfo, get_parameters, set_parameter
 from .constraints import Constraints, layout_constraints
 from .evaluator import Evaluator, ExtraRows
+from .free_columns import movable
 from .layout import Layout
 from .modified import ModifiedLayout
 from .nlp import Nlp
@@ -169,7 +170,9 @@ class FitProblem:
         if frf.modifier is not None and theta0 is not None:
             self._add_modifier(frf.modifier, theta0)
         self.rows = None if self._extra_rows is None else self._extra_rows(self)
-        self.evaluator = Evaluator(frf, self.model, prior=self.rows)
+        self.evaluator = Evaluator(
+            frf, self.model, prior=self.rows, free=movable(self.lbz, self.ubz)
+        )
         self._constraints: Constraints | None = None
         self._nlp: dict[str, Nlp] = {}
 
