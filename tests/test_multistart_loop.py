@@ -17,6 +17,7 @@ from bondid.model import UrdfDocument, get_parameters, select_parameters
 from bondid.optim import FitProblem
 from bondid.optim.multistart import (
     ITERATION_LIMIT,
+    MATERIAL,
     PATIENCE,
     Attempt,
     Budget,
@@ -73,6 +74,26 @@ def test_the_loop_stops_when_restarts_cannot_improve():
     assert run.ran == ["a", "b", "c", "d", "e"]
     assert out.best.start.label == "c" and out.stopped == "a restart could not improve"
     assert "kept c" in out.note() and "stopped: a restart could not improve" in out.note()
+
+
+def test_a_lower_end_in_the_same_basin_is_kept_but_is_no_improvement():
+    """Far above the noise level, restarts that lower the cost by less than MATERIAL of the
+    excess are kept (the lowest wins) but count as misses; one that removes more resets the
+    count."""
+    noise = 1.0
+    a = 100.0  # 100× the noise cost
+    small = a - 0.5 * MATERIAL * (a - noise)  # lower, but not by a share the user would see
+    objs = {"a": a, "b": 101.0, "c": small, "d": 50.0, "e": 50.0, "f": 49.9, "g": 1.0}
+    run = _Scripted(objs)
+    out = keep_best(_starts(*objs), run, noise=NoisePolicy(noise), budget=Budget(1000),
+                    max_iter=50)  # fmt: skip
+    assert run.ran == ["a", "b", "c"] and out.best.start.label == "c"
+    run = _Scripted({k: v for k, v in objs.items() if k != "b"})
+    out = keep_best(_starts("a", "c", "d", "e", "f", "g"), run, noise=NoisePolicy(noise),
+                    budget=Budget(1000), max_iter=50)  # fmt: skip
+    # c is a miss, d removes half the excess (the count starts again), e and f are misses
+    assert run.ran == ["a", "c", "d", "e", "f"] and out.best.start.label == "f"
+    assert out.stopped == "a restart could not improve"
 
 
 def test_the_loop_spends_one_budget():

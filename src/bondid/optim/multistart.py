@@ -16,9 +16,10 @@ problem rather than a count tuned on examples:
 1. **at the noise level** — the kept search's data cost is within :data:`.noise.AT_LEVEL`
    of what an exact model would score (:class:`.noise.NoisePolicy`): no start can do
    better by a margin the data could show;
-2. **a restart cannot improve** — :data:`PATIENCE` starts in a row ended no lower than the
-   kept one (by :data:`IMPROVEMENT`): the starts ranked next are not expected to do better
-   than those already tried, and the kept basin is what the model reaches;
+2. **a restart cannot improve** — :data:`PATIENCE` starts in a row removed less than
+   :data:`MATERIAL` of the kept search's excess over the noise level (a lower one is still
+   kept): the starts ranked next are not expected to do better than those already tried,
+   and the kept basin is what the model reaches;
 3. **the budget is spent** — one budget of IPOPT iterations (and optionally seconds) for
    the whole loop (:class:`Budget`); a start gets at most what is left.
 
@@ -46,8 +47,13 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 
 #: starts in a row that end no lower than the kept search before the loop stops
 PATIENCE = 2
-#: a search improves on the kept one when its objective is lower by more than this fraction
+#: a search replaces the kept one when its objective is lower by more than this fraction
 IMPROVEMENT = 1e-3
+#: ... and counts as an improvement (the patience starts again) only when it also removes at
+#: least this share of the kept search's excess over the noise level: a restart that lowers
+#: a fit far above the level by a fraction of a per cent found the same basin again, not a
+#: better one, and the next starts are no more likely to
+MATERIAL = 0.01
 #: IPOPT's status of a solve stopped at its iteration limit (continued once, see the module)
 ITERATION_LIMIT = "Maximum_Iterations_Exceeded"
 #: a resumed search may run this many times the per-step iteration limit (within the budget)
@@ -237,6 +243,16 @@ def _better(new: Attempt, kept: Attempt | None) -> bool:
     return new.objective < kept.objective * (1.0 - IMPROVEMENT)
 
 
+def _material(new: Attempt, kept: Attempt | None, noise: NoisePolicy) -> bool:
+    """Does ``new`` (better than ``kept``) remove :data:`MATERIAL` of ``kept``'s data cost
+    over the noise level's? (True when there is no kept search or the level is unknown.)"""
+    if kept is None or kept.search is None or not noise.known:
+        return True
+    assert noise.cost is not None
+    excess = kept.data_cost - noise.cost
+    return not excess > 0 or kept.data_cost - new.data_cost >= MATERIAL * excess
+
+
 #: runs one start with at most the given IPOPT iterations per step
 Runner = Callable[[Start, int], Attempt]
 
@@ -314,7 +330,9 @@ def keep_best(
         if on_attempt is not None:
             on_attempt(a)
         if _better(a, best):
-            best, misses = a, 0
+            material = _material(a, best, noise)
+            best = a
+            misses = 0 if material or resumed else misses + 1
             if a.status == ITERATION_LIMIT and not resumed and a.x_end is not None:
                 # still descending where it stopped: continue it before trying elsewhere
                 queued.append(Start(f"{start.label}, resumed", a.x_end, a.theta_end,
