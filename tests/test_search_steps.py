@@ -6,6 +6,7 @@ soon as it is decided."""
 from __future__ import annotations
 
 import math
+import sys
 from types import SimpleNamespace
 
 import numpy as np
@@ -207,3 +208,41 @@ def test_a_pool_with_more_workers_refits_that_many_at_once(monkeypatch):
                        n_max=4)  # fmt: skip
     assert len([t for t in pool.tasks if t[0] == "fake_refit"]) == 2 * 6
     assert step.stopped == "every probed candidate refitted"
+
+
+class _ReversePool(_Pool):
+    """Two lanes whose later submission ends first: a lower-ranked refit ends before the
+    better-ranked one running beside it."""
+
+    def first_done(self, futures):
+        return list(futures)[-1]
+
+
+def test_a_refit_that_ends_first_does_not_preempt_a_better_ranked_one(monkeypatch):
+    """Both probes are at the noise level; the better-ranked x decides the step whichever
+    ends first, as one worker would."""
+    figs = {"x": 0.2, "y": 0.3, "z": 0.4}
+    held = {"x": 1.0, "y": 0.95, "z": 2.9}
+    one, _ = _step(monkeypatch, 3.0, figs, held, workers=1)
+    monkeypatch.setattr(sys.modules[__name__], "_Pool", _ReversePool)
+    two, pool = _step(monkeypatch, 3.0, figs, held, workers=2)
+    refits = [label for name, label in pool.tasks if name == "fake_refit"]
+    # y and then z (in the lane y left) end before x; x still decides, and alone
+    assert refits == ["sensor_delay@x", "sensor_delay@y", "sensor_delay@z"]
+    for step in (one, two):
+        assert step.winner is not None and step.winner.label == "sensor_delay@x"
+        assert [r.label for r in step.results] == ["sensor_delay@x"] and step.refitted == [0]
+        assert step.stopped.startswith("decided: an accepted refit is at the held-out noise")
+
+
+def test_full_refits_decide_on_the_ranking_whichever_ends_first(monkeypatch):
+    figs = {"x": 0.2, "y": 0.3, "z": 0.4, "w": 0.5}
+    held = {"x": 2.0, "y": 1.5, "z": 2.9, "w": 2.9}
+    one, _ = _step(monkeypatch, 3.0, figs, held, n_min=3)
+    monkeypatch.setattr(sys.modules[__name__], "_Pool", _ReversePool)
+    two, _ = _step(monkeypatch, 3.0, figs, held, workers=2, n_min=3)
+    for step in (one, two):
+        assert step.winner is not None and step.winner.label == "sensor_delay@y"
+        assert step.stopped == "decided: an accepted refit after 3 full refits"
+    assert [r.label for r in two.results] == [r.label for r in one.results]
+    assert two.scores == one.scores

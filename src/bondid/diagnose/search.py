@@ -15,7 +15,10 @@ accepted so far) and runs three stages:
    as soon as the step is decided: at once, in either round, when a refit passes the rule
    at the held-out noise level (no later candidate could be told from it); after at least
    :attr:`Context.n_min` full refits (all of them when a pool has that many workers) once
-   the best passes the rule; after the probed candidates in any case;
+   the best passes the rule; after the probed candidates in any case. The step is decided
+   on the refits of the best-ranked candidates only, all of them ended: refits run side by
+   side end in any order, and one that ends early must not pre-empt a better-ranked one, so
+   the answer is the same with one worker or many;
 3. **decide** with the rule of :mod:`.scoring`: the best-scoring refit whose effect strength
    the data determine is tested against the base; it is accepted only when the base is above
    the held-out noise level, the gain is significant, it removes a good share of the excess
@@ -30,7 +33,7 @@ condition), except the first, whose candidates are screened for the report.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -209,12 +212,36 @@ def _at_level(ctx: Context, step: Step, results: list[JobResult]) -> bool:
     return winner is not None and _explained(ctx, winner)
 
 
+class _Ranked:
+    """Refits submitted in rank order and completed in any order: the step is decided on the
+    longest prefix of the ranking that is complete, so its answer is the one a refit of the
+    candidates one by one, in rank order, gives, whatever the number of workers and
+    whichever refit ends first (a refit that ends early must not pre-empt a better-ranked
+    one still running)."""
+
+    def __init__(self) -> None:
+        self.order: list[int] = []  # candidate indices, as submitted
+        self.done: dict[int, JobResult] = {}
+        self.n = 0  # the first n of ``order`` are done and have been judged
+
+    def grow(self) -> Iterator[list[int]]:
+        """Each longer complete prefix of the ranking not judged yet, shortest first."""
+        while self.n < len(self.order) and self.order[self.n] in self.done:
+            self.n += 1
+            yield self.order[: self.n]
+
+    def prefix(self) -> dict[int, JobResult]:
+        """The judged prefix's results, in rank order."""
+        return {i: self.done[i] for i in self.order[: self.n]}
+
+
 def _probe(ctx: Context, pool: Pool, step: Step, cands: list[Candidate], order: list[int],
            token: int, say: Progress) -> tuple[dict[int, JobResult], str]:  # fmt: skip
     """The probes (module docstring): each candidate of ``order`` refitted from its best
-    screened start only; stops at once when one is accepted at the noise level."""
+    screened start only; stops once the probes up to some rank decide the step at the noise
+    level (:class:`_Ranked`)."""
     lanes = max(1, pool.workers)
-    probes: dict[int, JobResult] = {}
+    ranked = _Ranked()
     running: dict[Any, int] = {}
     queue, decided = list(order), ""
     while queue or running:
@@ -223,27 +250,31 @@ def _probe(ctx: Context, pool: Pool, step: Step, cands: list[Candidate], order: 
             starts = step.screenings[i].starts
             f = _submit(ctx, pool, step, cands, i, starts, token, probe=True, budget_starts=1)
             running[f] = i
-            step.refitted.append(i)
+            ranked.order.append(i)
         if not running:
             break
         f = pool.first_done(running)
         i = running.pop(f)
         r = f.result()
-        if decided and r.error == "cancelled":
-            step.refitted.remove(i)
+        if decided:  # ranked after the deciding prefix (cancelled, or ended anyway)
             continue
-        probes[i] = r
+        ranked.done[i] = r
         say(f"step {step.index + 1}: probed {r.label}")
-        if not decided and _at_level(ctx, step, list(probes.values())):
-            decided = "an accepted refit is at the held-out noise level"
-            pool.cancel_level(token)  # the probes still running are no longer needed
+        for prefix in ranked.grow():
+            if _at_level(ctx, step, [ranked.done[j] for j in prefix]):
+                decided = "an accepted refit is at the held-out noise level"
+                pool.cancel_level(token)  # the probes still running are no longer needed
+                break
+    probes = ranked.prefix() if decided else {i: ranked.done[i] for i in ranked.order}
+    step.refitted.extend(probes)
     return probes, decided
 
 
 def _refit_ranked(ctx: Context, pool: Pool, step: Step, cands: list[Candidate],
                   say: Progress) -> list[JobResult]:  # fmt: skip
     """Stage 2 of the module docstring: the probes, then the full refits in the order the
-    probes reached, until the step is decided."""
+    probes reached, until the step is decided (on complete prefixes of that order, as the
+    probes are: :class:`_Ranked`)."""
     scr = step.screenings
     order = sorted((i for i, s in enumerate(scr) if math.isfinite(s.cost) and s.starts),
                    key=lambda i: scr[i].cost)  # fmt: skip
@@ -258,39 +289,42 @@ def _refit_ranked(ctx: Context, pool: Pool, step: Step, cands: list[Candidate],
     # the training objective a candidate's first start reached ranks it better than the
     # screening's one-step prediction: a missing spring's basin is seldom reached in a step
     queue = sorted(probes, key=lambda i: (bool(probes[i].error), probes[i].objective))
-    full: dict[int, JobResult] = {}
+    ranked = _Ranked()
     running: dict[Any, int] = {}
 
-    def results() -> list[JobResult]:  # full refits, and the probes not yet refitted in full
+    def results(full: dict[int, JobResult]) -> list[JobResult]:
+        """The full refits ``full``, and the probes not refitted in full."""
         return [full.get(i, probes[i]) for i in probes]
 
     while queue or running:
-        while queue and not decided and len(running) < lanes and len(full) + len(running) < n_max:
+        while queue and not decided and len(running) < lanes and len(ranked.order) < n_max:
             i = queue.pop(0)
             end = probes[i].end
             starts = scr[i].starts if end is None else (end, *scr[i].starts[1:])
             running[_submit(ctx, pool, step, cands, i, starts, token)] = i
+            ranked.order.append(i)
         if not running:
             break
         f = pool.first_done(running)
         i = running.pop(f)
         r = f.result()
-        if decided and r.error == "cancelled":
-            continue
-        full[i] = r
-        say(f"step {step.index + 1}: refitted {r.label}")
         if decided:
             continue
-        if _at_level(ctx, step, results()):
-            decided = "an accepted refit is at the held-out noise level"
-        elif decide(ctx, step.base, step.base_score, results())[3] is not None and (
-            len(full) >= n_min
-        ):
-            decided = f"an accepted refit after {len(full)} full refits"
-        if decided:  # the refits still running are no longer needed
-            pool.cancel_level(token)
+        ranked.done[i] = r
+        say(f"step {step.index + 1}: refitted {r.label}")
+        for prefix in ranked.grow():
+            now = results({j: ranked.done[j] for j in prefix})
+            if _at_level(ctx, step, now):
+                decided = "an accepted refit is at the held-out noise level"
+            elif decide(ctx, step.base, step.base_score, now)[3] is not None and (
+                len(prefix) >= n_min
+            ):
+                decided = f"an accepted refit after {len(prefix)} full refits"
+            if decided:  # the refits still running are no longer needed
+                pool.cancel_level(token)
+                break
     step.stopped = f"decided: {decided}" if decided else "every probed candidate refitted"
-    return results()
+    return results(ranked.prefix() if decided else ranked.done)
 
 
 def run_step(ctx: Context, pool: Pool, index: int, base: JobResult, base_score: float,
