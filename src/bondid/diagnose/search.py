@@ -265,7 +265,7 @@ def _probe(ctx: Context, pool: Pool, step: Step, cands: list[Candidate], order: 
                 decided = "an accepted refit is at the held-out noise level"
                 pool.cancel_level(token)  # the probes still running are no longer needed
                 break
-    probes = ranked.prefix() if decided else {i: ranked.done[i] for i in ranked.order}
+    probes = ranked.prefix()  # undecided: every probe ended, the prefix is all of them
     step.refitted.extend(probes)
     return probes, decided
 
@@ -324,7 +324,7 @@ def _refit_ranked(ctx: Context, pool: Pool, step: Step, cands: list[Candidate],
                 pool.cancel_level(token)
                 break
     step.stopped = f"decided: {decided}" if decided else "every probed candidate refitted"
-    return results(ranked.prefix() if decided else ranked.done)
+    return results(ranked.prefix())
 
 
 def run_step(ctx: Context, pool: Pool, index: int, base: JobResult, base_score: float,

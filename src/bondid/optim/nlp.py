@@ -112,21 +112,21 @@ class Nlp:
         when IPOPT has just evaluated it there."""
         import casadi
 
-        ev = self.evaluator
-        r, J = ev.movable_jacobian(z)
+        r, J = self.evaluator.movable_jacobian(z)
         if not np.all(np.isfinite(r)):
             return float("inf")
-        _, grad = ev.cost_and_gradient(z)
-        grad = grad + lam_x
+        # entries that cannot move (fixed variables) take no Gauss–Newton step: the
+        # decrement is taken over the movable ones alone
+        cols = self.evaluator.cols
+        grad = 2.0 * (J.T @ r) + lam_x[cols]
         if self.ng:
             if self._jac_g is None:
                 zs = self.constraints.zsym
                 self._jac_g = casadi.Function(
                     "fit_jac_g", [zs], [casadi.jacobian(self.constraints.expr, zs)]
                 )
-            grad = grad + np.asarray(self._jac_g(z), dtype=float).T @ lam_g
-        # entries that cannot move (fixed variables) take no Gauss–Newton step
-        return gauss_newton_decrement(J, grad[ev.cols])
+            grad = grad + (np.asarray(self._jac_g(z), dtype=float).T @ lam_g)[cols]
+        return gauss_newton_decrement(J, grad)
 
     def solver(self, record: Callable[..., bool], ipopt: dict) -> tuple[Any, Any]:
         """A ``casadi.nlpsol`` IPOPT instance calling ``record(f, z, g, lam_x, lam_g)`` every
