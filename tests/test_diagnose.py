@@ -384,7 +384,8 @@ def test_two_withheld_effects_are_found_in_order(doc, tmp_path):
 
 def test_a_modal_identification_error_reaches_the_report(doc, monkeypatch):
     """The error row of a failed modal identification is kept next to the model's modes."""
-    from bondid.diagnose import diagnose, modal_id
+    from bondid.diagnose import diagnose
+    from bondid.modal import identify as modal_id
 
     def fail(*_a, **_k):  # type: ignore[no-untyped-def]
         raise ValueError("no poles")

@@ -20,7 +20,7 @@ def _run(body: str) -> subprocess.CompletedProcess[str]:
     script = textwrap.dedent(
         f"""
         import os, subprocess, sys, time
-        from bondid.fleet.worker_stderr import relayed_stderr
+        from bondid.cluster.worker_stderr import relayed_stderr
         LATE = [sys.executable, "-c",
                 "import sys, time; time.sleep({LATE_S}); sys.stderr.write('late worker\\\\n')"]
         """

@@ -11,7 +11,7 @@ import pytest
 from bondid.cost import db_rms
 from bondid.data import FrfData
 from bondid.diagnose.gap import band_mask, gap_bands, gap_report
-from bondid.diagnose.modal_id import (
+from bondid.modal.identify import (
     antiresonance_shifts,
     antiresonances,
     identify_modes,
@@ -212,7 +212,7 @@ def test_mac_compares_the_channels_the_data_determine(bonder) -> None:
     spoil the pairing: the MAC is taken on the entries both modes determine."""
     from dataclasses import replace
 
-    from bondid.diagnose.pairing import mac_matrix
+    from bondid.modal.pairing import mac_matrix
 
     _, lm, data, _ = bonder
     mm = model_modes(lm, freq_hz=data.freq_hz)

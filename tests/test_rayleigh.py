@@ -16,12 +16,12 @@ from bondid.exceptions import ConfigError, ModelError, ParameterError
 from bondid.fit.damping import damping_free, damping_from_study, declare_damping
 from bondid.frf.jacobian import frf_and_jacobian
 from bondid.linear.affine import build_affine_model
+from bondid.linear.linear_model import underdamped
 from bondid.linear.parameter_map import ParameterMap
 from bondid.linear.rayleigh import fit_coefficients, rayleigh_start
 from bondid.model import UrdfDocument
 from bondid.model.parameters import get_parameter, parameter_names, select_parameters, set_parameter
 from bondid.model.rayleigh import Rayleigh, model_rayleigh, set_rayleigh
-from bondid.modes.bands import underdamped
 from bondid.optim.problem import FitProblem
 from bondid.simulate import simulate
 

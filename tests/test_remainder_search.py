@@ -124,7 +124,7 @@ def test_json_form_holds_the_documented_keys():
 
 
 def test_accelerance_data_give_the_same_remainder_as_receptance():
-    from bondid.frf.quantity import convert_quantity
+    from bondid.data.quantity import convert_quantity
 
     H = model().copy()
     H[:, Y] *= 10 ** (-0.8 / 20)  # the y drive's force constant 0.8 dB low

@@ -155,7 +155,7 @@ def test_a_lost_worker_is_one_line(capsys):
 
 
 def test_dask_tracebacks_are_folded_into_one_line():
-    from bondid.fleet.cluster import one_line_logs
+    from bondid.cluster.client import one_line_logs
 
     log = logging.getLogger("distributed.test_trust")
     buf = io.StringIO()

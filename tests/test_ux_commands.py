@@ -79,8 +79,8 @@ def test_a_warning_is_one_line_with_a_short_path(capsys):
 
 
 def test_fleet_without_dask_says_what_to_install(monkeypatch):
+    from bondid.cluster.client import require_dask
     from bondid.exceptions import DependencyError
-    from bondid.fleet.cluster import require_dask
 
     monkeypatch.setitem(sys.modules, "dask.distributed", None)  # import fails as if missing
     with pytest.raises(DependencyError, match=r"pip install 'bondid\[fleet\]'"):

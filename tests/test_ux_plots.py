@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bondid.frf.quantity import convert_quantity
+from bondid.data.quantity import convert_quantity
 from bondid.plots import Curve, build_bode
 from bondid.plots.bode import CHANNEL_KEY
 

@@ -19,10 +19,10 @@ Data sets:
   (motor and load angle per current, a delay) to the data.
 
 Every method reads the same input: the data set with its information weights in place of
-the coherence, as the diagnosis hands it to :func:`bondid.diagnose.modal_id.identify_modes`.
+the coherence, as the diagnosis hands it to :func:`bondid.modal.identify.identify_modes`.
 Methods:
 
-- ``ours``: :func:`~bondid.diagnose.modal_id.identify_modes` as it is;
+- ``ours``: :func:`~bondid.modal.identify.identify_modes` as it is;
 - ``ours-norefine``: the same without the nonlinear refinement of the poles;
 - ``sdypy-lscf``: the same pipeline with sdypy-EMA's LSCF as the pole estimator in each band
   (the band's FRF, channels balanced, interpolated onto the uniform grid from 0 Hz that
@@ -39,7 +39,7 @@ Methods:
 Metrics per data set (truth modes: prominence ≥ 0.1 inside the data's band): ``found`` =
 truth modes paired one-to-one with an identified mode within 3 % in frequency; ``dζ`` =
 median relative damping error of those pairs [%]; ``MAC`` = mean MAC of their residues
-against the truth's (:func:`bondid.diagnose.pairing.mac_matrix`); ``spur`` = identified modes
+against the truth's (:func:`bondid.modal.pairing.mac_matrix`); ``spur`` = identified modes
 farther than 3 % from every mode of the truth (of any prominence); ``cpu`` = process CPU time
 of the identification [s]. Then the same summed per group (design and regime).
 """
@@ -71,8 +71,8 @@ import numpy as np  # noqa: E402
 from bondid.data import FrfData  # noqa: E402
 from bondid.data.io import read_frf  # noqa: E402
 from bondid.data.weights import with_weights_as_coherence  # noqa: E402
-from bondid.diagnose import _lscf  # noqa: E402
-from bondid.diagnose.modal_id import IdentifiedMode, identify_modes, model_modes  # noqa: E402
+from bondid.modal import lscf as _lscf  # noqa: E402
+from bondid.modal.identify import IdentifiedMode, identify_modes, model_modes  # noqa: E402
 
 #: the benchmark cases measured by default: the four designs, every regime
 CASES = (
@@ -118,7 +118,7 @@ def uniform_from_zero(f: np.ndarray, H: np.ndarray) -> tuple[np.ndarray, np.ndar
 def sdypy_plscf(
     freq_hz: np.ndarray, H: np.ndarray, weight: np.ndarray, n_max: int
 ) -> list[_lscf.PoleSet]:
-    """:func:`bondid.diagnose._lscf.plscf`'s job by sdypy-EMA's LSCF: the poles of each of
+    """:func:`bondid.modal.lscf.plscf`'s job by sdypy-EMA's LSCF: the poles of each of
     its ``n_max`` orders (denominator degrees 2, 4, … 2·n_max; fewer where the band has too
     few lines). ``weight`` is not used: sdypy's estimator weighs every line alike."""
     from sdypy import EMA
@@ -149,7 +149,7 @@ def sdypy_lsfd(
     lower: bool = True,
     upper: int = 1,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`bondid.diagnose._lscf.lsfd`'s job by sdypy-EMA's LSFD (one unweighted least
+    """:func:`bondid.modal.lscf.lsfd`'s job by sdypy-EMA's LSFD (one unweighted least
     squares over the channels with no gap; lower residual ``1/s²``, upper a constant);
     ``weight`` is not used."""
     from sdypy.EMA.EMA import LSFD
@@ -203,7 +203,7 @@ def _sdypy(d: FrfData) -> list[IdentifiedMode]:
 
 
 def _union(d: FrfData) -> list[IdentifiedMode]:
-    from bondid.diagnose import modal_id
+    from bondid.modal import identify as modal_id
 
     own = modal_id._band_poles
 
@@ -361,7 +361,7 @@ def matched(ident: list[IdentifiedMode], truth: list[IdentifiedMode]) -> list[tu
 
 
 def score(ds: DataSet, method: Callable[[FrfData], list[IdentifiedMode]]) -> Score:
-    from bondid.diagnose.pairing import mac_matrix
+    from bondid.modal.pairing import mac_matrix
 
     f_lo, f_hi = float(ds.data.freq_hz[0]), float(ds.data.freq_hz[-1])
     shown = [t for t in ds.truth if t.prominence >= MIN_PROMINENCE and f_lo <= t.f_hz <= f_hi]

@@ -18,8 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from .data.quantity import QUANTITIES
 from .exceptions import DependencyError
-from .frf.quantity import QUANTITIES
 from .linear.affine import build_affine_model
 from .model.document import UrdfDocument
 

@@ -187,9 +187,9 @@ def truth_db(paths: list[Path], exact: list[np.ndarray], diag: dict[str, Any]) -
     with the weighting ``diagnosis.json`` names under ``weighting`` or ``scoring.weighting``,
     if any)."""
     from bondid.data.io import read_frf
+    from bondid.data.quantity import convert_quantity
     from bondid.diagnose.gap import gap_report
     from bondid.diagnose.split import limit_bands, mask_incoherent
-    from bondid.frf.quantity import convert_quantity
 
     info = diag.get("weighting")
     rule = info.get("weighting") if isinstance(info, dict) else info

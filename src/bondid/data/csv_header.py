@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import ChannelError, DataError
-from ..frf.quantity import QUANTITIES, convert_quantity
 from ._common import FORMAT_VERSION, check_joint_name, parse_operating_point
+from .quantity import QUANTITIES, convert_quantity
 
 _META_KEYS = ("bondid-frf", "quantity", "operating_point", "outputs", "inputs", "quantities")
 _SUFFIXES = ("re", "im", "coh")

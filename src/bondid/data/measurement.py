@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..exceptions import ChannelError, DataError
-from ..frf.quantity import QUANTITIES, convert_quantity
+from .quantity import QUANTITIES, convert_quantity
 
 
 @dataclass

@@ -7,8 +7,8 @@ import math
 import numpy as np
 
 from ..exceptions import ConfigError
-from ..frf.quantity import QUANTITIES, quantity_factor
 from ._common import frf_arrays
+from .quantity import QUANTITIES, quantity_factor
 
 
 def _complex_normal(rng: np.random.Generator, shape: tuple[int, ...]) -> np.ndarray:

@@ -16,8 +16,8 @@ from typing import Any
 import numpy as np
 
 from ..exceptions import ChannelError, DataError
-from ..frf.quantity import QUANTITIES, convert_quantity
 from ._common import check_coherence, check_frequencies, check_joint_name, has_dc_line
+from .quantity import QUANTITIES, convert_quantity
 
 #: UFF 58 function types
 FUNC_FRF = 4

@@ -6,7 +6,7 @@ Public API (imported lazily, so ``import bondid.diagnose`` stays cheap):
 * :func:`diagnose` (:mod:`.pipeline`) → :class:`Diagnosis`; :class:`Settings`;
 * :func:`write_outputs`, :func:`summary`, :func:`to_json_dict` (:mod:`.report`);
 * the effect library :mod:`.effects` (:class:`~.effects.base.Effect`, ``register``);
-* gap and modes: :mod:`.gap`, :mod:`.modal_id`, :mod:`.pairing`.
+* the gap: :mod:`.gap`; the modes of the data and of the model come from :mod:`bondid.modal`.
 """
 
 from __future__ import annotations

@@ -25,7 +25,7 @@ from .refit import Refit, State
 
 if TYPE_CHECKING:
     from ..data.measurement import FrfData
-    from .modal_id import IdentifiedMode
+    from ..modal.identify import IdentifiedMode
 
 #: relative frequency error that costs as much as a MAC of 0.75 in the matching cost
 SIGMA_F = 0.1
@@ -46,8 +46,8 @@ def springs(cand: Candidate) -> list[int]:
 
 def model_modes(refit: Refit, state: State, data: Sequence[FrfData]) -> list[list[Any]]:
     """The modes of the model at ``state`` for each data set (its operating point and
-    channels; :func:`.modal_id.model_modes`)."""
-    from .modal_id import model_modes as modes_of
+    channels; :func:`~bondid.modal.identify.model_modes`)."""
+    from ..modal.identify import model_modes as modes_of
 
     affines = refit.at(state).frf.affines
     return [modes_of(am.linear_model(), data=d) for d, am in zip(data, affines, strict=True)]
@@ -59,7 +59,7 @@ def matching_cost(
 ) -> float:  # fmt: skip
     """The matching cost (module docstring) of the model at ``state``; inf where it fails."""
     from ..exceptions import BondidError
-    from .pairing import mac_matrix
+    from ..modal.pairing import mac_matrix
 
     try:
         by_set = model_modes(refit, state, data)

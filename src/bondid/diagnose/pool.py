@@ -140,7 +140,7 @@ class DaskPool:
         from contextlib import ExitStack
 
         try:
-            from ..fleet.cluster import open_client
+            from ..cluster.client import open_client
         except ImportError as exc:  # pragma: no cover - depends on the environment
             raise ConfigError(
                 f"--scheduler {address}: Dask is not installed ({exc}); "

@@ -93,7 +93,7 @@ class Places:
     model lacks (``missing``) and of the others the model matches worst, worst first
     (``worst``), the nominal model's values of the nominal parameters (``nominal``,
     ``(n_nominal,)``; None: no nominal origin), and the modes identified in each whole data
-    set (``measured``, :class:`.modal_id.IdentifiedMode` per set; empty: none)."""
+    set (``measured``, :class:`~bondid.modal.record.IdentifiedMode` per set; empty: none)."""
 
     missing: tuple[float, ...] = ()
     worst: tuple[float, ...] = ()

@@ -19,10 +19,10 @@ def where(
     do_modes: bool,
 ) -> tuple[list[dict[str, Any]], list[list[dict[str, Any]]], list[dict[str, Any]], list, tuple]:
     """Modes (measured vs refitted model), anti-resonance shifts, automatic bands and the modes
-    identified in each data set (a tuple of tuples of :class:`.modal_id.IdentifiedMode`;
+    identified in each data set (a tuple of tuples of :class:`~bondid.modal.record.IdentifiedMode`;
     empty without ``do_modes``)."""
+    from ..modal.antiresonance import antiresonance_shifts
     from ..modes.bands import Feature
-    from .antiresonance import antiresonance_shifts
     from .gap import gap_bands
 
     refit_doc = UrdfDocument.from_string(baseline.urdf, source="refit model")
@@ -34,8 +34,8 @@ def where(
         rows: list[dict[str, Any]] = []
         error: dict[str, Any] | None = None
         if do_modes:
-            from .modal_id import identify_modes
-            from .pairing import pair_modes
+            from ..modal.identify import identify_modes
+            from ..modal.pairing import pair_modes
 
             try:
                 meas = identify_modes(d)
@@ -64,10 +64,10 @@ def where(
 
 def modes_on_channels(doc: UrdfDocument, d: FrfData, channels: list[str]) -> list[Any]:
     """The modes of ``doc`` at ``d``'s operating point, their residues on ``d``'s outputs
-    and inputs and ``channels`` (:func:`.modal_id.model_modes`), as the measured modes of
-    ``d`` are identified."""
+    and inputs and ``channels`` (:func:`~bondid.modal.identify.model_modes`), as the measured
+    modes of ``d`` are identified."""
     from ..linear.affine import build_affine_model
-    from .modal_id import model_modes
+    from ..modal.identify import model_modes
 
     lm = build_affine_model(doc, d.operating_point, outputs=d.outputs)
     mask = np.array([[f"{o}.{i}" in channels for i in lm.inputs] for o in lm.outputs])

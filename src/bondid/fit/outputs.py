@@ -336,8 +336,8 @@ def _bode_plots(
 ) -> list[str]:
     """``bode_<stem>.png`` per data set, in the quantity of its file: measured, initial and
     fitted model, noise level; the channels the fit left out greyed."""
+    from ..data.quantity import quantity_factor
     from ..data.weights import noise_estimate
-    from ..frf.quantity import quantity_factor
     from ..plots import Curve, noise_curve, plot_bode
 
     written = []

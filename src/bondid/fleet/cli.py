@@ -138,9 +138,9 @@ def diagnose_argv(args: argparse.Namespace) -> list[str] | None:
 
 def check_options(args: argparse.Namespace) -> None:
     """Option checks that need no machine (one ConfigError naming the item)."""
+    from ..cluster.client import scheduler_address
     from ..model.document import UrdfDocument
     from ..model.parameters import select_parameters
-    from .cluster import scheduler_address
 
     if args.workers is not None and args.workers < 1:
         raise ConfigError(f"--workers {args.workers}: give an integer >= 1")
@@ -237,10 +237,10 @@ def _summary(statuses: Sequence[dict[str, Any]], stats: Any, n_skipped: int) -> 
 
 
 def _body(args: argparse.Namespace) -> int:
+    from ..cluster.client import open_client, scheduler_address
     from ..manifest import RESULT_PATTERNS
     from ..results import open_results
     from .aggregate import aggregate
-    from .cluster import open_client, scheduler_address
     from .machines import discover
     from .outputs import FLEET_JSON, write_fleet_outputs
     from .runner import run_jobs

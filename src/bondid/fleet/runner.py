@@ -22,7 +22,7 @@ from typing import Any
 
 from ..atomic import write_text_atomic
 from ..cli import Progress
-from .cluster import worker_threads
+from ..cluster.client import worker_threads
 from .state import STATUS_FAILED, STATUS_JSON, STATUS_OK
 from .worker import MachineJob, run_machine
 
@@ -66,7 +66,7 @@ def run_jobs(
     (:func:`bondid.interrupt.check`).
     """
     from .. import interrupt
-    from .cluster import require_dask
+    from ..cluster.client import require_dask
 
     as_completed = require_dask().as_completed
     run = uuid.uuid4().hex[:8]

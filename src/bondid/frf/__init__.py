@@ -1,7 +1,8 @@
-"""FRF computation: the engine and the receptance/mobility/accelerance conversions."""
+"""FRF computation: the engine, and the receptance/mobility/accelerance conversions of
+:mod:`bondid.data.quantity` handed on."""
 
+from ..data.quantity import QUANTITIES, convert_quantity, quantity_factor
 from .engine import dynamic_stiffness, frf, omega, solve_columns
-from .quantity import QUANTITIES, convert_quantity, quantity_factor
 
 __all__ = [
     "QUANTITIES",

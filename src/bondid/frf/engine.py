@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..data.quantity import quantity_factor
 from ..exceptions import ComputationError, DataError
-from .quantity import quantity_factor
 
 #: frequencies solved at once: the dynamic stiffness of a block, ``(block, nv, nv)`` complex,
 #: stays small however many lines a file has (100 000 lines of an 11-DOF model would hold

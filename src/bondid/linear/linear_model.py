@@ -15,6 +15,37 @@ def state_matrix(M: np.ndarray, K: np.ndarray, D: np.ndarray) -> np.ndarray:
     return np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ K, -Minv @ D]])
 
 
+#: an eigenvalue is oscillatory (one of a conjugate pair) when Im λ > this · max(1, |λ|)
+OSCILLATORY_RTOL = 1e-9
+
+
+def is_oscillatory(lam: np.ndarray) -> np.ndarray:
+    """Boolean mask of the eigenvalues ``lam`` with ``Im λ > 0`` beyond rounding."""
+    lam = np.asarray(lam)
+    return lam.imag > OSCILLATORY_RTOL * np.maximum(1.0, np.abs(lam))
+
+
+def state_eigenvalues(M: np.ndarray, K: np.ndarray, D: np.ndarray) -> np.ndarray:
+    """The eigenvalues λ ``(2n,)`` (1/s) of the state matrix of ``M q̈ + D q̇ + K q = 0``
+    (``M``, ``K``, ``D`` ``(n, n)`` in SI units; ``(0,)`` when ``n = 0``).
+
+    Raises:
+        numpy.linalg.LinAlgError: a singular ``M``.
+    """
+    if M.shape[0] == 0:
+        return np.zeros(0, dtype=complex)
+    return np.linalg.eigvals(state_matrix(M, K, D))
+
+
+def underdamped(M: np.ndarray, K: np.ndarray, D: np.ndarray) -> list[tuple[float, float]]:
+    """``(f_hz, ζ)`` of the oscillatory eigenvalues of ``M q̈ + D q̇ + K q = 0``, lowest first
+    (``M``, ``K``, ``D`` ``(n, n)`` in SI units)."""
+    lam = state_eigenvalues(M, K, D)
+    return sorted(
+        (float(abs(v) / (2.0 * np.pi)), float(-v.real / abs(v))) for v in lam[is_oscillatory(lam)]
+    )
+
+
 @dataclass
 class LinearModel:
     """M δq̈ + D δq̇ + K δq = B u,  y = C δq (velocity coordinates of the model).

@@ -42,7 +42,7 @@ class RayleighStart:
 
 def _modes(affine: AffineModel, damped: bool) -> list[tuple[float, float]]:
     """``(f_hz, ζ)`` of the model's vibration modes (undamped ones when not ``damped``)."""
-    from ..modes.bands import underdamped
+    from .linear_model import underdamped
 
     M, K = affine.mass_matrix(), affine.stiffness_matrix()
     D = affine.damping_matrix() if damped else np.zeros_like(M)

@@ -2,9 +2,11 @@
 sensitivity (per-band sensitivities), the diagnosis and the mode table find resonances and
 bands.
 
-Resonances. The oscillatory eigenvalues λ (``Im λ > 0``, :func:`is_oscillatory`) of the state
-matrix of ``M q̈ + D q̇ + K q = B u`` give ``f = |λ|/2π`` and ``ζ = −Re λ/|λ|``
-(:func:`underdamped`). :func:`resonances` (:func:`model_resonances` from a URDF) adds whether
+Resonances. The oscillatory eigenvalues λ (``Im λ > 0``,
+:func:`~bondid.linear.linear_model.is_oscillatory`) of the state matrix of
+``M q̈ + D q̇ + K q = B u`` give ``f = |λ|/2π`` and ``ζ = −Re λ/|λ|``
+(:func:`~bondid.linear.linear_model.underdamped`). :func:`resonances`
+(:func:`model_resonances` from a URDF) adds whether
 a resonance is *parasitic*: most of its modal strain energy in springs of joints without a
 transmission.
 
@@ -39,7 +41,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..linear.affine import AffineModel
-from ..linear.linear_model import state_matrix
+from ..linear.linear_model import underdamped
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..model.document import UrdfDocument
@@ -51,14 +53,6 @@ Span = tuple[float, float]
 DAMPING_BAND_RATIO = 1.25
 #: The stiffness stage band ends this factor below the first parasitic resonance.
 STIFFNESS_BAND_MARGIN = 1.5
-#: an eigenvalue is oscillatory (one of a conjugate pair) when Im λ > this · max(1, |λ|)
-OSCILLATORY_RTOL = 1e-9
-
-
-def is_oscillatory(lam: np.ndarray) -> np.ndarray:
-    """Boolean mask of the eigenvalues ``lam`` with ``Im λ > 0`` beyond rounding."""
-    lam = np.asarray(lam)
-    return lam.imag > OSCILLATORY_RTOL * np.maximum(1.0, np.abs(lam))
 
 
 @dataclass(frozen=True)
@@ -101,27 +95,6 @@ class Band:
 
 def _fmt(f: float) -> str:
     return f"{f:.3g}" if f < 1000 else f"{f / 1000:.3g}k"
-
-
-def state_eigenvalues(M: np.ndarray, K: np.ndarray, D: np.ndarray) -> np.ndarray:
-    """The eigenvalues λ ``(2n,)`` (1/s) of the state matrix of ``M q̈ + D q̇ + K q = 0``
-    (``M``, ``K``, ``D`` ``(n, n)`` in SI units; ``(0,)`` when ``n = 0``).
-
-    Raises:
-        numpy.linalg.LinAlgError: a singular ``M``.
-    """
-    if M.shape[0] == 0:
-        return np.zeros(0, dtype=complex)
-    return np.linalg.eigvals(state_matrix(M, K, D))
-
-
-def underdamped(M: np.ndarray, K: np.ndarray, D: np.ndarray) -> list[tuple[float, float]]:
-    """``(f_hz, ζ)`` of the oscillatory eigenvalues of ``M q̈ + D q̇ + K q = 0``, lowest first
-    (``M``, ``K``, ``D`` ``(n, n)`` in SI units)."""
-    lam = state_eigenvalues(M, K, D)
-    return sorted(
-        (float(abs(v) / (2.0 * np.pi)), float(-v.real / abs(v))) for v in lam[is_oscillatory(lam)]
-    )
 
 
 def model_features(

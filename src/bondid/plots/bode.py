@@ -11,8 +11,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..data.quantity import QUANTITIES
 from ..exceptions import ChannelError, DataError
-from ..frf.quantity import QUANTITIES
 from ._common import new_figure, save_png, style_axes
 from .units import channel_unit, magnitude_label
 

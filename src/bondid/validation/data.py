@@ -126,7 +126,7 @@ def check_values(ds: FrfData) -> list[str]:
 def check_scale(doc: UrdfDocument, ds: FrfData) -> list[str]:
     """Each channel's median |H| against the nominal model's on the same grid; see the
     module docstring. Returns warnings; raises :class:`DataError` beyond the limit."""
-    from ..fit.outputs import model_frf
+    from ..frf.aligned import model_frf
 
     where = ds.source or "<in-memory FRF>"
     try:

@@ -44,7 +44,7 @@ def limit_warnings(doc: UrdfDocument, op: Mapping[str, float], what: str) -> lis
 def stability_warnings(doc: UrdfDocument, op: Mapping[str, float], what: str) -> list[str]:
     """An eigenvalue of the linearised model with Re λ > 0 (e.g. gravity beats a spring)."""
     from ..linear.affine import build_affine_model
-    from ..modes.bands import state_eigenvalues
+    from ..linear.linear_model import state_eigenvalues
 
     try:
         lm = build_affine_model(doc, dict(op)).linear_model()

@@ -72,7 +72,7 @@ class Context:
     """The data, the settings and the modes (per data set) the detectors share.
 
     ``measured_modes`` / ``model_modes``: lists per data set of
-    :class:`~bondid.diagnose.modal_id.IdentifiedMode` (None: identified on first use, the
+    :class:`~bondid.modal.identify.IdentifiedMode` (None: identified on first use, the
     model's from its own FRF).
     """
 

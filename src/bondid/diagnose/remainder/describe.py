@@ -155,10 +155,10 @@ def describe_remainder(
             (:func:`.residual.build_residual`).
         weights: per data set, the information weights (default the coherence).
         measured_modes: per data set, the modes identified in it
-            (:func:`bondid.diagnose.modal_id.identify_modes`); identified here when None.
+            (:func:`bondid.modal.identify.identify_modes`); identified here when None.
         model_modes: per data set, the model's modes as
-            :class:`~bondid.diagnose.modal_id.IdentifiedMode` on the data set's channels
-            (e.g. :func:`~bondid.diagnose.modal_id.model_modes`); identified from ``model_H``
+            :class:`~bondid.modal.identify.IdentifiedMode` on the data set's channels
+            (e.g. :func:`~bondid.modal.identify.model_modes`); identified from ``model_H``
             when None.
         settings: :class:`Settings`.
 

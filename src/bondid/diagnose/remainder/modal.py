@@ -1,7 +1,7 @@
 """The modal side of the remainder, on the diagnosis' own tools: modes identified in the data
-and in the model's FRF (:func:`~bondid.diagnose.modal_id.identify_modes`), their pairing
-(:func:`~bondid.diagnose.pairing.pair_modes`) and the MAC of a fitted mode to the model's
-(:func:`~bondid.diagnose.pairing.mac_matrix`)."""
+and in the model's FRF (:func:`~bondid.modal.identify.identify_modes`), their pairing
+(:func:`~bondid.modal.pairing.pair_modes`) and the MAC of a fitted mode to the model's
+(:func:`~bondid.modal.pairing.mac_matrix`)."""
 
 from __future__ import annotations
 
@@ -13,10 +13,10 @@ from typing import Any
 import numpy as np
 
 from ...data.measurement import FrfData
-from ..pairing import mac_matrix, pair_modes
+from ...modal.pairing import mac_matrix, pair_modes
 
 #: a model mode within this relative frequency and at least this MAC is "the same mode"
-#: (the pairing's defaults, :func:`bondid.diagnose.pairing.pair_modes`)
+#: (the pairing's defaults, :func:`bondid.modal.pairing.pair_modes`)
 PAIR_F_TOL = 0.2
 PAIR_MAC = 0.5
 
@@ -26,7 +26,7 @@ def identify_each(
 ) -> list[list[Any]]:
     """The modes of each data set (``model_H`` None) or of the model FRF of each data set
     (noise-free: no weights); none where identification fails (a note says so)."""
-    from ..modal_id import identify_modes
+    from ...modal.identify import identify_modes
 
     out: list[list[Any]] = []
     for k, d in enumerate(data):
@@ -85,9 +85,9 @@ class Nearest:
 
 def nearest(f_hz: float, zeta: float, residues: np.ndarray, model: Sequence[Any]) -> Nearest:
     """:class:`Nearest` of a mode at ``f_hz`` with ``residues`` ``(n_out, n_in)`` among the
-    model's modes ``model`` (:class:`~bondid.diagnose.modal_id.IdentifiedMode`, same
+    model's modes ``model`` (:class:`~bondid.modal.identify.IdentifiedMode`, same
     channels)."""
-    from ..modal_id import IdentifiedMode
+    from ...modal.identify import IdentifiedMode
 
     if not model:
         return Nearest(None, None, None, 0.0, False)

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from ..pairing import VISIBLE_PROMINENCE
+from ...modal.pairing import VISIBLE_PROMINENCE
 from ..scoring import LEVEL_TOL, Z
 from .base import Candidate, Finding, Significance, mode_group
 from .context import Context

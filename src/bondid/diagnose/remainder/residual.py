@@ -34,8 +34,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...data.measurement import FrfData
+from ...data.quantity import convert_quantity
 from ...exceptions import DataError
-from ...frf.quantity import convert_quantity
 
 
 def log_ratio(a: np.ndarray, b: np.ndarray) -> np.ndarray:

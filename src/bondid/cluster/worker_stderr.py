@@ -68,7 +68,7 @@ def relayed_stderr() -> Iterator[None]:
             reached.set()
             os.close(read_end)
 
-    thread = threading.Thread(target=relay, name="bondid-fleet-worker-stderr", daemon=True)
+    thread = threading.Thread(target=relay, name="bondid-cluster-worker-stderr", daemon=True)
     thread.start()
     try:
         yield

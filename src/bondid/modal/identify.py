@@ -2,14 +2,14 @@
 
 * :func:`identify_modes` — poles and residues of a measured 3×3 (any n_out × n_in) FRF:
   poly-reference LSCF band by band with a stabilisation diagram, nonlinear refinement, LSFD
-  residues (see :mod:`bondid.diagnose._lscf` for the estimators).
+  residues (see :mod:`bondid.modal.lscf` for the estimators).
 * :func:`model_modes` — the same description of a :class:`~bondid.linear.LinearModel`'s
   vibration modes, from :func:`bondid.modes.analysis.modal_analysis`.
 * :func:`pair_modes` — paired / missing / spurious, by frequency and MAC of the residues
-  (in :mod:`bondid.diagnose.pairing`, re-exported here).
+  (in :mod:`bondid.modal.pairing`, re-exported here).
 * :func:`antiresonances`, :func:`antiresonance_shifts` — drive-point anti-resonances.
 
-Modes are :class:`~bondid.diagnose.mode_record.IdentifiedMode` records (re-exported here).
+Modes are :class:`~bondid.modal.record.IdentifiedMode` records (re-exported here).
 
 A mode is described by its pole ``λ`` (``f_hz = |λ|/2π``, ``zeta = −Re λ/|λ|``) and its
 residue matrix ``R`` (n_out, n_in) in ``H(s) ≈ Σ R/(s−λ) + R̄/(s−λ̄)`` (receptance units ×
@@ -54,10 +54,10 @@ import numpy as np
 from ..data.measurement import FrfData
 from ..exceptions import DataError
 from ..linear.linear_model import LinearModel
-from . import _lscf
+from . import lscf
 from .antiresonance import antiresonance_shifts, antiresonances
-from .mode_record import INFORMED_COHERENCE, IdentifiedMode, mode_shape
 from .pairing import VISIBLE_PROMINENCE, mac_matrix, pair_modes
+from .record import INFORMED_COHERENCE, IdentifiedMode, mode_shape
 
 
 def identify_modes(
@@ -99,7 +99,7 @@ def identify_modes(
     """
     f, H, coh, rows = _prepared(data, f_range, use_coherence)
     n_max = 24 if max_order is None else int(max_order)
-    plan = _lscf.band_plan(f, band_ratio, overlap)
+    plan = lscf.band_plan(f, band_ratio, overlap)
 
     def poles(sub: tuple[slice | np.ndarray, slice]) -> list[tuple[complex, int]]:
         out: list[tuple[complex, int]] = []
@@ -183,17 +183,17 @@ def _band_poles(
     keep_lo = lo if lo <= f[0] else lo / overlap * edge_margin
     keep_hi = hi if hi >= f[-1] else hi * overlap / edge_margin
     Hb = H[:, :, sel]
-    r, t = _lscf.balance(np.median(np.abs(Hb), axis=2))
+    r, t = lscf.balance(np.median(np.abs(Hb), axis=2))
     Hs = r[:, None, None] * Hb * t[None, :, None]
     w = np.mean(coh[:, :, sel], axis=1) / np.linalg.norm(Hs, axis=1)
-    poles = _lscf.plscf(f[sel], Hs, w, n_max)
+    poles = lscf.plscf(f[sel], Hs, w, n_max)
     if stability:
-        return _lscf.stable_clusters(
+        return lscf.stable_clusters(
             poles, keep_lo, keep_hi, zeta_max=zeta_max, tol_f=tol_f, tol_zeta=tol_zeta,
             min_count=max(4, n_max // 3),
         )  # fmt: skip
     last = poles[-1].lam
-    ok = _lscf.physical(last, keep_lo, keep_hi, zeta_max)
+    ok = lscf.physical(last, keep_lo, keep_hi, zeta_max)
     return [(complex(x), 1) for x in last[ok]]
 
 
@@ -241,7 +241,7 @@ def _polished(
     is too short); ``cw`` ``(n_out, n_in, n_f)`` weighs by the inverse noise level."""
     lam = lam.copy()
     wn = np.abs(lam) / (2 * np.pi)
-    R, _ = _lscf.lsfd(f, H, lam, cw)  # fallback for poles whose band is too short
+    R, _ = lscf.lsfd(f, H, lam, cw)  # fallback for poles whose band is too short
     for lo, hi in plan:
         sel = (f >= lo / overlap) & (f <= hi * overlap)
         inc = (wn >= lo / overlap**2) & (wn <= hi * overlap**2)
@@ -249,10 +249,10 @@ def _polished(
         if not np.any(core) or np.count_nonzero(sel) < 4 * (2 * np.count_nonzero(inc) + 6):
             continue
         if refine:
-            lam[inc] = _lscf.refine_poles(
+            lam[inc] = lscf.refine_poles(
                 f[sel], H[:, :, sel], lam[inc], core[inc], cw[:, :, sel], zeta_max=zeta_max
             )
-        Rb, _ = _lscf.lsfd(f[sel], H[:, :, sel], lam[inc], cw[:, :, sel], upper=2)
+        Rb, _ = lscf.lsfd(f[sel], H[:, :, sel], lam[inc], cw[:, :, sel], upper=2)
         R[core] = Rb[core[inc]]
         wn = np.abs(lam) / (2 * np.pi)
     return lam, R
@@ -298,7 +298,7 @@ def _prominence(
     if not f[0] <= fd <= f[-1]:
         return 0.0
     k = _nearest(f, lam)
-    terms = np.abs(_lscf.mode_terms(np.array([fd]), lam, R)[..., 0])
+    terms = np.abs(lscf.mode_terms(np.array([fd]), lam, R)[..., 0])
     ratio = terms / np.abs(H[:, :, k])
     if coh is not None:
         ratio = np.where(coh[:, :, k] >= INFORMED_COHERENCE, ratio, np.nan)

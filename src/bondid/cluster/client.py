@@ -1,4 +1,5 @@
-"""The Dask client of a fleet run: a local cluster of worker processes, or the user's cluster.
+"""The Dask client of a fleet or a diagnosis: a local cluster of worker processes, or the
+user's cluster.
 
 ``dask.distributed`` is imported here, lazily. Worker processes started by a Dask nanny get
 single-threaded BLAS from Dask's own ``distributed.nanny.pre-spawn-environ`` setting (the
@@ -49,7 +50,8 @@ def require_dask() -> Any:
         import dask.distributed
     except ImportError:
         raise DependencyError(
-            f"bondid.fleet needs Dask (dask[distributed]), which is not installed: {INSTALL_HINT}"
+            "bondid.fleet and --scheduler need Dask (dask[distributed]), which is not installed:"
+            f" {INSTALL_HINT}"
         ) from None
     return dask.distributed
 
@@ -149,7 +151,7 @@ def _local_cluster(workers: int) -> Any:
 
     old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
-        t = threading.Thread(target=start, name="bondid-fleet-cluster-start", daemon=True)
+        t = threading.Thread(target=start, name="bondid-cluster-start", daemon=True)
         t.start()
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
@@ -178,7 +180,7 @@ def _close_when_started(t: threading.Thread, box: dict[str, Any]) -> None:
             with contextlib.suppress(Exception):
                 cluster.close(timeout=CLOSE_TIMEOUT_S)
 
-    threading.Thread(target=close, name="bondid-fleet-cluster-close", daemon=True).start()
+    threading.Thread(target=close, name="bondid-cluster-close", daemon=True).start()
 
 
 def _kill_new_children(before: set[Any]) -> None:

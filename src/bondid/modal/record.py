@@ -1,7 +1,7 @@
 """The record of one vibration mode, measured or of a model: :class:`IdentifiedMode`.
 
-Measured modes come from :func:`bondid.diagnose.modal_id.identify_modes`, a model's from
-:func:`bondid.diagnose.modal_id.model_modes`; :mod:`bondid.diagnose.pairing` pairs the two.
+Measured modes come from :func:`bondid.modal.identify.identify_modes`, a model's from
+:func:`bondid.modal.identify.model_modes`; :mod:`bondid.modal.pairing` pairs the two.
 """
 
 from __future__ import annotations
@@ -27,13 +27,13 @@ class IdentifiedMode:
         shape: ``(n_out,)`` complex, dominant left singular vector of ``residues``, largest
             entry 1; None when unknown.
         prominence: peak contribution relative to the FRF (see
-            :mod:`bondid.diagnose.modal_id`); NaN when unknown.
+            :mod:`bondid.modal.identify`); NaN when unknown.
         n_orders: number of model orders at which the pole was stable (identified modes).
         determined: ``(n_out, n_in)`` bool, the channels whose data carry information at the
             mode (coherence, or the information weight, ≥ :data:`INFORMED_COHERENCE` at its
             frequency): the residue entries the data determine; None = all (model modes).
             Pairing compares residues on these entries only
-            (:func:`bondid.diagnose.pairing.mac_matrix`).
+            (:func:`bondid.modal.pairing.mac_matrix`).
     """
 
     f_hz: float

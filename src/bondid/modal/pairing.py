@@ -1,9 +1,9 @@
 """How measured and model modes pair up: :func:`pair_modes` (paired / missing / spurious, by
 frequency and MAC of the residues, :func:`mac_matrix`).
 
-Modes are :class:`~bondid.diagnose.mode_record.IdentifiedMode` records (measured ones from
-:func:`~bondid.diagnose.modal_id.identify_modes`, the model's from
-:func:`~bondid.diagnose.modal_id.model_modes`).
+Modes are :class:`~bondid.modal.record.IdentifiedMode` records (measured ones from
+:func:`~bondid.modal.identify.identify_modes`, the model's from
+:func:`~bondid.modal.identify.model_modes`).
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from . import _lscf
-from .mode_record import IdentifiedMode
+from . import lscf
+from .record import IdentifiedMode
 
 VISIBLE_PROMINENCE = 0.1
 """A model mode counts as visible (so unpaired = spurious) at this prominence or above."""
@@ -33,7 +33,7 @@ def mac_matrix(a: Sequence[IdentifiedMode], b: Sequence[IdentifiedMode]) -> np.n
     if not allR:
         return np.zeros((len(a), len(b)))
     c = np.sqrt(np.mean(np.abs(np.stack(allR)) ** 2, axis=0))
-    r, t = _lscf.balance(c)
+    r, t = lscf.balance(c)
     va = [(r[:, None] * np.nan_to_num(m.residues) * t[None, :]).ravel() for m in a]
     vb = [(r[:, None] * np.nan_to_num(m.residues) * t[None, :]).ravel() for m in b]
     ma = [_mask(m, allR[0].size) for m in a]
