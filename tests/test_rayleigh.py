@@ -13,7 +13,6 @@ from test_ties_mix import _strip
 
 from bondid.cost.problem import FrfProblem
 from bondid.exceptions import ConfigError, ModelError, ParameterError
-from bondid.fit.damping import damping_free, damping_from_study, declare_damping
 from bondid.frf.jacobian import frf_and_jacobian
 from bondid.linear.affine import build_affine_model
 from bondid.linear.linear_model import underdamped
@@ -23,6 +22,7 @@ from bondid.model import UrdfDocument
 from bondid.model.parameters import get_parameter, parameter_names, select_parameters, set_parameter
 from bondid.model.rayleigh import Rayleigh, model_rayleigh, set_rayleigh
 from bondid.optim.problem import FitProblem
+from bondid.setup.damping import damping_free, damping_from_study, declare_damping
 from bondid.simulate import simulate
 
 #: two exact computations of one FRF (round-off only, relative)

@@ -16,12 +16,12 @@ from bondid.data import FrfData, read_frf, write_csv
 from bondid.data.io import states_operating_point
 from bondid.exceptions import ConfigError, OperatingPointError
 from bondid.fit.headline import headline_lines
-from bondid.fit.operating_points import given_operating_points, parse_option
 from bondid.fit.options import build_parser, resolve_settings
 from bondid.fit.outputs import _sq_db, _wrms, no_figure_reason
 from bondid.fit.study import study_from_dict
 from bondid.linear import build_affine_model
 from bondid.model import UrdfDocument
+from bondid.setup.operating_points import given_operating_points, parse_option
 from bondid.validation.pose import pose_dependent_joints
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -30,11 +30,11 @@ from refit_benchmark import cases  # noqa: E402
 
 def one(design_name: str, regime: str, seed: int, n_freq: int) -> tuple[float, float]:
     """(truth's weighted db_rms, predicted noise level) [dB] of one case."""
-    from bondid.data.for_model import load_datasets
     from bondid.fit.cli import cost_options
     from bondid.fit.outputs import db_rms_report
     from bondid.fit.study import StudySettings
     from bondid.model import UrdfDocument
+    from bondid.validation.datasets import load_datasets
 
     dz = design(design_name)
     nominal = UrdfDocument.load(dz.path)

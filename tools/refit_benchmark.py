@@ -61,11 +61,11 @@ def truth_score(model: Path, truth: Any, paths: list[Path]) -> float | None:
     """The truth model's weighted db_rms on the files, as ``bondid.fit`` (defaults) scores a
     model: the same loading, receptance conversion, cost options and channels."""
     from bondid.cost.selection import informative_only
-    from bondid.data.for_model import load_datasets
     from bondid.fit.cli import cost_options
     from bondid.fit.outputs import db_rms_report
     from bondid.fit.study import StudySettings
     from bondid.model import UrdfDocument
+    from bondid.validation.datasets import load_datasets
 
     nominal = UrdfDocument.load(model)
     raw = load_datasets(nominal, paths)

@@ -51,7 +51,7 @@ def add_uff_map_arg(p: argparse.ArgumentParser) -> None:
 
 def uff_channel_map(args: argparse.Namespace) -> dict[str, tuple[int, int]] | None:
     """The ``--uff-map`` items as a channel map (None when none is given)."""
-    from .data.for_model import parse_uff_map_item
+    from .validation.datasets import parse_uff_map_item
 
     return dict(parse_uff_map_item(t) for t in getattr(args, "uff_map", [])) or None
 

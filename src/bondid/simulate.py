@@ -160,11 +160,11 @@ def _parser() -> argparse.ArgumentParser:
 def _run(args: argparse.Namespace) -> int:
     """Simulate the model's measurement, write it (and ``--plot``) and print what was written."""
     from . import cli
-    from .data.for_model import model_channel_map
     from .data.io import write_frf
     from .linear.operating_point import parse_operating_point
     from .results import open_results
     from .validation import check_inputs, load_model
+    from .validation.datasets import model_channel_map
 
     _check_options(args)
     op = parse_operating_point(" ".join(args.q), "--q")

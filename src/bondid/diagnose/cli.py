@@ -10,8 +10,8 @@ from pathlib import Path
 
 def build_parser() -> argparse.ArgumentParser:
     from .. import cli
-    from ..fit.damping import add_damping_arg
-    from ..fit.operating_points import add_operating_point_arg
+    from ..setup.damping import add_damping_arg
+    from ..setup.operating_points import add_operating_point_arg
     from .effects import available
 
     effects = available()
@@ -77,12 +77,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
 
     def body() -> int:
-        from ..data.for_model import load_datasets
         from ..data.lines import parse_lines
         from ..data.reduce import reduce_datasets
         from ..exceptions import ConfigError
         from ..results import open_results
         from ..validation import check_inputs, check_selection, load_model
+        from ..validation.datasets import load_datasets
         from .pipeline import Settings, diagnose
         from .report import gaps, to_json_dict, write_outputs, write_plots
         from .summary import summary
@@ -101,13 +101,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         data = load_datasets(
             doc, args.data, drop_nan=args.drop_nan, channel_map=cli.uff_channel_map(args)
         )
-        from ..fit.operating_points import given_operating_points, operating_points_of
+        from ..setup.operating_points import given_operating_points, operating_points_of
 
         warnings += given_operating_points(doc, data, operating_points_of(args))
         warnings += check_inputs(doc, data, args.data)
         channels = cli.split_names([args.channels]) if args.channels else None
         check_selection(data, bands=args.band, channels=channels)
-        from ..fit.damping import data_band, declare_damping
+        from ..setup.damping import data_band, declare_damping
 
         declare_damping(
             doc, args.damping or "model", band_hz=data_band(data, args.band),

@@ -76,7 +76,7 @@ class Settings:
         max_effects: effects accepted one after the other at most.
         n_min, n_max: refits of a step before the rule may end it, and at most
             (:mod:`.search`).
-        damping: the damping model the model was declared with (:mod:`bondid.fit.damping`).
+        damping: the damping model the model was declared with (:mod:`bondid.setup.damping`).
     """
 
     effects: list[str] | None = None
@@ -172,8 +172,8 @@ def default_names(
 ) -> list[str]:
     """The refit's free parameters: ``free`` (names, globs, groups) or :data:`DEFAULT_FREE`
     without zero-valued springs and dampers, under the damping model ``damping``
-    (:func:`bondid.fit.damping.damping_free`)."""
-    from ..fit.damping import damping_free
+    (:func:`bondid.setup.damping.damping_free`)."""
+    from ..setup.damping import damping_free
 
     tokens, fixed = damping_free(doc, damping, list(free or DEFAULT_FREE), [])
     names = select_parameters(doc, tokens, fixed)

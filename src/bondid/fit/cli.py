@@ -32,7 +32,7 @@ from ..model.parameters import (
     parameter_infos,
     select_parameters,
 )
-from .damping import damping_json, data_band, declare_damping
+from ..setup.damping import damping_json, data_band, declare_damping
 from .options import build_parser, resolve_settings
 from .settings import StudySettings
 from .study import KINDS
@@ -70,8 +70,8 @@ def resolve_names(
     doc: UrdfDocument, datasets: list[FrfData], s: StudySettings, options: CostOptions
 ) -> list[str]:
     """Free parameter names from ``free``/``fixed`` (``auto`` asks bondid.sensitivity) under
-    the damping model (:func:`bondid.fit.damping.damping_free`)."""
-    from .damping import damping_free
+    the damping model (:func:`bondid.setup.damping.damping_free`)."""
+    from ..setup.damping import damping_free
 
     free, fixed = damping_free(doc, s.damping, s.free, s.fixed)
     if "auto" in free:
@@ -180,11 +180,11 @@ def write_failure(
 
 def _load(args: argparse.Namespace, s: StudySettings) -> dict[str, Any]:
     """Model, data, names, bounds and the results folder of a fit command (checked)."""
-    from ..data.for_model import load_datasets
     from ..results import open_results
+    from ..setup.operating_points import given_operating_points
     from ..validation import check_inputs, check_selection, load_model
+    from ..validation.datasets import load_datasets
     from .model_setup import prepare_model, uff_map
-    from .operating_points import given_operating_points
     from .outputs import check_out_dir
 
     assert s.model is not None

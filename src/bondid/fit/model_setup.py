@@ -36,11 +36,11 @@ def read_model_keys(doc: Mapping[str, Any], s: StudySettings, where: str, base: 
             check_path(v, base, where, f"package_path[{i}]") for i, v in enumerate(items)
         ]
     if "operating_points" in doc:
-        from .operating_points import from_table
+        from ..setup.operating_points import from_table
 
         s.operating_points = from_table(doc["operating_points"], where, base)
     if "damping" in doc:
-        from .damping import damping_from_study
+        from ..setup.damping import damping_from_study
 
         s.damping, s.damping_start = damping_from_study(doc["damping"], where)
     if "floating_base" in doc:
@@ -54,7 +54,7 @@ def read_model_keys(doc: Mapping[str, Any], s: StudySettings, where: str, base: 
 
 def uff_map(s: StudySettings, items: Sequence[str]) -> dict[str, tuple[int, int]] | None:
     """The study's ``[uff_map]`` updated by ``--uff-map`` items (None when neither gives one)."""
-    from ..data.for_model import parse_uff_map_item
+    from ..validation.datasets import parse_uff_map_item
 
     out = dict(s.uff_map)
     out.update(parse_uff_map_item(t) for t in items)

@@ -24,8 +24,8 @@ from ..cli import (
 from ..cost.residuals import NORMS, RESIDUAL_KINDS
 from ..data.lines import parse_lines
 from ..exceptions import ConfigError
+from ..setup.operating_points import add_operating_point_arg, operating_points_of
 from .defaults import add_prior_arg, check_prior
-from .operating_points import add_operating_point_arg, operating_points_of
 from .setting_checks import check_names, parse_bound_option
 from .settings import StudySettings, add_bound
 from .study import STAGES, load_study
@@ -133,7 +133,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _add_structure_args(p: argparse.ArgumentParser) -> None:
     """Options that give the free parameters a structure (ties, the damping model)."""
-    from .damping import add_damping_arg
+    from ..setup.damping import add_damping_arg
 
     add_damping_arg(p)
     p.add_argument(

@@ -62,11 +62,11 @@ class StudySettings:
         floating_base: add a floating joint above the root (a free-free structure).
         uff_map: channel name -> (node, direction) of UFF58 records.
         operating_points: data file -> its operating point (joint -> m or rad), for files
-            that state none (:mod:`bondid.fit.operating_points`).
+            that state none (:mod:`bondid.setup.operating_points`).
         ties: tie name -> the names and globs of its joint parameters (one value each tie;
             :mod:`bondid.model.ties`).
         damping, damping_start: the damping model and the (α, β) to start from, or None
-            (:mod:`bondid.fit.damping`).
+            (:mod:`bondid.setup.damping`).
     """
 
     model: Path | None = None

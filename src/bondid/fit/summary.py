@@ -15,7 +15,7 @@ from typing import Any
 
 from ..cli import EXIT_FAILED, EXIT_OK
 from ..optim.stall import STALLED, still_falling
-from .damping import damping_line
+from ..setup.damping import damping_line
 from .headline import headline_lines, std_footer
 
 #: IPOPT's status of a solve stopped at its iteration limit

@@ -1,8 +1,8 @@
-"""FRF computation: the engine, and the receptance/mobility/accelerance conversions of
-:mod:`bondid.data.quantity` handed on."""
+"""FRF computation: the engine of :mod:`bondid.linear.response`, the receptance/mobility/accelerance
+conversions of :mod:`bondid.data.quantity` and the derivatives (:mod:`.jacobian`) handed on."""
 
 from ..data.quantity import QUANTITIES, convert_quantity, quantity_factor
-from .engine import dynamic_stiffness, frf, omega, solve_columns
+from ..linear.response import dynamic_stiffness, frf, omega, solve_columns
 
 __all__ = [
     "QUANTITIES",

@@ -17,8 +17,8 @@ import numpy as np
 
 from ..data.quantity import quantity_factor
 from ..linear.affine import AffineModel
+from ..linear.response import dynamic_stiffness, omega, solve_columns
 from .directions import Directions, is_symmetric
-from .engine import dynamic_stiffness, omega, solve_columns
 
 #: Frequencies per block: the products of a block then stay in the processor's cache
 #: (measured on the bonder, 11 DOF, 3×3 channels: 64–256 frequencies per block twice as fast

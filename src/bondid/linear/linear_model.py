@@ -87,6 +87,6 @@ class LinearModel:
 
     def frf(self, freq_hz: np.ndarray, quantity: str = "receptance") -> np.ndarray:
         """FRF ``(n_out, n_in, n_freq)`` at ``freq_hz`` (Hz); see :func:`bondid.frf.frf`."""
-        from ..frf.engine import frf
+        from .response import frf
 
         return frf(self.M, self.K, self.D, self.B, self.C, freq_hz, quantity)

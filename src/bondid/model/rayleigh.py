@@ -12,7 +12,7 @@ command and every copy of the model (``fitted.urdf`` too) sees it::
 
 Its two coefficients are the model parameters ``rayleigh.alpha`` and ``rayleigh.beta``
 (:mod:`bondid.model.parameters`); a model without the element has neither (α = β = 0).
-How a command declares it (``--damping``): :mod:`bondid.fit.damping`.
+How a command declares it (``--damping``): :mod:`bondid.setup.damping`.
 """
 
 from __future__ import annotations

@@ -51,10 +51,10 @@ def _parser() -> argparse.ArgumentParser:
         "the one-at-a-time sweep (each parameter alone over 50..150 %).",
     )
     cli.add_model_args(p)
-    from ..fit.operating_points import add_operating_point_arg
+    from ..setup.operating_points import add_operating_point_arg
 
     add_operating_point_arg(p)
-    from ..fit.damping import add_damping_arg
+    from ..setup.damping import add_damping_arg
 
     add_damping_arg(p)
     p.add_argument("--free", nargs="+", default=["all"], help="parameters: names, globs, groups")
@@ -85,10 +85,10 @@ def _run(args: argparse.Namespace) -> int:
     from .. import cli
     from ..cost import CostOptions
     from ..cost.selection import channels_by_file, informative_only
-    from ..data.for_model import load_datasets
     from ..data.reduce import parse_lines, reduce_datasets
     from ..results import open_results
     from ..validation import check_inputs, check_selection, load_model
+    from ..validation.datasets import load_datasets
     from . import output
     from ._common import make_setup
     from .local import linearise_cost
@@ -106,7 +106,7 @@ def _run(args: argparse.Namespace) -> int:
     datasets = load_datasets(
         doc, args.data, drop_nan=args.drop_nan, channel_map=cli.uff_channel_map(args)
     )
-    from ..fit.operating_points import given_operating_points, operating_points_of
+    from ..setup.operating_points import given_operating_points, operating_points_of
 
     warnings += given_operating_points(doc, datasets, operating_points_of(args))
     warnings += check_inputs(doc, datasets, args.data)
@@ -155,9 +155,9 @@ def _run(args: argparse.Namespace) -> int:
 def _damping(
     doc: UrdfDocument, datasets: list[FrfData], args: argparse.Namespace, free: list[str]
 ) -> tuple[list[str], list[str]]:
-    """Apply ``--damping`` to ``doc`` (:mod:`bondid.fit.damping`, as the fit does); the free
+    """Apply ``--damping`` to ``doc`` (:mod:`bondid.setup.damping`, as the fit does); the free
     names and the extra fixed ones it implies."""
-    from ..fit.damping import damping_free, data_band, declare_damping
+    from ..setup.damping import damping_free, data_band, declare_damping
 
     kind = args.damping or "model"
     band = data_band(datasets, args.band)

@@ -5,11 +5,11 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping, Sequence
 
+from ..data.io import check_against_model, read_frf
+from ..data.measurement import FrfData
+from ..data.uff_format import default_channel_map
 from ..exceptions import ConfigError
 from ..model.document import UrdfDocument
-from .io import check_against_model, read_frf
-from .measurement import FrfData
-from .uff_format import default_channel_map
 
 
 def model_channel_map(doc: UrdfDocument) -> dict[str, tuple[int, int]]:
