@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import threading
 from pathlib import Path
 
@@ -84,3 +85,58 @@ def test_threaded_and_serial_evaluations_agree(monkeypatch, n_freq):
     np.testing.assert_allclose(r1, r2, rtol=0, atol=0)
     np.testing.assert_allclose(J1, J2, rtol=0, atol=0)
     np.testing.assert_allclose(prob.residual(pm, x), r1, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("channels", [None, "diagonal"])
+def test_one_dense_data_set_is_cut_into_spans_with_the_same_numbers(monkeypatch, channels):
+    """A single large data set is evaluated span by span on every core (each span of whole
+    frequency blocks), and the residuals and Jacobian equal the one-job evaluation's bit for
+    bit, on the whole grid and on a channel subset."""
+    from bondid.cost import CostOptions
+    from bondid.cost import problem as cp
+    from bondid.cost.problem import FrfProblem
+    from bondid.linear.parameter_map import ParameterMap
+    from bondid.model import UrdfDocument, select_parameters
+    from bondid.simulate import log_grid, simulate
+
+    doc = UrdfDocument.load(ROOT / "urdf" / "bonder.urdf")
+    data = simulate(doc, {}, log_grid(1.0, 4000.0, 5000))
+    chosen = None
+    if channels == "diagonal":
+        chosen = [f"{o}.{i}" for o, i in zip(data.outputs, data.inputs, strict=False)]
+    prob = FrfProblem(doc, [data], CostOptions(channels=chosen))
+    assert prob.threaded
+    pm = ParameterMap(doc, prob.affines[0], select_parameters(doc, ["default"]))
+    x = pm.p0 * 1.1
+    monkeypatch.delenv(threads.THREADS_VAR, raising=False)
+    monkeypatch.setattr(threads, "available_cores", lambda: 1)
+    monkeypatch.setattr(cp, "thread_limit", lambda: 1)
+    assert prob._tasks() == [(0, None)]
+    r1, J1 = prob.residual_and_jacobian(pm, x)
+    frf1 = prob.used_frf(pm, x)
+    monkeypatch.setattr(threads, "available_cores", lambda: 4)
+    monkeypatch.setattr(cp, "thread_limit", lambda: 4)
+    tasks = prob._tasks()
+    spans = [s for _, s in tasks]
+    n_points = prob.blocks[0].Hm.size
+    assert len(tasks) == min(4, n_points // cp.THREADED_MIN_POINTS) > 1
+    assert spans[0].start == 0 and spans[-1].stop == prob.blocks[0].freq_hz.size
+    assert all(a.stop == b.start for a, b in itertools.pairwise(spans))
+    r2, J2 = prob.residual_and_jacobian(pm, x)
+    np.testing.assert_array_equal(r1, r2)
+    np.testing.assert_array_equal(J1, J2)
+    np.testing.assert_allclose(prob.used_frf(pm, x)[0], frf1[0], rtol=1e-13, atol=0)
+    np.testing.assert_allclose(prob.residual(pm, x), r1, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("n_freq", [1, 127, 128, 129, 1000, 5000])
+@pytest.mark.parametrize("n_spans", [1, 2, 3, 7])
+def test_frequency_spans_cover_the_lines_in_whole_blocks(n_freq, n_spans):
+    from bondid.frf.jacobian import _BLOCK_FREQ, frequency_spans
+
+    spans = frequency_spans(n_freq, n_spans)
+    blocks = -(-n_freq // _BLOCK_FREQ)
+    assert len(spans) == min(n_spans, blocks)
+    covered = np.concatenate([np.arange(n_freq)[s] for s in spans])
+    np.testing.assert_array_equal(covered, np.arange(n_freq))
+    assert all(s.start % _BLOCK_FREQ == 0 and s.stop > s.start for s in spans)

@@ -25,9 +25,10 @@ from ..data.io import check_against_model
 from ..data.measurement import FrfData
 from ..data.weights import check_weighting
 from ..exceptions import ConfigError
+from ..frf.jacobian import frequency_spans
 from ..linear.affine import AffineModel, build_affine_model, model_inputs, model_outputs
 from ..model.document import UrdfDocument
-from ..threads import thread_map
+from ..threads import thread_limit, thread_map
 from .mixing import free_mixes, mix_rows, mixed_affine
 from .modifier import FrfModifier
 from .residuals import (
@@ -247,16 +248,42 @@ class FrfProblem:
         mixes, ab = free_mixes(pmodel, x)[0], _free_rayleigh(pmodel, x)[0]
         theta = self._theta(pmodel, x)[0]
 
-        def one(i: int) -> np.ndarray:
+        tasks = self._tasks()
+
+        def one(task: tuple[int, slice | None]) -> np.ndarray:
+            i, span = task
             b = self.blocks[i]
             affine = self._mixed(i, _block_affine(b, values, gains, ab), mixes)
-            H = affine.linear_model().frf(b.freq_hz)
-            if theta is None:
-                return H
-            assert self.modifier is not None
-            return self.modifier.apply(theta, b.freq_hz, b.affine.outputs, b.affine.inputs, H)
+            return affine.linear_model().frf(b.freq_hz if span is None else b.freq_hz[span])
 
-        return thread_map(one, range(len(self.blocks)), parallel=self.threaded)
+        pieces = thread_map(one, tasks, parallel=self.threaded)
+        out = []
+        for i, b in enumerate(self.blocks):
+            mine = [H for (j, _), H in zip(tasks, pieces, strict=True) if j == i]
+            H = mine[0] if len(mine) == 1 else np.concatenate(mine, axis=2)
+            if theta is not None:
+                assert self.modifier is not None
+                H = self.modifier.apply(theta, b.freq_hz, b.affine.outputs, b.affine.inputs, H)
+            out.append(H)
+        return out
+
+    def _tasks(self, whole: bool = False) -> list[tuple[int, slice | None]]:
+        """The (data set, frequency span) jobs of one evaluation, in order.
+
+        Each data set is one job; when there are fewer data sets than threads (one dense
+        file), each is cut into spans of whole frequency blocks of at least
+        :data:`THREADED_MIN_POINTS` points, so that every core has work. ``whole``: one job
+        per data set (a modifier that mixes channels needs the whole grid at once).
+        """
+        if whole or not self.threaded:
+            return [(i, None) for i in range(len(self.blocks))]
+        per_set = -(-thread_limit() // len(self.blocks))
+        tasks: list[tuple[int, slice | None]] = []
+        for i, b in enumerate(self.blocks):
+            n = min(per_set, b.Hm.size // THREADED_MIN_POINTS)
+            spans = frequency_spans(b.freq_hz.size, n) if n > 1 else [None]
+            tasks += [(i, s) for s in spans]
+        return tasks
 
     def _theta(
         self, pmodel: ParameterModel, x: np.ndarray
@@ -322,23 +349,28 @@ class FrfProblem:
         r = np.empty(int(start[-1]))
         J = np.empty((int(start[-1]), n_p))
 
-        def one(i: int) -> None:
+        mod = self.modifier
+        mixing = theta is not None and mod is not None and mod.mixing is not None
+
+        def one(task: tuple[int, slice | None]) -> None:
+            i, span = task
             b = self.blocks[i]
             rb = r[start[i] : start[i + 1]]
             Jb = J[start[i] : start[i + 1]].reshape(k, b.Hm.size, n_p)
             affine = self._mixed(i, _block_affine(b, values, gains, ab), mixes)
             if b.flat is None and not gains and not mixes and theta is None:
-                rows.grid(b, affine, derivatives, rb, Jb)
+                rows.grid(b, affine, derivatives, rb, Jb, span)
                 return
             mix = (self._mix_rows[i], dmixes) if mixes and self._mix_rows is not None else None
-            mod = self.modifier
-            if theta is not None and mod is not None and mod.mixing is not None:
+            if mixing:
+                assert theta is not None
                 rows.mixed(b, affine, derivatives, (gains, dgains), mix, (theta, dtheta), rb, Jb)
                 return
             G = None if theta is None else self._modifier_at(b, theta)
-            rows.points(b, affine, derivatives, (gains, dgains), mix, (G, dtheta), rb, Jb)
+            rows.points(b, affine, derivatives, (gains, dgains), mix, (G, dtheta), rb, Jb, span)
 
-        thread_map(one, range(len(self.blocks)), parallel=self.threaded)
+        # the jobs write disjoint rows of r and J: their data set's, at their span's lines
+        thread_map(one, self._tasks(whole=mixing), parallel=self.threaded)
         return r, J
 
     def _rows(self) -> Rows:

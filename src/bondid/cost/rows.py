@@ -80,17 +80,20 @@ class Rows:
         derivatives: Derivatives,
         r: np.ndarray,
         J: np.ndarray,
+        span: slice | None = None,
     ) -> None:
         """Residuals and Jacobian rows of a data set that uses every channel at every one of
         its frequencies, written into ``r`` ``(k·n_sel,)`` and ``J`` ``(k, n_sel, n_p)`` (views
         of the result) one block of frequencies at a time while the FRF derivatives are in
-        cache (no complex Jacobian is assembled). ``derivatives`` = ``(dπ, dk, dd, d(α, β))``."""
+        cache (no complex Jacobian is assembled). ``derivatives`` = ``(dπ, dk, dd, d(α, β))``;
+        ``span``: the frequencies written (:func:`bondid.frf.jacobian.frequency_spans`; None:
+        all), the rest of ``r`` and ``J`` untouched."""
         kind, k = self.options.kind, parts(self.options.kind)
         grid = (len(affine.outputs), len(affine.inputs), b.freq_hz.size)
         Hm, scale = b.Hm.reshape(grid), b.scale.reshape(grid)
         sw = (np.sqrt(b.weight) * self.norm).reshape(grid)
         rg, Jg = r.reshape(k, *grid), J.reshape(k, *grid, J.shape[-1])
-        for sl, H, dH, _ in jacobian_blocks(affine, b.freq_hz, *derivatives):
+        for sl, H, dH, _ in jacobian_blocks(affine, b.freq_hz, *derivatives, span=span):
             res = residual(kind, H, Hm[:, :, sl], scale[:, :, sl])
             rt, drt = robust(res, self.options.norm, self.options.l1_delta)
             rg[:, :, :, sl] = rt * sw[:, :, sl]
@@ -109,6 +112,7 @@ class Rows:
         modifier: tuple[tuple[np.ndarray, np.ndarray] | None, np.ndarray | None],
         r: np.ndarray,
         J: np.ndarray,
+        span: slice | None = None,
     ) -> None:
         """Residuals and Jacobian rows of any selection (channel subsets, free gains, an FRF
         modifier), written into ``r`` ``(k·n_sel,)`` and ``J`` ``(k, n_sel, n_p)`` one block
@@ -116,13 +120,13 @@ class Rows:
         at once (``(n_out, n_in, n_f, n_p)`` complex would grow with the lines times the
         parameters). ``mix`` = the points' mix rows and the mixes' d/dx, or None;
         ``gains`` = ``(free gains, their d/dx)``, ``modifier`` = ``((G, ∂G/∂θ) or None,
-        ∂θ/∂x or None)``."""
+        ∂θ/∂x or None)``; ``span``: the frequencies whose points are written (None: all)."""
         kind, k = self.options.kind, parts(self.options.kind)
         rk = r.reshape(k, -1)
         order = np.argsort(b.fidx, kind="stable")
         fsorted = b.fidx[order]
         G, dtheta = modifier
-        for sl, H, dH, solved in jacobian_blocks(affine, b.freq_hz, *derivatives):
+        for sl, H, dH, solved in jacobian_blocks(affine, b.freq_hz, *derivatives, span=span):
             lo, hi = np.searchsorted(fsorted, [sl.start, sl.stop])
             pts = order[lo:hi]
             if pts.size == 0:

@@ -11,6 +11,7 @@ blocks that stay in the processor's cache.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Iterator
 
 import numpy as np
@@ -34,6 +35,18 @@ def _channels(n_out: int, n_in: int, mirrored: bool) -> tuple[np.ndarray, np.nda
     return co.reshape(-1), ci.reshape(-1)
 
 
+def frequency_spans(n_freq: int, n_spans: int) -> list[slice]:
+    """``n_freq`` frequencies cut into at most ``n_spans`` contiguous spans of whole blocks.
+
+    A span's blocks are those the whole range would have, so the FRF and its derivatives
+    computed span by span (on parallel threads) equal the whole range's bit for bit.
+    """
+    blocks = -(-n_freq // _BLOCK_FREQ)
+    n = max(1, min(n_spans, blocks))
+    edges = [round(k * blocks / n) * _BLOCK_FREQ for k in range(n + 1)]
+    return [slice(a, min(b, n_freq)) for a, b in itertools.pairwise(edges)]
+
+
 def jacobian_blocks(
     affine: AffineModel,
     freq_hz: np.ndarray,
@@ -41,10 +54,12 @@ def jacobian_blocks(
     dk: np.ndarray,
     dd: np.ndarray,
     drayleigh: np.ndarray | None = None,
+    span: slice | None = None,
 ) -> Iterator[tuple[slice, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]]:
     """Receptance and its derivatives, one block of frequencies at a time.
 
-    Args: as for :func:`frf_and_jacobian` (no quantity: receptance only).
+    Args: as for :func:`frf_and_jacobian` (no quantity: receptance only), and ``span``: the
+    frequencies to cover (one of :func:`frequency_spans`; None: all).
 
     Yields:
         ``(sl, H, dH, (X, Yt))``: the slice of ``freq_hz`` the block covers, ``H`` ``(n_out,
@@ -68,8 +83,9 @@ def jacobian_blocks(
     if mirrored:
         pair[ci, co] = pair[co, ci]
     rhs = B if mirrored or not symmetric else np.concatenate([B, C.T], axis=1)
-    for s in range(0, w.size, _BLOCK_FREQ):
-        ws = w[s : s + _BLOCK_FREQ]
+    lo, hi = (0, w.size) if span is None else (span.start, span.stop)
+    for s in range(lo, hi, _BLOCK_FREQ):
+        ws = w[s : min(s + _BLOCK_FREQ, hi)]
         nf = ws.size
         Z = dynamic_stiffness(M, K, D, ws)
         Xa = solve_columns(Z, rhs)
