@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -286,3 +287,30 @@ def test_blind_benchmark_runs_a_case_end_to_end(capsys: pytest.CaptureFixture[st
     out = capsys.readouterr().out
     assert "| bonder/none_a/coh | none | – |" in out
     assert "| bonder | coh | 1 (0) |" in out
+
+
+def test_blind_benchmark_resumes_where_its_rows_end(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--resume`` keeps the finished rows of ``--out``, runs only the cases they lack (a row
+    that ended in an error is run again) and writes every row back."""
+    import blind_benchmark
+
+    stored = json.loads((ROOT / "tools/benchmark/results/blind.json").read_text())
+    kept, failed, missing = stored[0], dict(stored[1], error="RuntimeError()"), stored[2]
+    out = tmp_path / "rows.json"
+    out.write_text(json.dumps([kept, failed]))
+    ran: list[str] = []
+
+    def fake_run(case, settings):  # the stored row of a case stands for running it
+        ran.append(case.name)
+        return next(r for r in stored if r["case"] == case.name)
+
+    monkeypatch.setattr(blind_benchmark, "run_case", fake_run)
+    names = ",".join(r["case"] for r in (kept, failed, missing))
+    assert blind_benchmark.main(["--cases", names, "--resume", "--out", str(out)]) == 0
+    assert ran == [failed["case"], missing["case"]]
+    assert [r["case"] for r in json.loads(out.read_text())] == names.split(",")
+    assert "resuming: 1 of 3 cases" in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        blind_benchmark.main(["--quick", "--resume"])  # no --out to resume

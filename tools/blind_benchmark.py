@@ -95,14 +95,40 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--no-visibility", action="store_true",
                    help="single-effect cases as listed: no oracle check that strengthens "
                    "an effect the data do not show (benchmark/visibility.py)")  # fmt: skip
-    p.add_argument("--out", type=Path, help="write the rows as JSON")
+    p.add_argument("--out", type=Path, help="write the rows as JSON (after every case)")
+    p.add_argument("--resume", action="store_true",
+                   help="keep the rows --out already holds and run only the cases it lacks "
+                   "(a long run that was stopped goes on where it was)")  # fmt: skip
     p.add_argument("--tables", type=Path, help="print the tables of a rows JSON (--out) and stop")
     p.add_argument("--keep", type=Path,
                    help="copy each case's data files and outputs into KEEP/<case>/")  # fmt: skip
     args = p.parse_args(argv)
     if args.jobs < 1:
         p.error(f"--jobs {args.jobs}: give 1 or more")
+    if args.resume and not args.out:
+        p.error("--resume continues the rows of --out FILE: give --out")
     return args
+
+
+def earlier_rows(path: Path) -> dict[str, dict[str, Any]]:
+    """The finished rows of an earlier run's ``--out`` file, by case name (rows that ended
+    in an error are run again); none when the file does not exist yet."""
+    if not path.exists():
+        return {}
+    try:
+        rows = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise SystemExit(f"blind_benchmark: --resume: cannot read {path}: {exc}") from exc
+    if not isinstance(rows, list):
+        raise SystemExit(f"blind_benchmark: --resume: {path} holds no list of rows")
+    return {r["case"]: r for r in rows if isinstance(r, dict) and "case" in r and "error" not in r}
+
+
+def write_rows(path: Path, rows: list[dict[str, Any]]) -> None:
+    """``rows`` as JSON at ``path``, replaced atomically (a stop mid-write keeps the last)."""
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(rows, indent=2, default=float) + "\n")
+    os.replace(tmp, path)
 
 
 def settings(args: argparse.Namespace) -> Settings:
@@ -127,10 +153,14 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{c.name}: {c.label} @ {c.where}")
         return 0
     s = settings(args)
-
-    done: list[dict[str, Any]] = []
+    earlier = earlier_rows(args.out) if args.resume else {}
+    done: list[dict[str, Any]] = [earlier[c.name] for c in cases if c.name in earlier]
+    if earlier:
+        print(f"resuming: {len(done)} of {len(cases)} cases already in {args.out}", flush=True)
 
     def one(c: Case) -> dict[str, Any]:
+        if c.name in earlier:
+            return earlier[c.name]
         cs = s
         if args.leave_one_out:  # the candidates without the case's own classes
             base = tuple(args.effects.split(",")) if args.effects else None
@@ -148,7 +178,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{c.name}: {got} (truth {c.label} @ {c.where}) {took}", flush=True)
         done.append(r)
         if args.out:  # rows so far, so a long run that stops keeps what it did
-            args.out.write_text(json.dumps(done, indent=2, default=float) + "\n")
+            write_rows(args.out, done)
         return r
 
     stop_on_sigterm()
@@ -159,7 +189,7 @@ def main(argv: list[str] | None = None) -> int:
     print()
     print(summary_table(rows))
     if args.out:
-        args.out.write_text(json.dumps(rows, indent=2, default=float) + "\n")
+        write_rows(args.out, rows)
     return 0
 
 
