@@ -276,6 +276,23 @@ def test_tables_keep_their_columns_with_failed_cases() -> None:
     assert "| gantry | harsh | 2 (1) | 0% (0/1) | – | 1/1 |" in summary
 
 
+def test_open_table_counts_honest_answers_and_right_remainders() -> None:
+    from benchmark.tables import open_table
+
+    named = {"truth": [["sensor_dynamics", "y"]], "class_ok": True, "location_ok": True,
+             "left_out": False, "outcome": "explained"}  # fmt: skip
+    honest = {"truth": [["amplifier_highpass", "x"]], "class_ok": False, "location_ok": False,
+              "left_out": True, "outcome": "partly_explained", "honest": True,
+              "remainder_ok": True}  # fmt: skip
+    claimed = {**honest, "outcome": "explained", "honest": False, "remainder_ok": False}
+    broken = {"truth": [["amplifier_highpass", "x"]], "error": "diagnose: exit 1"}
+    lines = open_table([named, honest, claimed, broken]).splitlines()
+    assert len({line.count("|") for line in lines}) == 1
+    assert lines[2].startswith("| sensor_dynamics | 1 (0) | 100% (1/1) | 100% (1/1) | – |")
+    assert lines[3] == "| amplifier_highpass | 3 (1) | – | – | 1 / 1 / 0 | 50% (1/2) | 50% (1/2) |"
+    assert lines[4].startswith("| **all** | 4 (1) | 100% (1/1) |")
+
+
 @pytest.mark.slow
 def test_blind_benchmark_runs_a_case_end_to_end(capsys: pytest.CaptureFixture[str]) -> None:
     import blind_benchmark

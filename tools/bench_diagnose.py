@@ -3,8 +3,8 @@
 For each benchmark case (``tools/benchmark``: a design, a data regime, withheld effects, made
 visible as the blind benchmark makes them) the case's files are written once (``--data``,
 reused when present), then the diagnosis (A) and the fit (B) of the same files run in turn,
-A B A B …, with ``farm-bench`` when it is on the PATH (else the same alternation here), and
-the ratio A/B is taken pair by pair: a machine that slows down during the run weighs on both.
+A B A B …, and the ratio A/B is taken pair by pair: a machine that slows down during the run
+weighs on both.
 Each command is a fresh process with single-threaded BLAS; the diagnosis has ``--workers``
 local worker processes. Printed per case: the truth, the verdict and outcome, the fit's and
 the diagnosis's median wall times and the median ratio; then the median and worst ratio.
@@ -21,10 +21,9 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
-import re
-import shutil
 import statistics
 import subprocess
 import sys
@@ -89,27 +88,16 @@ def commands(meta: dict[str, Any], folder: Path, workers: int) -> tuple[list[str
     return diag, fit
 
 
-def _farm_bench(a: list[str], b: list[str], runs: int, timeout: int) -> dict[str, float]:
-    """Median wall times of ``a`` and ``b`` and the median pairwise ratio, from farm-bench."""
-    cmd = ["farm-bench", "-n", str(runs), "--warmup", "0", "--timeout", str(timeout),
-           "--vs", " ".join(b), "--", *a]  # fmt: skip
-    out = subprocess.run(cmd, capture_output=True, text=True, check=False).stdout
-
-    def median(label: str) -> float:
-        m = re.search(rf"^{re.escape(label)}\s+\S+\s+(\S+)", out, re.M)
-        return float(m.group(1)) if m else float("nan")
-
-    return {"a_s": median("A wall s"), "b_s": median("B wall s"), "ratio": median("A/B wall")}
-
-
-def _here(a: list[str], b: list[str], runs: int) -> dict[str, float]:
-    """The same alternation as farm-bench, here (when it is not installed)."""
+def alternate(a: list[str], b: list[str], runs: int, timeout: int) -> dict[str, float]:
+    """Median wall times [s] of ``a`` and ``b``, run in turn ``runs`` times, and the median
+    ratio of the pairs' wall times (a command past ``timeout`` s counts as ``timeout``)."""
     ta, tb, ratios = [], [], []
     for _ in range(runs):
         pair = []
         for cmd in (a, b):
             t0 = time.perf_counter()
-            subprocess.run(cmd, capture_output=True, check=False)
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                subprocess.run(cmd, capture_output=True, check=False, timeout=timeout)
             pair.append(time.perf_counter() - t0)
         ta.append(pair[0])
         tb.append(pair[1])
@@ -145,7 +133,6 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = ap.parse_args(argv)
     data = args.data or Path(tempfile.mkdtemp(prefix="bondid-bench-"))
-    use_fb = shutil.which("farm-bench") is not None
     rows = []
     print(
         f"| case | truth | verdict | outcome | {'B' if args.scaling else 'fit'} s | "
@@ -159,8 +146,7 @@ def main(argv: list[str] | None = None) -> int:
             w1, w2 = (int(x) for x in args.scaling.split(","))
             diag = commands(meta, folder, w2)[0]
             fit = commands(meta, folder, w1)[0]
-        t = (_farm_bench(diag, fit, args.runs, args.timeout) if use_fb
-             else _here(diag, fit, args.runs))  # fmt: skip
+        t = alternate(diag, fit, args.runs, args.timeout)
         got, outcome = verdict(folder)
         row = {"case": name, "truth": " + ".join(meta["truth"]), "verdict": got,
                "outcome": outcome, "workers": args.workers, **t}  # fmt: skip
@@ -173,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
     if ratios:
         print(
             f"\nmedian ratio {statistics.median(ratios):.2f}, worst {max(ratios):.2f}, "
-            f"{len(ratios)} cases, {'farm-bench' if use_fb else 'alternated here'}"
+            f"{len(ratios)} cases"
         )
     return 0
 

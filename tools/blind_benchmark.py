@@ -40,7 +40,7 @@ from benchmark.cases import QUICK, Case, all_cases, leave_one_out, open_cases  #
 from benchmark.designs import DESIGNS  # noqa: E402
 from benchmark.regimes import REGIMES  # noqa: E402
 from benchmark.runner import STOPPING, Settings, run_case, stop_on_sigterm  # noqa: E402
-from benchmark.tables import case_table, summary_table  # noqa: E402
+from benchmark.tables import case_table, open_table, summary_table  # noqa: E402
 
 
 def _names(text: str | None, valid: tuple[str, ...] | list[str], what: str) -> list[str]:
@@ -141,11 +141,20 @@ def settings(args: argparse.Namespace) -> Settings:
     )  # fmt: skip
 
 
+def tables(rows: list[dict[str, Any]]) -> str:
+    """The per-case table and the summary; the open-world table too when a cause was left
+    out of the candidates (an open-world or leave-one-class-out run)."""
+    out = case_table(rows) + "\n\n" + summary_table(rows)
+    if any(r.get("left_out") for r in rows):
+        out += "\n\n" + open_table(rows)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse(argv)
     if args.tables:  # e.g. the rows a long run wrote before it was stopped
         rows = json.loads(args.tables.read_text())
-        print(case_table(rows) + "\n\n" + summary_table(rows))
+        print(tables(rows))
         return 0
     cases = select(args)
     if args.list:
@@ -185,9 +194,7 @@ def main(argv: list[str] | None = None) -> int:
     with ThreadPoolExecutor(max_workers=args.jobs) as pool:
         rows = list(pool.map(one, cases))
     print()
-    print(case_table(rows))
-    print()
-    print(summary_table(rows))
+    print(tables(rows))
     if args.out:
         write_rows(args.out, rows)
     return 0

@@ -9,10 +9,9 @@ import numpy as np
 
 from .runner import shows
 
-GOALS = ("goals: class ≥ 90 %, location ≥ 80 %, 0 effects claimed on 'none' cases, median"
-         " gap_closed / truth's ≥ 0.8; two-effect: both found ≥ 70 %, no third; diagnosis ≤ 4×"
-         " the fit; screening recall: every case; final model at the noise level (weighted"
-         " gap ≤ 1.1 × the truth's) ≥ 95 %")  # fmt: skip
+GOALS = ("goals: class and location ≥ 95 %, 0 effects claimed on 'none' cases; two-effect:"
+         " both found ≥ 90 %, no third; final fit at the truth's level (weighted gap ≤ 1.1 ×"
+         " the truth's) ≥ 95 %")  # fmt: skip
 
 #: what the last two columns of the summary count
 SHOWS = (
@@ -142,3 +141,33 @@ def summary_table(rows: list[dict[str, Any]]) -> str:
             f" {s['tied']} | {s['class_vis']} | {s['loc_vis']} | {s['extra1']} |"
         )
     return "\n".join(lines) + "\n\n" + GOALS + "\n\n" + SHOWS
+
+
+def open_table(rows: list[dict[str, Any]]) -> str:
+    """One line per withheld cause and one for all: with the cause's class among the
+    candidates, is it named at the right place; with it left out (outside the library, or
+    removed by ``--leave-one-out``), how did the answer come out, was it honest (never
+    *explained*), and does the description of the remainder point where the cause lives."""
+    head = (
+        "| cause | cases (failed) | class offered: class right | location right"
+        " | left out: explained / partly / unexplained | honest | remainder right |"
+    )
+    lines = [head, "|" + "---|" * 7]
+    causes = list(dict.fromkeys(r["truth"][0][0] for r in rows if r["truth"]))
+    groups = [(c, [r for r in rows if r["truth"] and r["truth"][0][0] == c]) for c in causes]
+    for name, rs in [*groups, ("**all**", [r for r in rows if r["truth"]])]:
+        ok = [r for r in rs if "error" not in r]
+        offered = [r for r in ok if not r.get("left_out")]
+        out = [r for r in ok if r.get("left_out")]
+        answers = [sum(r.get("outcome") == o for r in out)
+                   for o in ("explained", "partly_explained", "unexplained")]  # fmt: skip
+        judged = [r["remainder_ok"] for r in out if r.get("remainder_ok") is not None]
+        lines.append(
+            f"| {name} | {len(rs)} ({len(rs) - len(ok)}) |"
+            f" {_pct(sum(r['class_ok'] for r in offered), len(offered))} |"
+            f" {_pct(sum(bool(r['location_ok']) for r in offered), len(offered))} |"
+            f" {' / '.join(map(str, answers)) if out else '–'} |"
+            f" {_pct(sum(bool(r['honest']) for r in out), len(out))} |"
+            f" {_pct(sum(judged), len(judged))} |"
+        )
+    return "\n".join(lines)

@@ -87,20 +87,15 @@ class JointCompliance(Effect):
                 if box is None:  # the child's hull, read once per interface
                     box = (link_box(doc, itf.child),)
                 main, *others = pivot_options(doc, itf, vec, box[0])
-                variants = tuple(self._candidate(doc, itf, axis, p, main, box[0])
-                                 for p in others)  # fmt: skip
-                cand = self._candidate(doc, itf, axis, main, main, box[0])
+                variants = tuple(self._candidate(doc, itf, axis, p) for p in others)
+                cand = self._candidate(doc, itf, axis, main)
                 out.append(replace(cand, variants=variants))
         return out
 
     def _candidate(
-        self, doc: UrdfDocument, itf: Interface, axis: str, pivot: np.ndarray,
-        bearing: np.ndarray | None = None, box: Box | None = None,
-    ) -> Candidate:  # fmt: skip
-        """The candidate about ``pivot`` (child frame, m); ``bearing``: the interface's
-        bearing centre (rotational DOFs) and ``box`` the child's hull box, recorded as
-        ``spec["bearing"]`` and ``spec["box"]`` for the box the pivot is searched in
-        (:func:`..pivot.pivot_box`; a worker need not read the child's meshes again)."""
+        self, doc: UrdfDocument, itf: Interface, axis: str, pivot: np.ndarray
+    ) -> Candidate:
+        """The candidate about ``pivot`` (child frame, m)."""
         kind, vec = axis_vector(axis)
         jname = joint_name(itf.parent, itf.child, axis)
         spec: dict = {
@@ -110,10 +105,6 @@ class JointCompliance(Effect):
             "axis": [float(x) for x in vec],
             "pivot": [float(x) for x in pivot],
         }
-        if bearing is not None:
-            spec["bearing"] = [float(x) for x in bearing]
-        if box is not None:
-            spec["box"] = [[float(x) for x in corner] for corner in box]
         probe = self._insert(doc, spec, 1.0, 0.0)
         m = effective_inertia(probe, jname)
         k0 = m * (2 * np.pi * F_REF_HZ) ** 2
@@ -139,22 +130,6 @@ class JointCompliance(Effect):
             f"{kind} DOF along {axis} between {itf.parent} and {itf.child}{where}",
             F_REF_HZ,
         )
-
-    def at_pivot(self, doc: UrdfDocument, cand: Candidate, pivot: np.ndarray) -> Candidate:
-        """``cand`` (a rotational candidate of ``doc``) rebuilt about ``pivot`` (child frame,
-        m), without variants: its start, bounds and reference follow the DOF's effective
-        inertia about the new pivot (a spring that puts the mode at 300 Hz about the bearing
-        centre puts it elsewhere 60 mm away: the inertia about the pivot changes)."""
-        pair, axis = str(cand.location).split(":")
-        parent, child = pair.split("->")
-        itf = next((i for i in interfaces(doc) if (i.parent, i.child) == (parent, child)), None)
-        if itf is None:
-            raise ValueError(f"{cand.label}: no interface {pair} in the model")
-        box = cand.spec.get("box")
-        return self._candidate(
-            doc, itf, axis, np.asarray(pivot, float), itf.pivot(doc),
-            None if box is None else (np.asarray(box[0]), np.asarray(box[1])),
-        )  # fmt: skip
 
     @staticmethod
     def _insert(doc: UrdfDocument, spec: dict, k: float, d: float) -> UrdfDocument:
