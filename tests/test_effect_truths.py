@@ -150,7 +150,7 @@ def test_the_bending_arm_adds_up_to_the_link_and_bends_at_its_frequency():
         assert np.max(_db(a, b)) < 1e-3
 
 
-def test_signal_causes_outside_the_library():
+def test_the_highpass_outside_the_library():
     f = np.array([0.5, 4.0, 100.0])
     w = 2 * np.pi * f
     outs = ins = ("gx", "gy", "theta")
@@ -158,11 +158,15 @@ def test_signal_causes_outside_the_library():
     s = 1j * w / (2 * np.pi * 4.0)
     np.testing.assert_allclose(G[:, 1], np.broadcast_to(s**2 / (1 + 1.4 * s + s**2), (3, 3)))
     np.testing.assert_array_equal(G[:, [0, 2]], 1.0)
+
+
+def test_the_cross_talk_truth_turns_a_drives_force():
     truth, _, e = _pair("bonder_b/xtalk/harsh")
     obs = observe_data(truth, (e,), {}, F)
     ref = observe_data(truth, (), {}, F)
     i, j = obs.inputs.index("xa"), obs.inputs.index("ya")
-    np.testing.assert_allclose(obs.H[:, i], ref.H[:, i] + e.spec["share"] * ref.H[:, j],
+    s = e.spec["share"]
+    np.testing.assert_allclose(obs.H[:, i], np.sqrt(1 - s**2) * ref.H[:, i] + s * ref.H[:, j],
                                rtol=1e-12)  # fmt: skip
     np.testing.assert_array_equal(np.delete(obs.H, i, axis=1), np.delete(ref.H, i, axis=1))
 

@@ -146,7 +146,7 @@ QUICK = ("gantry/jct/harsh", "bonder_b/none_a/nocoh", "bonder/al/acc")
 # -- the open-world list: the later causes in the library, and causes outside it -------------
 
 #: per tag, the (design, cause) pairs: each later cause of the library on two designs, and
-#: three causes outside the library (:data:`.truth.OUTSIDE`)
+#: two causes outside the library (:data:`.truth.OUTSIDE`)
 OPEN: dict[str, tuple[tuple[str, E], ...]] = {
     "sdyn": (("bonder", E("sensor_dynamics", "y", {"f": 1100.0})),
              ("bonder_b", E("sensor_dynamics", "xa", {"f": 900.0}))),

@@ -13,8 +13,8 @@ Every effect here is built deliberately unlike the diagnosis's own candidate for
   candidate: one pole).
 
 The later causes (``sensor_dynamics``, ``sensor_misalignment``, ``drive_spring``,
-``flexible_link``, ``transducer_gain``) and three outside the diagnosis's library
-(``amplifier_highpass``, ``actuator_crosstalk``, ``attached_mass``) are built in
+``flexible_link``, ``transducer_gain``, ``actuator_crosstalk``) and two outside the
+diagnosis's library (``amplifier_highpass``, ``attached_mass``) are built in
 :mod:`.truth_structures` and :mod:`.truth_signals`; a truth's files come from
 :func:`observe_data` (its read heads' deflections added to their outputs, its output and
 input mixings and signal factors applied).
@@ -40,8 +40,8 @@ SIGNAL = ("sensor_delay", "actuator_lag")
 EFFECTS = STRUCTURAL + SIGNAL
 #: the later causes in the diagnosis's library, and the ones outside it
 LIBRARY_MORE = ("sensor_dynamics", "sensor_misalignment", "drive_spring", "flexible_link",
-                "transducer_gain")  # fmt: skip
-OUTSIDE = ("amplifier_highpass", "actuator_crosstalk", "attached_mass")
+                "transducer_gain", "actuator_crosstalk")  # fmt: skip
+OUTSIDE = ("amplifier_highpass", "attached_mass")
 ALL_EFFECTS = EFFECTS + LIBRARY_MORE + OUTSIDE
 
 

@@ -16,8 +16,9 @@ Built unlike the diagnosis's candidates (or with no candidate at all):
   candidate: a factor on the row or column);
 - ``amplifier_highpass`` (outside the library: an AC-coupled, second-order amplifier on an
   input): ``(jω/ωc)² / (1 + 2ζ jω/ωc + (jω/ωc)²)`` on the input's column, ζ = 0.7;
-- ``actuator_crosstalk`` (outside the library: an input mixing): the command of input ``a``
-  also drives input ``b`` by a share, ``H' = H (I + F)``, ``F[b, a]`` = share.
+- ``actuator_crosstalk`` (a drive's force turned toward another drive's axis): the command of
+  input ``a`` drives its own input by ``cos α`` and input ``b`` by ``sin α`` = the share (the
+  candidate: a first-order mixing ``H (I + F)``).
 
 :func:`observe` simulates a truth at an operating point with the extra outputs these need
 (the read heads' brackets), combines the rows into the files' readings (:func:`readings`), and
@@ -76,7 +77,7 @@ def highpass(w: np.ndarray, fc: float, zeta: float = 0.7) -> np.ndarray:
 
 
 def input_mixing(effects: Sequence[Any], inputs: Sequence[str]) -> np.ndarray | None:
-    """``I + F`` ``(n_in, n_in)`` of the ``actuator_crosstalk`` effects (None: none)."""
+    """The input mixing ``(n_in, n_in)`` of the ``actuator_crosstalk`` effects (None: none)."""
     R = np.eye(len(inputs), dtype=complex)
     found = False
     for e in effects:
@@ -84,7 +85,9 @@ def input_mixing(effects: Sequence[Any], inputs: Sequence[str]) -> np.ndarray | 
             continue
         a, b = e.location.split(",")
         if a in inputs and b in inputs:
-            R[inputs.index(b), inputs.index(a)] += e.spec["share"]
+            i, j = inputs.index(a), inputs.index(b)
+            R[j, i] += e.spec["share"]
+            R[i, i] *= np.sqrt(1.0 - e.spec["share"] ** 2)
             found = True
     return R if found else None
 

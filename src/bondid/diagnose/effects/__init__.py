@@ -17,6 +17,7 @@ _REGISTRY: dict[str, type[Effect]] = {}
 _BUILTIN = (
     "joint_compliance", "flexible_base", "soft_mounts", "sensor_delay", "actuator_lag",
     "sensor_dynamics", "sensor_misalignment", "drive_spring", "flexible_link", "transducer_gain",
+    "actuator_crosstalk",
 )  # fmt: skip
 
 E = TypeVar("E", bound=type[Effect])
