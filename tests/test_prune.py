@@ -91,10 +91,11 @@ def test_the_report_lists_the_dropped_effect_apart(wrong_then_true):  # type: ig
     ctx, base, steps = wrong_then_true
     pr = prune(ctx, SyncPool(), steps, base)
     diag = SimpleNamespace(pruning=pr, steps=steps, scores=steps[0].scores,
-                           baseline_score=steps[0].base_score)  # fmt: skip
+                           baseline_score=steps[0].base_score, datasets=ctx.full)  # fmt: skip
     effects = effect_entries(diag, 1.0)  # type: ignore[arg-type]
     assert [(x["effect"], x["location"]) for x in effects] == [("joint_compliance", TRUE_AT)]
     assert effects[0]["refitted_without_dropped"] and effects[0]["step"] == 2
+    assert effects[0]["caveats"] == []  # a structure inside its range, on given channels
     assert effects[0]["db_rms_after"] == pr.kept[0].model.db_rms
     stiff = [n for n in effects[0]["parameters"] if "stiffness" in n]
     assert stiff and all(effects[0]["parameters"][n]["value"] > 0 for n in stiff)

@@ -74,6 +74,7 @@ def summary(diag: Diagnosis, content: dict[str, Any]) -> str:
     if content.get("effects"):
         lines.append("effects: " + steps_line(g["db_rms"], content["effects"]))
     lines += preferred_lines(content.get("effects") or [])
+    lines += caveat_lines(content.get("effects") or [])
     lines += dropped_lines(content.get("dropped") or [])
     ff = content.get("final_fit")
     if ff:
@@ -120,6 +121,11 @@ def preferred_lines(effects: Sequence[dict[str, Any]]) -> list[str]:
                 f" the data do not tell them apart and it has fewer parameters"
             )
     return out
+
+
+def caveat_lines(effects: Sequence[dict[str, Any]]) -> list[str]:
+    """One line per caveat of a kept effect (``caveats`` of diagnosis.json, :mod:`.caveats`)."""
+    return [f"  caveat, {_label(e)}: {c['text']}" for e in effects for c in e.get("caveats") or []]
 
 
 def dropped_lines(dropped: Sequence[dict[str, Any]]) -> list[str]:

@@ -13,6 +13,7 @@ import math
 from typing import TYPE_CHECKING, Any
 
 from . import scoring
+from .caveats import caveats
 from .job import JobResult
 from .outcome import grade
 from .prune import Kept
@@ -69,6 +70,14 @@ def _params(k: Kept, j: int) -> dict[str, Any]:
     return {n: {"value": v, "std": std.get(n)} for n, v in vals.items()}
 
 
+def _caveats(diag: Diagnosis, k: Kept, j: int) -> list[dict[str, Any]]:
+    """The ``j``-th effect's caveats (:mod:`.caveats`) at its fitted values, on the channels
+    of every data set."""
+    vals, _ = effect_params(k.model, j)
+    channels = [(tuple(d.outputs), tuple(d.inputs)) for d in diag.datasets]
+    return caveats(k.model.chain[j], vals, channels)
+
+
 def effect_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
     """``effects`` of diagnosis.json (spec extension): the kept effects in the order added,
     each with its parameters and the gap after it (the kept effects up to it in the model);
@@ -88,6 +97,7 @@ def effect_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
             "refitted_without_dropped": not k.forward,
             "grade": grade(k.test),
             "indistinguishable_from": tied(step),
+            "caveats": _caveats(diag, k, j),
         })  # fmt: skip
     return out
 
@@ -131,6 +141,7 @@ def verdict_entry(
             + " (against the parameter refit)",
             "where": where,
             "indistinguishable_from": tied(diag.steps[k.step]),
+            "caveats": _caveats(diag, k, 0),
             "grade": grade(k.test),
             **answer,
         }

@@ -25,6 +25,11 @@ def diagnosis_section(diag: Any) -> list[Block]:
     if isinstance(verdict, Mapping) and verdict.get("reason"):
         out.append(text(f"Why: {verdict['reason']}"))
     effects, dropped = records(diag.get("effects")), records(diag.get("dropped"))
+    for e in effects:
+        for c in records(e.get("caveats")):
+            if isinstance(c.get("text"), str):
+                where = f" at {e['location']}" if e.get("location") else ""
+                out.append(note(f"Caveat on {e.get('effect', '?')}{where}: {c['text']}"))
     if len(effects) > 1 or dropped:
         rows = [
             Row(
