@@ -28,14 +28,14 @@ def candidate(doc, effect: str, location: str):
 
 
 def test_a_parameter_on_its_bound_is_named_with_its_side(doc):
-    cand = candidate(doc, "sensor_dynamics", "all")
-    f_n, zeta = cand.parameters
-    low = at_bound(cand, [f_n.lower * 1.0001, 0.05])
-    assert [(c.kind, c.parameter, c.side) for c in low] == [("at_bound", "f_n", "lower")]
-    assert "lower end" in low[0].text and "Hz" in low[0].text
-    high = at_bound(cand, [1000.0, zeta.upper])
-    assert [(c.parameter, c.side) for c in high] == [("zeta", "upper")]
-    assert at_bound(cand, [1000.0, 0.05]) == []
+    cand = candidate(doc, "actuator_lag", "all")
+    t, t2 = cand.parameters
+    low = at_bound(cand, [t.lower * 1.0001, 1e-4])
+    assert [(c.kind, c.parameter, c.side) for c in low] == [("at_bound", "T", "lower")]
+    assert "lower end" in low[0].text and " s)" in low[0].text
+    high = at_bound(cand, [1e-3, t2.upper])
+    assert [(c.parameter, c.side) for c in high] == [("T2", "upper")]
+    assert at_bound(cand, [1e-3, 1e-4]) == []
 
 
 def test_a_signed_parameter_is_placed_on_a_linear_scale(doc):
@@ -50,11 +50,11 @@ def test_a_signed_parameter_is_placed_on_a_linear_scale(doc):
 @pytest.mark.parametrize(
     ("effect", "location", "values", "common"),
     [
-        ("sensor_dynamics", "all", [300.0, 0.1], True),
         ("actuator_lag", "all", [1e-3, 2e-4], True),
         ("sensor_delay", "all", [40e-6], True),
-        ("sensor_dynamics", "y", [300.0, 0.1], False),
+        ("sensor_delay", "y", [40e-6], False),
         ("actuator_lag", "x", [1e-3, 2e-4], False),
+        ("sensor_dynamics", "y", [1e4, 1.0], False),  # a structure, not a factor
     ],
 )
 def test_a_factor_on_every_channel_is_common(doc, effect, location, values, common):
@@ -78,12 +78,12 @@ def test_mixing_absent_effects_and_structures_are_not_common_factors(doc):
 
 
 def test_caveats_are_listed_in_the_json_shape_and_printed(doc):
-    cand = candidate(doc, "sensor_dynamics", "all")
-    found = caveats(cand, {"f_n": cand.parameters[0].lower, "zeta": 0.7}, [(OUTS, INS)])
+    cand = candidate(doc, "actuator_lag", "all")
+    found = caveats(cand, {"T": 1e-3, "T2": cand.parameters[1].upper}, [(OUTS, INS)])
     assert [c["kind"] for c in found] == ["at_bound", "common_factor"]
     assert set(found[0]) == {"kind", "text", "parameter", "side"}
-    lines = caveat_lines([{"effect": "sensor_dynamics", "location": "all", "caveats": found}])
+    lines = caveat_lines([{"effect": "actuator_lag", "location": "all", "caveats": found}])
     assert len(lines) == 2
-    assert lines[1].startswith("  caveat, sensor_dynamics@all: it multiplies every channel")
+    assert lines[1].startswith("  caveat, actuator_lag@all: it multiplies every channel")
     # a sequence of the wrong length is no effect of this candidate: nothing is claimed
     assert caveats(cand, [1.0], [(OUTS, INS)]) == []

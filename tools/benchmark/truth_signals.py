@@ -7,8 +7,8 @@ Built unlike the diagnosis's candidates (or with no candidate at all):
   cantilever bracket (3 cm, a sprung revolute joint about the axis across it and the
   measuring direction) fixed to the measured body, its mass and its reaction part of the
   machine, and the output read at the head: the drive's reading plus the head's deflection
-  along the axis, ``ℓθ`` (the candidate: a transmissibility factor on the row, the head
-  weightless);
+  along the axis, ``ℓθ`` (the candidate: a head of another mass on a sprung slide along the
+  axis, at the body's centre of mass or at a face of its hull);
 - ``sensor_misalignment`` (sensors turned in the plane of two drives): the readings of the
   pair rotated, ``cos α`` of the sensor's own drive and ``sin α`` of the other, each sensor by
   its own angle (the candidate: a first-order mixing ``I + E``);

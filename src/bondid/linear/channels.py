@@ -53,6 +53,20 @@ def io_matrices(
 
     B = np.array([row(n, "input") for n in inputs]).reshape(len(inputs), len(dofs)).T
     C = np.array([row(n, "output") for n in outs]).reshape(len(outs), len(dofs))
+    for m in doc.sensor_mounts:
+        # a sensor on a compliant mount reads its own motion plus the mount's deflection
+        if m.joint not in dofs:
+            raise ModelError(
+                f"{where}: <sensor_mount output={m.output!r} joint={m.joint!r}>: the joint is"
+                f" not a movable joint; valid: {', '.join(dofs)}"
+            )
+        if m.output not in points and m.output not in dofs:
+            raise ModelError(
+                f"{where}: <sensor_mount output={m.output!r}>: not a movable joint nor a"
+                f" measurement point; valid: {', '.join(list(dofs) + list(points))}"
+            )
+        if m.output in outs:
+            C[outs.index(m.output), dofs.index(m.joint)] += 1.0
     return B, C, inputs, outs
 
 

@@ -31,6 +31,7 @@ from .joint_elements import (
     transmission_element,
     transmissions_in,
 )
+from .mounts import MOUNT_TAG, SensorMount, mount_from_element
 from .points import (
     GAIN_TAG,
     POINT_TAG,
@@ -270,6 +271,17 @@ class UrdfDocument:
                 el.set("value", repr(float(value)))
                 return
         self.extras.append(ET.Element(GAIN_TAG, {"name": name, "value": repr(float(value))}))
+
+    @property
+    def sensor_mounts(self) -> list[SensorMount]:
+        """Outputs that also read a mount's deflection (``<sensor_mount>``, :mod:`.mounts`)."""
+        where = self.source or "<URDF>"
+        return [mount_from_element(el, where) for el in self.extras if el.tag == MOUNT_TAG]
+
+    def add_sensor_mount(self, mount: SensorMount) -> None:
+        """Let ``mount.output`` also read the coordinate of ``mount.joint``."""
+        if mount not in self.sensor_mounts:
+            self.extras.append(mount.to_element())
 
     # -- writing ------------------------------------------------------------------------
     def to_string(self) -> str:

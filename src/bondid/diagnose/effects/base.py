@@ -159,6 +159,22 @@ class Effect:
         return None
 
 
+def spring_parameters(
+    joint: str, k0: float, d0: float, k_span: tuple[float, float], rotational: bool
+) -> tuple[NewParameter, NewParameter]:
+    """The stiffness (the strength, scanned) and damping of a new or freed spring at
+    ``joint``: starts ``k0``, ``d0`` (SI); the stiffness within ``k_span`` × ``k0`` (e.g. a
+    mode moved from 3 Hz to 40 kHz), the damping within 10⁻³…10³ × ``d0``, scanned with the
+    square root of the stiffness so the damping ratio stays."""
+    u_k, u_d = ("N*m/rad", "N*m*s/rad") if rotational else ("N/m", "N*s/m")
+    return (
+        NewParameter("stiffness", k0, k0 * k_span[0], k0 * k_span[1], u_k,
+                     ((f"{joint}.stiffness", 1.0),), scan=1.0, strength=True),
+        NewParameter("damping", d0, d0 * 1e-3, d0 * 1e3, u_d, ((f"{joint}.damping", 1.0),),
+                     scan=0.5),
+    )  # fmt: skip
+
+
 def per_joint_candidates(
     effect: Effect,
     doc: UrdfDocument,

@@ -20,7 +20,7 @@ import numpy as np
 
 from ...model.document import UrdfDocument
 from . import register
-from .base import Candidate, Effect, NewParameter
+from .base import Candidate, Effect, spring_parameters
 from .topology import effective_inertia
 
 F_REF_HZ = 10.0
@@ -46,17 +46,9 @@ class DriveSpring(Effect):
             d_model = doc.damping(j)
             d0 = d_model + 2 * ZETA * np.sqrt(k0 * m)
             rot = doc.joint(j).type != "prismatic"
-            params = (
-                NewParameter(
-                    "stiffness", k0, k0 * (0.05 / F_REF_HZ) ** 2, k0 * (5000.0 / F_REF_HZ) ** 2,
-                    "N*m/rad" if rot else "N/m", ((f"{j}.stiffness", 1.0),), scan=1.0,
-                    strength=True,
-                ),
-                NewParameter(
-                    "damping", d0, d0 * 1e-3, d0 * 1e3, "N*m*s/rad" if rot else "N*s/m",
-                    ((f"{j}.damping", 1.0),), scan=0.5,
-                ),
-            )  # fmt: skip
+            params = spring_parameters(
+                j, k0, d0, ((0.05 / F_REF_HZ) ** 2, (5000.0 / F_REF_HZ) ** 2), rot
+            )
             out.append(Candidate(
                 self.name, j, params, {"joint": j},
                 tuple((f / F_REF_HZ) ** 2 for f in SCAN_HZ),

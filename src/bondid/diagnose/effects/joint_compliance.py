@@ -24,7 +24,7 @@ import numpy as np
 from ...model.authoring import insert_parasitic_joint
 from ...model.document import UrdfDocument, rotation_and_translation
 from . import register
-from .base import Candidate, Effect, NewParameter
+from .base import Candidate, Effect, spring_parameters
 from .topology import Interface, axis_vector, effective_inertia, interfaces, link_box
 
 #: a link's hull box: lower and upper corners (m, link frame)
@@ -109,17 +109,9 @@ class JointCompliance(Effect):
         m = effective_inertia(probe, jname)
         k0 = m * (2 * np.pi * F_REF_HZ) ** 2
         d0 = 2 * ZETA * np.sqrt(k0 * m)
-        unit_k = "N/m" if kind == "prismatic" else "N*m/rad"
-        unit_d = "N*s/m" if kind == "prismatic" else "N*m*s/rad"
-        params = (
-            NewParameter(
-                "stiffness", k0, k0 * (3.0 / F_REF_HZ) ** 2, k0 * (40000 / F_REF_HZ) ** 2,
-                unit_k, ((f"{jname}.stiffness", 1.0),), scan=1.0, strength=True,
-            ),
-            NewParameter(
-                "damping", d0, d0 * 1e-3, d0 * 1e3, unit_d, ((f"{jname}.damping", 1.0),), scan=0.5,
-            ),
-        )  # fmt: skip
+        params = spring_parameters(
+            jname, k0, d0, ((3.0 / F_REF_HZ) ** 2, (40000 / F_REF_HZ) ** 2), kind != "prismatic"
+        )
         where = "" if kind == "prismatic" else f" pivot {np.round(pivot * 1e3, 1).tolist()} mm"
         return Candidate(
             self.name,

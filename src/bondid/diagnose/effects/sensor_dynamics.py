@@ -1,81 +1,161 @@
-"""``sensor_dynamics``: a sensor on a compliant mount, a mass-spring-damper seen in its output
-only.
+"""``sensor_dynamics``: a sensor on a compliant mount, a light head on a spring that only its
+own output reads.
 
 A read head, a scale, a target mirror or an accelerometer fixed to the measured body through
-a compliant bracket (or a glue or wax layer) moves as the body's motion filtered by the
-mount's own mode: the base-excitation transmissibility of a single degree of freedom,
+a compliant bracket (or a glue or wax layer) moves as the body's motion *at the head's place*
+filtered by the mount's own mode, and its output reads the body plus the head's deflection.
+Two things make this more than a factor on the output's row: the head is excited by the
+body's absolute motion there, rotations included (a head off the body's centre also reads
+the body's small tilts, through its lever arm, which the other drives excite), and the
+output's row of the model (a drive's encoder: a relative coordinate) is not that motion.
 
-    G(ω) = (ωn² + 2jζωnω) / (ωn² − ω² + 2jζωnω),   ωn = 2π f_n,
-
-which is 1 well below the mount's mode, peaks there and rolls off above it. The sensor is
-light against the machine, so the mount changes its own reading and nothing else: an FRF
-modifier on that output's row ``OUT.*`` (every column alike).
+The candidate builds the mount in: a head link (1 % of the measured body's mass, or of its
+inertia about the measuring axis for an angle sensor) on a sprung joint along the measuring
+direction, fixed to the measured body, and a ``<sensor_mount>`` element (:mod:`bondid.model.
+mounts`) that adds the joint's deflection to the output. Where the head sits is seldom known
+and enters the kinematics, so a translation sensor's candidate carries variants
+(:attr:`~.base.Candidate.variants`): the head at the body's centre of mass, and at the two
+faces of its collision hull across the measuring direction, one direction at a time.
 
 Candidates: each sensor (the transmitted joints' encoders and the measurement points;
-location = the output) and all of them with one common mount (location ``"all"``). New
-parameters: ``f_n`` [Hz] (the effect's strength: the mount is absent as ``f_n → ∞``, so its
-``value/std`` is the Wald test of a zero compliance, as for a stiffness) and the damping
-ratio ``zeta``. Exact derivatives ``∂G/∂ωn = −2ω²(ωn + jζω)/D²`` and
-``∂G/∂ζ = −2jωnω³/D²`` (``D`` the denominator). Start: 1 kHz, 5 %. ``f_n`` follows the
-starting-point scan with exponent ½ and ``ref_hz`` = its start, so that scaling by
-``(f/ref_hz)²`` puts the mount's mode at ``f`` (:mod:`..scan_grid`); the scan runs from 50 Hz
-to 12 kHz.
+location = the output). New parameters: the mount's stiffness (the strength: the mount is
+rigid as it grows) and damping. The start puts the mount's mode at 1 kHz with 5 % damping;
+the starting-point scan moves it from 50 Hz to 12 kHz keeping the damping ratio; bounds
+from 20 Hz to 40 kHz.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ...model.document import UrdfDocument
+from ...model.mounts import SensorMount
+from ...model.parameters import link_inertial
 from . import register
-from .base import Candidate, Effect, NewParameter
+from ._chain import add_joint, add_link
+from .base import Candidate, Effect, spring_parameters
 from .channels import sensors
-from .sensor_delay import row_mask
+from .topology import interfaces, link_box
 
 F0_HZ = 1000.0
 ZETA0 = 0.05
 SCAN_HZ = tuple(float(f) for f in np.geomspace(50.0, 12000.0, 60))
+#: the head's mass (inertia) as a share of the measured body's: light, yet its own body
+HEAD_SHARE = 0.01
 
 
-def transmissibility(
-    w: np.ndarray, wn: float, zeta: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``G`` ``(n,)`` at angular frequencies ``w`` [rad/s] and its derivatives in ``ωn``
-    [rad/s] and ``ζ`` (module docstring)."""
-    num = wn**2 + 2j * zeta * wn * w
-    den = num - w**2
-    g = num / den
-    dg_dwn = -2.0 * w**2 * (wn + 1j * zeta * w) / den**2
-    dg_dzeta = -2j * wn * w**3 / den**2
-    return g, dg_dwn, dg_dzeta
+def link_placements(doc: UrdfDocument) -> dict[str, np.ndarray]:
+    """Every link's placement ``(4, 4)`` in the root frame at q = 0."""
+    out = {doc.root_link(): np.eye(4)}
+    pending = list(doc.robot.joints)
+    while pending:
+        rest = [j for j in pending if j.parent not in out]
+        for j in pending:
+            if j.parent in out:
+                T = np.eye(4) if j.origin is None else np.asarray(j.origin, float)
+                out[j.child] = out[j.parent] @ T
+        if len(rest) == len(pending):
+            break
+        pending = rest
+    return out
+
+
+def measured(doc: UrdfDocument, output: str) -> tuple[str, np.ndarray, str] | None:
+    """``(body, direction (3,) in the body's axes, "prismatic" | "revolute")``: the body a
+    sensor's head would be fixed to and along what it measures; None when the model says
+    neither (a point relative to another frame measures no single body)."""
+    W = link_placements(doc)
+    points = {p.name: p for p in doc.points}
+    if output in points:
+        p = points[output]
+        if p.relative_to is not None or p.second_kind is not None or p.link not in W:
+            return None
+        d = np.asarray(p.direction, float)
+        if p.axes == "world":
+            d = W[p.link][:3, :3].T @ d
+        return p.link, d / np.linalg.norm(d), "prismatic" if p.kind == "translation" else "revolute"
+    j = doc.joint(output)
+    body = next((i.child for i in interfaces(doc) if output in i.joints), j.child)
+    T = W[j.parent] @ (np.eye(4) if j.origin is None else np.asarray(j.origin, float))
+    a = T[:3, :3] @ np.asarray(j.axis if j.axis is not None else (1.0, 0.0, 0.0), float)
+    d = W[body][:3, :3].T @ (a / np.linalg.norm(a))
+    return body, d, "prismatic" if j.type == "prismatic" else "revolute"
+
+
+def head_places(doc: UrdfDocument, body: str, d: np.ndarray, com: np.ndarray) -> list:
+    """Where a translation sensor's head may sit (body frame, m): its centre of mass first,
+    then the faces of its collision hull along the two body axes most across ``d``."""
+    box = link_box(doc, body)
+    places = [com]
+    if box is None:
+        return places
+    for k in np.argsort(np.abs(d))[:2]:
+        for face in box:
+            p = com.copy()
+            p[k] = face[k]
+            if abs(p[k] - com[k]) > 1e-6:
+                places.append(p)
+    return places
 
 
 @register
 class SensorDynamics(Effect):
     name = "sensor_dynamics"
-    description = "a sensor on a compliant mount: a mass-spring seen in its output only"
-    is_modifier = True
+    description = "a sensor on a compliant mount: a light head on a spring, read by its output"
 
     def candidates(self, doc: UrdfDocument) -> list[Candidate]:
-        params = (
-            NewParameter("f_n", F0_HZ, 20.0, 40000.0, "Hz", scan=0.5, strength=True),
-            NewParameter("zeta", ZETA0, 1e-3, 1.0, "1"),
-        )
-        grid = tuple((f / F0_HZ) ** 2 for f in SCAN_HZ)
-        what = "compliant mount of sensor(s)"
-        return [
-            Candidate(self.name, loc, params, {}, grid, f"{what} {loc}", F0_HZ)
-            for loc in [*sensors(doc), "all"]
-        ]
+        out = []
+        for s in sensors(doc):
+            found = measured(doc, s)
+            if found is None:
+                continue
+            body, d, kind = found
+            mass, com, inertia = link_inertial(doc, body) if doc.link(body).inertial else (0, 0, 0)
+            if mass <= 0:
+                continue
+            if kind == "prismatic":
+                m = HEAD_SHARE * mass
+                places = head_places(doc, body, d, np.asarray(com, float))
+            else:
+                m = HEAD_SHARE * float(d @ np.asarray(inertia, float) @ d)
+                places = [np.asarray(com, float)]
+            main, *others = (self._candidate(s, body, d, kind, m, p) for p in places)
+            out.append(replace(main, variants=tuple(others)))
+        return out
 
-    def modifier(self, candidate, values, freq_hz, outputs, inputs):
-        fn, zeta = (float(v) for v in values)
-        w = 2 * np.pi * np.asarray(freq_hz, float)
-        g, dg_dwn, dg_dzeta = transmissibility(w, 2 * np.pi * fn, zeta)
-        mask = row_mask(candidate.location, tuple(outputs))
-        G = np.ones((len(outputs), len(inputs), w.size), complex)
-        G[mask] = g
-        dG = np.zeros((*G.shape, 2), complex)
-        dG[mask, :, :, 0] = 2 * np.pi * dg_dwn
-        dG[mask, :, :, 1] = dg_dzeta
-        return G, dG
+    def _candidate(
+        self, output: str, body: str, d: np.ndarray, kind: str, m: float, place: np.ndarray
+    ) -> Candidate:
+        """The mount of ``output``'s head at ``place`` (``body``'s frame, m); ``m`` the head's
+        mass (kg) or inertia about ``d`` (kg·m²)."""
+        joint = f"sensor_mount_{output}"
+        k0 = m * (2 * np.pi * F0_HZ) ** 2
+        c0 = 2 * ZETA0 * np.sqrt(k0 * m)
+        span = ((20.0 / F0_HZ) ** 2, (40000.0 / F0_HZ) ** 2)
+        params = spring_parameters(joint, k0, c0, span, kind != "prismatic")
+        spec = {
+            "output": output, "body": body, "joint": joint, "kind": kind, "mass": m,
+            "axis": [float(x) for x in d], "place": [float(x) for x in place],
+        }  # fmt: skip
+        rot = kind != "prismatic"
+        where = f" at {np.round(place * 1e3, 1).tolist()} mm on {body}" if not rot else ""
+        return Candidate(
+            self.name, output, params, spec, tuple((f / F0_HZ) ** 2 for f in SCAN_HZ),
+            f"compliant mount of sensor {output}{where}", F0_HZ,
+        )  # fmt: skip
+
+    def augment(self, doc: UrdfDocument, candidate: Candidate) -> UrdfDocument:
+        new = doc.copy()
+        s = candidate.spec
+        k, c = (float(p.initial) for p in candidate.parameters)
+        head = f"sensor_head_{s['output']}"
+        if s["kind"] == "prismatic":
+            add_link(new, head, s["mass"], radius=0.005)
+        else:  # a disc whose inertia about any axis is the head's inertia about d
+            add_link(new, head, HEAD_SHARE, radius=float(np.sqrt(s["mass"] / (0.4 * HEAD_SHARE))))
+        add_joint(new, s["joint"], s["kind"], s["body"], head, axis=tuple(s["axis"]),
+                  xyz=tuple(s["place"]), stiffness=k, damping=c)  # fmt: skip
+        new.add_sensor_mount(SensorMount(s["output"], s["joint"]))
+        return new
