@@ -48,6 +48,21 @@ def refit_of(doc: UrdfDocument, names: Sequence[str], data: list, cand):
     return build(doc.to_string(), space, data, CostOptions(), (), cand).refit
 
 
+def mixed_refit(doc: UrdfDocument, names: Sequence[str], ops: Sequence[dict], effect, cand,
+                values: np.ndarray):  # fmt: skip
+    """The refit of the mixing candidate ``cand`` from no mixing, on noisy data of ``doc``
+    with the y stage 5 % lighter and ``effect``'s mixing at ``values`` applied."""
+    from bondid.model import get_parameter, set_parameter
+
+    truth = doc.copy()
+    set_parameter(truth, "y_stage.mass", 0.95 * get_parameter(doc, "y_stage.mass"))
+
+    def mix(H, f, outs, ins):
+        return effect.mixing(cand, values, outs, ins).apply(H)
+
+    return refit_of(doc, names, noisy_data(truth, ops, transform=mix), cand)
+
+
 def solve(refit, max_iter: int = 150) -> np.ndarray:
     """The candidate's new parameters (SI) after one direct solve from the refit's start."""
     from bondid.optim.schedules import direct

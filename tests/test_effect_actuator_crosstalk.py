@@ -7,11 +7,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from effect_support import GRAD_TOL, gradient_error, modifier_fd_error, noisy_data, refit_of, solve
+from effect_support import (
+    GRAD_TOL,
+    gradient_error,
+    mixed_refit,
+    modifier_fd_error,
+    noisy_data,
+    refit_of,
+    solve,
+)
 
 from bondid.cost.modifier import Mixing
 from bondid.diagnose.effects import get_effect
-from bondid.model import UrdfDocument, get_parameter, set_parameter
+from bondid.model import UrdfDocument
 from bondid.simulate import log_grid, simulate
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -65,14 +73,7 @@ def test_cross_talk_is_refitted_from_none(doc):
     e = get_effect("actuator_crosstalk")
     cand = e.candidates(doc)[0]
     F = np.array([0.02, -0.01])
-    truth = doc.copy()
-    set_parameter(truth, "y_stage.mass", 0.95 * get_parameter(doc, "y_stage.mass"))
-
-    def mix(H, f, outs, ins):
-        return e.mixing(cand, F, outs, ins).apply(H)
-
-    data = noisy_data(truth, OPS, transform=mix)
-    refit = refit_of(doc, FEW, data, cand)
+    refit = mixed_refit(doc, FEW, OPS, e, cand, F)
     assert refit.modifier is not None and refit.modifier.mixing is not None
     assert gradient_error(refit) < GRAD_TOL
     np.testing.assert_allclose(solve(refit), F, atol=ABS_F)

@@ -6,10 +6,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from effect_support import GRAD_TOL, gradient_error, modifier_fd_error, noisy_data, refit_of, solve
+from effect_support import GRAD_TOL, gradient_error, mixed_refit, modifier_fd_error, solve
 
 from bondid.diagnose.effects import get_effect
-from bondid.model import UrdfDocument, get_parameter, set_parameter
+from bondid.model import UrdfDocument
 
 ROOT = Path(__file__).resolve().parents[1]
 MODEL = ROOT / "urdf" / "bonder.urdf"
@@ -58,14 +58,7 @@ def test_cross_talk_is_refitted_from_none(doc):
     e = get_effect("sensor_misalignment")
     cand = e.candidates(doc)[0]
     E = np.array([0.03, -0.015])
-    truth = doc.copy()
-    set_parameter(truth, "y_stage.mass", 0.95 * get_parameter(doc, "y_stage.mass"))
-
-    def mix(H, f, outs, ins):
-        return e.mixing(cand, E, outs, ins).apply(H)
-
-    data = noisy_data(truth, OPS, transform=mix)
-    refit = refit_of(doc, FEW, data, cand)
+    refit = mixed_refit(doc, FEW, OPS, e, cand, E)
     assert refit.modifier is not None and refit.modifier.mixing is not None
     assert gradient_error(refit) < GRAD_TOL
     got = solve(refit)

@@ -20,43 +20,26 @@ from __future__ import annotations
 import numpy as np
 
 from bondid.diagnose.effects._chain import add_link, dof_chain
-from bondid.diagnose.effects.topology import effective_inertia, interfaces, link_box
+from bondid.diagnose.effects.topology import (
+    carried_body,
+    effective_inertia,
+    interfaces,
+    joint_axis,
+    link_box,
+)
 from bondid.model import UrdfDocument
 from bondid.model.document import rotation_and_translation
 from bondid.model.parameters import link_inertial, set_link_inertial
 
 
-def world_frames(doc: UrdfDocument) -> dict[str, np.ndarray]:
-    """Every link's placement ``(4, 4)`` in the root frame at q = 0."""
-    out = {doc.root_link(): np.eye(4)}
-    pending = list(doc.robot.joints)
-    while pending:
-        rest = []
-        for j in pending:
-            if j.parent in out:
-                T = np.eye(4) if j.origin is None else np.asarray(j.origin, float)
-                out[j.child] = out[j.parent] @ T
-            else:
-                rest.append(j)
-        if len(rest) == len(pending):
-            break
-        pending = rest
-    return out
-
-
 def drive_axis(doc: UrdfDocument, joint: str, frame: str) -> np.ndarray:
     """The unit axis ``(3,)`` of ``joint`` in ``frame``'s axes at q = 0."""
-    W = world_frames(doc)
-    j = doc.joint(joint)
-    T = W[j.parent] @ (np.eye(4) if j.origin is None else np.asarray(j.origin, float))
-    a = T[:3, :3] @ np.asarray(j.axis if j.axis is not None else (1.0, 0.0, 0.0), float)
-    return W[frame][:3, :3].T @ (a / np.linalg.norm(a))
+    return joint_axis(doc, joint, frame)
 
 
 def moved_body(doc: UrdfDocument, joint: str) -> str:
     """The body (a link with mass) that ``joint`` carries first."""
-    itf = next(i for i in interfaces(doc) if joint in i.joints)
-    return itf.child
+    return carried_body(doc, joint)
 
 
 def add_cable_carrier(doc: UrdfDocument, joint: str, f: float) -> UrdfDocument:

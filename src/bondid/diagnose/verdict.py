@@ -70,12 +70,11 @@ def _params(k: Kept, j: int) -> dict[str, Any]:
     return {n: {"value": v, "std": std.get(n)} for n, v in vals.items()}
 
 
-def _caveats(diag: Diagnosis, k: Kept, j: int) -> list[dict[str, Any]]:
-    """The ``j``-th effect's caveats (:mod:`.caveats`) at its fitted values, on the channels
-    of every data set."""
-    vals, _ = effect_params(k.model, j)
+def _caveats(diag: Diagnosis, k: Kept, j: int, params: dict[str, Any]) -> list[dict[str, Any]]:
+    """The ``j``-th effect's caveats (:mod:`.caveats`) at its fitted ``params`` (as
+    :func:`_params` gives them), on the channels of every data set."""
     channels = [(tuple(d.outputs), tuple(d.inputs)) for d in diag.datasets]
-    return caveats(k.model.chain[j], vals, channels)
+    return caveats(k.model.chain[j], [p["value"] for p in params.values()], channels)
 
 
 def effect_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
@@ -87,17 +86,18 @@ def effect_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
     for j, k in enumerate(kept_effects(diag)):
         c = k.model.chain[j]
         step = diag.steps[k.step]
+        params = _params(k, j)
         out.append({
             "step": k.step + 1, "effect": c.effect, "location": c.location,
             "detail": _detail(k, j),
-            "parameters": _params(k, j),
+            "parameters": params,
             "db_rms_after": k.model.db_rms, "heldout_db_rms_after": k.model.heldout_db_rms,
             "gap_closed": gap_closed(before, k.model.db_rms), "score": k.score,
             "score_before": k.score_before, "test": k.test,
             "refitted_without_dropped": not k.forward,
             "grade": grade(k.test),
             "indistinguishable_from": tied(step),
-            "caveats": _caveats(diag, k, j),
+            "caveats": _caveats(diag, k, j, params),
         })  # fmt: skip
     return out
 
@@ -130,18 +130,19 @@ def verdict_entry(
     if kept:
         k = kept[0]
         c = k.model.chain[0]
+        params = _params(k, 0)
         verdict: dict[str, Any] = {
             "effect": c.effect,
             "location": c.location,
             "detail": _detail(k, 0),
             "gap_closed": gap_closed(before, k.model.db_rms),
             "gap_closed_total": gap_closed(nominal, k.model.db_rms),
-            "parameters": _params(k, 0),
+            "parameters": params,
             "reason": scoring.reason(k.test, k.score, k.score_before)
             + " (against the parameter refit)",
             "where": where,
             "indistinguishable_from": tied(diag.steps[k.step]),
-            "caveats": _caveats(diag, k, 0),
+            "caveats": _caveats(diag, k, 0, params),
             "grade": grade(k.test),
             **answer,
         }

@@ -20,24 +20,13 @@ torques; location ``"a,b"`` in input order, parameters ``F[a, b]`` and ``F[b, a]
 
 from __future__ import annotations
 
-from ...cost.modifier import Mixing
-from ...model.document import UrdfDocument
 from . import register
-from .base import Candidate, Effect
-from .channel_mixing import identity_plus, pair_candidates
-from .channels import actuators
+from .channel_mixing import ChannelMixing
 
 
 @register
-class ActuatorCrosstalk(Effect):
+class ActuatorCrosstalk(ChannelMixing):
     name = "actuator_crosstalk"
     description = "cross-talk between inputs: an input mixing matrix near I"
-    is_modifier = True
-    mixes = True
-
-    def candidates(self, doc: UrdfDocument) -> list[Candidate]:
-        return pair_candidates(self.name, doc, actuators(doc), "f", "inputs")
-
-    def mixing(self, candidate, values, outputs, inputs):
-        R, dR = identity_plus(candidate.spec["entries"], values, tuple(inputs))
-        return Mixing(right=R, dright=dR)
+    side = "inputs"
+    prefix = "f"

@@ -1,6 +1,6 @@
-"""Cross-talk between channels of one kind: the candidates and the mixing matrix ``I + E``
-shared by the output side (:mod:`.sensor_misalignment`) and the input side
-(:mod:`.actuator_crosstalk`).
+"""Cross-talk between channels of one kind: :class:`ChannelMixing`, the base of the output
+side (:mod:`.sensor_misalignment`, ``(I + E) H``) and the input side
+(:mod:`.actuator_crosstalk`, ``H (I + F)``), its candidates and its matrix ``I + E``.
 
 Two channels are paired only when they carry the same kind of quantity (two translations or
 two rotations; on the input side, two forces or two torques): mixing a translation with a
@@ -18,9 +18,10 @@ from itertools import combinations
 
 import numpy as np
 
+from ...cost.modifier import Mixing
 from ...model.document import UrdfDocument
-from .base import Candidate, NewParameter
-from .channels import sensor_kind
+from .base import Candidate, Effect, NewParameter
+from .channels import actuators, sensor_kind, sensors
 
 #: bounds of every entry (±30°: far beyond a misalignment, room for a strong cross-talk)
 LIMIT = 0.5
@@ -71,3 +72,26 @@ def identity_plus(
             M[i, j] += float(values[k])
             dM[i, j, k] = 1.0
     return M, dM
+
+
+class ChannelMixing(Effect):
+    """An FRF modifier that mixes the outputs (``side = "outputs"``: ``L = I + E``) or the
+    inputs (``side = "inputs"``: ``R = I + E``), no elementwise factor; a subclass sets
+    ``name``, ``description``, ``side`` and its parameters' ``prefix``."""
+
+    is_modifier = True
+    mixes = True
+    #: ``"outputs"`` (rows) or ``"inputs"`` (columns)
+    side = "outputs"
+    #: parameter names ``{prefix}_{a}_{b}``
+    prefix = "e"
+
+    def candidates(self, doc: UrdfDocument) -> list[Candidate]:
+        channels = sensors(doc) if self.side == "outputs" else actuators(doc)
+        return pair_candidates(self.name, doc, channels, self.prefix, self.side)
+
+    def mixing(self, candidate, values, outputs, inputs):
+        on_rows = self.side == "outputs"
+        channels = tuple(outputs if on_rows else inputs)
+        M, dM = identity_plus(candidate.spec["entries"], values, channels)
+        return Mixing(left=M, dleft=dM) if on_rows else Mixing(right=M, dright=dM)

@@ -37,29 +37,15 @@ from . import register
 from ._chain import add_joint, add_link
 from .base import Candidate, Effect, spring_parameters
 from .channels import sensors
-from .topology import interfaces, link_box
+from .topology import carried_body, joint_axis, link_box, link_placements
 
 F0_HZ = 1000.0
 ZETA0 = 0.05
 SCAN_HZ = tuple(float(f) for f in np.geomspace(50.0, 12000.0, 60))
 #: the head's mass (inertia) as a share of the measured body's: light, yet its own body
 HEAD_SHARE = 0.01
-
-
-def link_placements(doc: UrdfDocument) -> dict[str, np.ndarray]:
-    """Every link's placement ``(4, 4)`` in the root frame at q = 0."""
-    out = {doc.root_link(): np.eye(4)}
-    pending = list(doc.robot.joints)
-    while pending:
-        rest = [j for j in pending if j.parent not in out]
-        for j in pending:
-            if j.parent in out:
-                T = np.eye(4) if j.origin is None else np.asarray(j.origin, float)
-                out[j.child] = out[j.parent] @ T
-        if len(rest) == len(pending):
-            break
-        pending = rest
-    return out
+#: an angle sensor's head: a sphere of this mass [kg], its radius setting its inertia
+ROTARY_HEAD_KG = 0.01
 
 
 def measured(doc: UrdfDocument, output: str) -> tuple[str, np.ndarray, str] | None:
@@ -76,12 +62,9 @@ def measured(doc: UrdfDocument, output: str) -> tuple[str, np.ndarray, str] | No
         if p.axes == "world":
             d = W[p.link][:3, :3].T @ d
         return p.link, d / np.linalg.norm(d), "prismatic" if p.kind == "translation" else "revolute"
-    j = doc.joint(output)
-    body = next((i.child for i in interfaces(doc) if output in i.joints), j.child)
-    T = W[j.parent] @ (np.eye(4) if j.origin is None else np.asarray(j.origin, float))
-    a = T[:3, :3] @ np.asarray(j.axis if j.axis is not None else (1.0, 0.0, 0.0), float)
-    d = W[body][:3, :3].T @ (a / np.linalg.norm(a))
-    return body, d, "prismatic" if j.type == "prismatic" else "revolute"
+    body = carried_body(doc, output)
+    d = joint_axis(doc, output, body, W)
+    return body, d, "prismatic" if doc.joint(output).type == "prismatic" else "revolute"
 
 
 def head_places(doc: UrdfDocument, body: str, d: np.ndarray, com: np.ndarray) -> list:
@@ -112,7 +95,9 @@ class SensorDynamics(Effect):
             if found is None:
                 continue
             body, d, kind = found
-            mass, com, inertia = link_inertial(doc, body) if doc.link(body).inertial else (0, 0, 0)
+            if doc.link(body).inertial is None:
+                continue
+            mass, com, inertia = link_inertial(doc, body)
             if mass <= 0:
                 continue
             if kind == "prismatic":
@@ -154,7 +139,8 @@ class SensorDynamics(Effect):
         if s["kind"] == "prismatic":
             add_link(new, head, s["mass"], radius=0.005)
         else:  # a disc whose inertia about any axis is the head's inertia about d
-            add_link(new, head, HEAD_SHARE, radius=float(np.sqrt(s["mass"] / (0.4 * HEAD_SHARE))))
+            r = float(np.sqrt(s["mass"] / (0.4 * ROTARY_HEAD_KG)))
+            add_link(new, head, ROTARY_HEAD_KG, radius=r)
         add_joint(new, s["joint"], s["kind"], s["body"], head, axis=tuple(s["axis"]),
                   xyz=tuple(s["place"]), stiffness=k, damping=c)  # fmt: skip
         new.add_sensor_mount(SensorMount(s["output"], s["joint"]))

@@ -18,24 +18,13 @@ quantity (location ``"a,b"`` in output order, parameters ``E[a, b]`` and ``E[b, 
 
 from __future__ import annotations
 
-from ...cost.modifier import Mixing
-from ...model.document import UrdfDocument
 from . import register
-from .base import Candidate, Effect
-from .channel_mixing import identity_plus, pair_candidates
-from .channels import sensors
+from .channel_mixing import ChannelMixing
 
 
 @register
-class SensorMisalignment(Effect):
+class SensorMisalignment(ChannelMixing):
     name = "sensor_misalignment"
     description = "cross-talk / misalignment between outputs: an output mixing matrix near I"
-    is_modifier = True
-    mixes = True
-
-    def candidates(self, doc: UrdfDocument) -> list[Candidate]:
-        return pair_candidates(self.name, doc, sensors(doc), "e", "outputs")
-
-    def mixing(self, candidate, values, outputs, inputs):
-        L, dL = identity_plus(candidate.spec["entries"], values, tuple(outputs))
-        return Mixing(left=L, dleft=dL)
+    side = "outputs"
+    prefix = "e"

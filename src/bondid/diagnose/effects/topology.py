@@ -153,3 +153,37 @@ def link_box(doc: UrdfDocument, link: str) -> tuple[np.ndarray, np.ndarray] | No
 
     hull = link_hull(doc.link(link), mesh_resolver(doc), name=link)
     return None if hull is None else (hull.vertices.min(axis=0), hull.vertices.max(axis=0))
+
+
+def link_placements(doc: UrdfDocument) -> dict[str, np.ndarray]:
+    """Every link's placement ``(4, 4)`` in the root frame at the neutral configuration."""
+    out = {doc.root_link(): np.eye(4)}
+    pending = list(doc.robot.joints)
+    while pending:
+        rest = [j for j in pending if j.parent not in out]
+        for j in pending:
+            if j.parent in out:
+                T = np.eye(4) if j.origin is None else np.asarray(j.origin, float)
+                out[j.child] = out[j.parent] @ T
+        if len(rest) == len(pending):
+            break
+        pending = rest
+    return out
+
+
+def carried_body(doc: UrdfDocument, joint: str) -> str:
+    """The body (a link with mass) that ``joint`` carries first: the child of the interface
+    it belongs to (its own child link when it is in none)."""
+    return next((i.child for i in interfaces(doc) if joint in i.joints), doc.joint(joint).child)
+
+
+def joint_axis(
+    doc: UrdfDocument, joint: str, frame: str, placements: dict[str, np.ndarray] | None = None
+) -> np.ndarray:
+    """The unit axis ``(3,)`` of ``joint`` in ``frame``'s axes at the neutral configuration
+    (``placements``: :func:`link_placements` of ``doc``, when at hand)."""
+    W = link_placements(doc) if placements is None else placements
+    j = doc.joint(joint)
+    T = W[j.parent] @ (np.eye(4) if j.origin is None else np.asarray(j.origin, float))
+    a = T[:3, :3] @ np.asarray(j.axis if j.axis is not None else (1.0, 0.0, 0.0), float)
+    return W[frame][:3, :3].T @ (a / np.linalg.norm(a))
