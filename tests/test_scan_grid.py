@@ -82,3 +82,26 @@ def test_a_placed_start_puts_the_candidates_mode_at_the_measured_one(doc):
     for s in starts:
         if math.isfinite(s.figure):
             assert s.figure <= refit.cost(State(s.x, s.theta)) + 1e-12
+
+
+def test_a_placed_start_relaxes_the_nominal_parameters_around_its_held_spring(doc):
+    """``relaxed``: the spring stays where it was placed (bit for bit), the nominal
+    parameters move, and the objective does not rise (an IPOPT solve from that point)."""
+    from models import noisy_bonder_data
+
+    from bondid.cost.problem import CostOptions
+    from bondid.diagnose.augmented import build
+    from bondid.diagnose.effects import get_effect
+    from bondid.diagnose.refit import nominal_space
+    from bondid.diagnose.starts import relaxed
+
+    c = next(c for c in get_effect("joint_compliance").candidates(doc)
+             if c.location == "x_stage->y_stage:tz")  # fmt: skip
+    data = noisy_bonder_data(doc, n=60)
+    space = nominal_space(doc, ["x_stage.mass", "y_stage.mass"], 4000.0)
+    refit = build(doc.to_string(), space, data, CostOptions(), (), c).refit
+    placed = refit.with_new(refit.state0, refit.new_values(refit.state0) * [0.05, 1.0])
+    out = relaxed(refit, placed)
+    np.testing.assert_array_equal(refit.new_values(out), refit.new_values(placed))
+    assert not np.array_equal(out.x[: refit.n_nominal], placed.x[: refit.n_nominal])
+    assert refit.cost(out) <= refit.cost(placed) * (1 + 1e-9)

@@ -310,11 +310,16 @@ class Refit:
         """One IPOPT solve of the candidate's own new parameters (the others held; the FRF
         modifier's θ free) from ``state``; returns the new state and its objective over
         every name (:meth:`cost`)."""
-        from ..optim.ipopt import solve
-
         names = [str(v.leader) for v in self.own if v.leader is not None and not v.held]
         if not names and not any(v.theta is not None for v in self.own):
             return state, self.cost(state)
+        return self.solve_only(state, names, max_iter)
+
+    def solve_only(self, state: State, names: Sequence[str], max_iter: int) -> tuple[State, float]:
+        """One IPOPT solve of ``names`` (and the FRF modifier's θ) from ``state``, every other
+        name held; returns the new state and its objective over every name (:meth:`cost`)."""
+        from ..optim.ipopt import solve
+
         th = state.theta if state.theta.size else None
         sub = self.problem.restrict(names, start=state.x, theta=th)
         sol = solve(sub, max_iter=max_iter, ipopt_options=self.ipopt_options())

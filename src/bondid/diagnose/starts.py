@@ -20,7 +20,8 @@ from the physics and the data, so the starts come from there:
   first makes the fit worse; from the nominal values they can unbend.
 
 Each scanned start's new parameters are first fitted alone for a few iterations (the
-nominal ones held; a placed start stays placed), then every start gets its **figure**: the
+nominal ones held); a placed start stays placed and the nominal parameters relax around it
+instead (:func:`relaxed`). Then every start gets its **figure**: the
 training objective after one Levenberg–Marquardt step over every parameter on the
 linearised residual (:func:`predicted_cost`), i.e. the score-test idea taken where the new
 parameters are no longer "absent" (a compliance at infinite stiffness has no gradient),
@@ -38,7 +39,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -133,12 +134,30 @@ def held_schedule(refit: Refit, presolve: int = 0) -> list[Step]:
     return [*first, Step("all", presolve=presolve)]
 
 
-def _scales(refit: Refit, cand: Candidate, places: Places) -> list[tuple[str, float]]:
-    """(label, scale of the ``scan = 1`` parameters) of the scan's minima and the placed
-    modes, scan first."""
-    out: list[tuple[str, float]] = []
+def relaxed(refit: Refit, state: State) -> State:
+    """``state`` after the first step of the held schedule (the nominal parameters relaxed
+    around the candidate's new ones, those held).
+
+    A placed start stays where it was placed: where the parameter refit has bent the model
+    around the missing mode, a solve of the new parameters alone runs the spring out of the
+    band. Its figure is taken once the model has relaxed around the placed spring: from the
+    bent model one linearised step predicts little (the new resonance sits where the bent
+    model puts the wrong residues and anti-resonances), so an unrelaxed placed start, often
+    the only one in the right basin, would be ranked below starts that reach nothing and,
+    through its candidate's figure, below candidates that explain nothing.
+    """
+    held = held_schedule(refit)[:-1]
+    if not held or held[0].names is None:
+        return state
+    return refit.solve_only(state, held[0].names, HELD_ITER)[0]
+
+
+def _scales(refit: Refit, cand: Candidate, places: Places) -> list[tuple[str, float, bool]]:
+    """(label, scale of the ``scan = 1`` parameters, placed at a measured mode) of the scan's
+    minima and the placed modes, scan first."""
+    out: list[tuple[str, float, bool]] = []
     if not cand.scan_grid:
-        return [("start values", 1.0)]
+        return [("start values", 1.0, False)]
     exps = np.array([p.scan for p in cand.parameters], float)
     grid, _ = scan_grid(cand, places.missing)
     g = np.asarray(grid, float)
@@ -149,8 +168,8 @@ def _scales(refit: Refit, cand: Candidate, places: Places) -> list[tuple[str, fl
     for i in sorted(minima, key=lambda i: costs[i]):
         if len(out) == N_SCAN:
             break
-        if all(abs(math.log(g[i] / s)) >= math.log(1.5) for _, s in out):
-            out.append((f"scan ×{g[i]:.3g}", float(g[i])))
+        if all(abs(math.log(g[i] / s)) >= math.log(1.5) for _, s, _ in out):
+            out.append((f"scan ×{g[i]:.3g}", float(g[i]), False))
     if cand.ref_hz and any(p.scan > 0 for p in cand.parameters):
         lo, hi = min(cand.scan_grid), max(cand.scan_grid)
         placed = 0
@@ -159,8 +178,8 @@ def _scales(refit: Refit, cand: Candidate, places: Places) -> list[tuple[str, fl
             if placed == N_PLACED or not lo <= s <= hi:
                 continue
             placed += 1
-            out.append((f"mode at {f:.4g} Hz", float(s)))
-    return out or [("start values", 1.0)]
+            out.append((f"mode at {f:.4g} Hz", float(s), True))
+    return out or [("start values", 1.0, False)]
 
 
 def candidate_starts(
@@ -173,22 +192,24 @@ def candidate_starts(
     v0 = refit.new_values(refit.state0)
     out: list[StartSpec] = []
     seen: list[np.ndarray] = []
-    for label, s in _scales(refit, cand, places):
+    for label, s, placed in _scales(refit, cand, places):
         state = refit.with_new(refit.state0, v0 * s**exps)
-        # a placed start stays where it was placed: where the parameter refit has bent the
-        # model around the missing mode, a solve of the new parameters alone runs the spring
-        # out of the band; the held schedule of the refit lets the model relax around it
-        if not label.startswith("mode at"):
-            try:
-                state, _ = refit.solve_new(state, NEW_ITER)
-            except FAILURES:
+        try:
+            if not placed:
+                state = refit.solve_new(state, NEW_ITER)[0]
+            new = refit.new_values(state)
+            if any(np.all(np.abs(np.log(np.maximum(new, 1e-300) / np.maximum(o, 1e-300)))
+                          < math.log(SAME_START)) for o in seen):  # fmt: skip
                 continue
-        new = refit.new_values(state)
-        if any(np.all(np.abs(np.log(np.maximum(new, 1e-300) / np.maximum(o, 1e-300)))
-                      < math.log(SAME_START)) for o in seen):  # fmt: skip
+            # a placed start's figure is taken where the nominal parameters have relaxed
+            # around it (:func:`relaxed`); the refit starts from the placed point itself, as
+            # its held schedule does that relaxation first
+            figure = predicted_cost(refit, relaxed(refit, state)) if placed else None
+        except FAILURES:
             continue
         seen.append(new)
-        out.append(spec_of(refit, label, state, variant))
+        spec = spec_of(refit, label, state, variant)
+        out.append(spec if figure is None else replace(spec, figure=figure))
     matched = _matched(refit, cand, places, full, variant)
     out += matched
     out = [s for s in out if math.isfinite(s.figure)]
