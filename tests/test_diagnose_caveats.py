@@ -1,13 +1,15 @@
-"""Caveats of a kept effect: a parameter on a bound of its range, and one common factor on
-every channel (whose side, drives or sensors, FRF data cannot tell)."""
+"""Caveats of a kept effect: a parameter on a bound of its range, one common factor on every
+channel, and a mixing the other side reproduces (whose side, drives or sensors, FRF data
+cannot tell)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from bondid.diagnose.caveats import at_bound, caveats, is_common_factor
+from bondid.diagnose.caveats import at_bound, caveats, is_common_factor, other_side_share
 from bondid.diagnose.effects import get_effect
 from bondid.diagnose.summary import caveat_lines
 from bondid.model import UrdfDocument
@@ -87,3 +89,52 @@ def test_caveats_are_listed_in_the_json_shape_and_printed(doc):
     assert lines[1].startswith("  caveat, actuator_lag@all: it multiplies every channel")
     # a sequence of the wrong length is no effect of this candidate: nothing is claimed
     assert caveats(cand, [1.0], [(OUTS, INS)]) == []
+
+
+#: a mixing the other side reproduces leaves at most this share of its change (exact algebra
+#: up to round-off); one it cannot reproduce leaves at least the other
+SAME_SIDE_TOL, OTHER_SIDE_MIN = 1e-9, 0.3
+
+
+def _axes(f_hz: np.ndarray, resonant: bool) -> np.ndarray:
+    """A 2 × 2 receptance ``(2, 2, n_freq)``: two decoupled rigid axes (mass 2 kg, inertia
+    0.01 kg·m²), the second with a 5 %-damped mode at 300 Hz when ``resonant``."""
+    s = 2j * np.pi * f_hz
+    H = np.zeros((2, 2, f_hz.size), complex)
+    H[0, 0] = 1.0 / (2.0 * s**2)
+    k = 0.01 * (2 * np.pi * 300.0) ** 2 if resonant else 0.0
+    c = 2 * 0.05 * 0.01 * 2 * np.pi * 300.0 if resonant else 0.0
+    H[1, 1] = 1.0 / (0.01 * s**2 + c * s + k)
+    return H
+
+
+@pytest.mark.parametrize("left", [True, False])
+def test_a_mixing_between_axes_in_a_constant_ratio_is_on_either_side(left):
+    """Known answer: two rigid axes have FRFs in a constant ratio, so ``E H0 = H0 F`` with
+    ``F = H0⁻¹ E H0`` constant (share ~0); with a mode on one axis the ratio varies and the
+    other side cannot reproduce the mixing."""
+    f = np.geomspace(5.0, 2000.0, 200)
+    M = np.array([[1.0, 0.02], [-0.01, 1.0]], complex)
+    for resonant, expect_same in ((False, True), (True, False)):
+        H0 = _axes(f, resonant)
+        H = np.einsum("ij,jkf->ikf", M, H0) if left else np.einsum("ijf,jk->ikf", H0, M)
+        share = other_side_share(H, M, left)
+        if expect_same:
+            assert share <= SAME_SIDE_TOL
+        else:
+            assert share >= OTHER_SIDE_MIN
+
+
+def test_the_either_side_caveat_follows_the_kept_models_frf(doc):
+    cand = candidate(doc, "sensor_misalignment", "x,y")
+    vals = [0.02 if i == 0 else -0.01 for i in range(len(cand.parameters))]
+    f = np.geomspace(5.0, 2000.0, 200)
+    outs, ins = ("x", "y"), ("x", "y")
+    mix = get_effect("sensor_misalignment").mixing(cand, np.array(vals), outs, ins)
+    for resonant, expected in ((False, ["either_side"]), (True, [])):
+        H = np.einsum("ij,jkf->ikf", mix.left, _axes(f, resonant))
+        found = caveats(cand, vals, [(outs, ins)], [H])
+        assert [c["kind"] for c in found] == expected
+        if expected:
+            assert "drives pushing across" in found[0]["text"]
+    assert caveats(cand, vals, [(outs, ins)]) == []  # no FRF: not looked for

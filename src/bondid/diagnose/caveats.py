@@ -11,7 +11,15 @@ statement than they look, and both can be read off the effect alone:
   every entry of the FRF matrix by the same function of frequency. Measured FRFs cannot place
   such a factor: ``g(ω)·H`` is the same whether ``g`` sits in the drives (a lag in every
   amplifier), in the sensors or in the acquisition, so the side the effect's name gives is
-  the library's choice, not the data's.
+  the library's choice, not the data's;
+* **mixing on either side** (``either_side``): a mixing of the outputs ``(I + E) H`` and a
+  mixing of the inputs ``H (I + F)`` give the same FRFs wherever ``E H = H F`` holds for one
+  constant ``F`` over the band, as between two axes whose FRFs are in a constant ratio (two
+  rigid-body axes below their first mode). Whether that holds is checked on the kept
+  model's own FRF: the best constant mixing on the other side is fitted by least squares and
+  reproduces the effect's change of the FRF to within :data:`SIDE_SHARE`. The data then do
+  not say whether the sensors read across (misalignment) or the drives push across
+  (cross-talk).
 """
 
 from __future__ import annotations
@@ -32,6 +40,9 @@ BOUND_SHARE = 0.005
 PROBE_HZ = (3.0, 30.0, 300.0, 3000.0)
 #: relative spread across channels below which a factor counts as common to all
 COMMON_RTOL = 1e-9
+#: the other side's best constant mixing leaves less than this share of the effect's change
+#: of the FRF (each frequency weighed by the FRF's size there): the sides are one to the data
+SIDE_SHARE = 0.1
 #: each data set's ``(outputs, inputs)``
 Channels = Sequence[tuple[Sequence[str], Sequence[str]]]
 
@@ -41,7 +52,7 @@ class Caveat:
     """One caveat of a kept effect.
 
     Attributes:
-        kind: ``at_bound`` or ``common_factor`` (module docstring).
+        kind: ``at_bound``, ``common_factor`` or ``either_side`` (module docstring).
         text: the caveat in words, for the summary and the report.
         parameter: the parameter at its bound (``at_bound``), else None.
         side: ``lower`` or ``upper`` (``at_bound``), else None.
@@ -122,15 +133,91 @@ def common_factor(cand: Candidate, values: Sequence[float], channels: Channels) 
     )]  # fmt: skip
 
 
+def other_side_share(H: np.ndarray, M: np.ndarray, left: bool) -> float:
+    """How much of a mixing's change of the FRF the other side's best constant mixing leaves.
+
+    Args:
+        H: the FRF with the mixing in, ``(n_out, n_in, n_freq)``, any quantity.
+        M: the mixing, ``(n_out, n_out)`` on the outputs (``left``) or ``(n_in, n_in)`` on
+            the inputs.
+        left: the mixing acts on the outputs (``M H0``), else on the inputs (``H0 M``).
+
+    Returns:
+        ``‖H0 F − D‖ / ‖D‖`` (``D = H − H0`` the mixing's change, ``F`` the least-squares
+        constant mixing on the other side, every frequency weighed by ``1/‖H0(ω)‖``); 1.0
+        where the change is zero or the FRF is empty.
+    """
+    H = np.asarray(H, complex)
+    if H.ndim != 3 or H.shape[2] == 0:
+        return 1.0
+    Hf = np.moveaxis(H, 2, 0)  # (n_freq, n_out, n_in)
+    H0 = np.linalg.solve(M, Hf) if left else np.linalg.solve(M.T, Hf.transpose(0, 2, 1))
+    if not left:  # solved for H0ᵀ: Mᵀ H0ᵀ = Hᵀ
+        H0 = H0.transpose(0, 2, 1)
+    w = 1.0 / np.linalg.norm(H0, axis=(1, 2)).clip(min=1e-300)
+    D = (Hf - H0) * w[:, None, None]
+    A = H0 * w[:, None, None]
+    # the other side: outputs mixed → find F with A F ≈ D; inputs mixed → E with E A ≈ D
+    if left:
+        A2, B2 = A.reshape(-1, A.shape[2]), D.reshape(-1, D.shape[2])
+    else:
+        At, Dt = A.transpose(0, 2, 1), D.transpose(0, 2, 1)
+        A2, B2 = At.reshape(-1, At.shape[2]), Dt.reshape(-1, Dt.shape[2])
+    size = float(np.linalg.norm(B2))
+    if not size > 0.0:
+        return 1.0
+    F, *_ = np.linalg.lstsq(A2, B2, rcond=None)
+    return float(np.linalg.norm(A2 @ F - B2)) / size
+
+
+def either_side(
+    cand: Candidate, values: Sequence[float], channels: Channels,
+    frfs: Sequence[np.ndarray] | None,
+) -> list[Caveat]:  # fmt: skip
+    """The ``either_side`` caveat when the mixing ``cand`` at ``values`` is reproduced by a
+    constant mixing on the other side in every data set (``frfs``: the kept model's FRF of
+    each, ``(n_out, n_in, n_freq)``, in the order of ``channels``)."""
+    cls = available().get(cand.effect)
+    if cls is None or not cls.mixes or not frfs or len(frfs) != len(channels):
+        return []
+    effect, theta = cls(), np.asarray(values, float)
+    shares = []
+    for (outs, ins), H in zip(channels, frfs, strict=True):
+        mix = effect.mixing(cand, theta, tuple(outs), tuple(ins))
+        if mix is None or np.shape(H)[:2] != (len(outs), len(ins)):
+            return []
+        left = mix.left is not None
+        M = np.asarray(mix.left if left else mix.right, complex)
+        if np.allclose(M, np.eye(len(M))):
+            return []  # no mixing at these values: nothing to place
+        try:
+            shares.append(other_side_share(np.asarray(H), M, left))
+        except np.linalg.LinAlgError:  # a singular mixing or FRF: nothing can be said
+            return []
+    if not shares or max(shares) >= SIDE_SHARE:
+        return []
+    other = "the drives pushing across" if left else "the sensors reading across"
+    return [Caveat(
+        "either_side",
+        f"a constant mixing on the other side ({other}) reproduces its change of the FRF to"
+        f" {100 * max(shares):.1f} %: between these channels the FRFs are in a constant"
+        " ratio, so the data do not say on which side the mixing is",
+    )]  # fmt: skip
+
+
 def caveats(
     cand: Candidate,
     values: Mapping[str, float] | Sequence[float],
     channels: Channels,
+    frfs: Sequence[np.ndarray] | None = None,
 ) -> list[dict[str, str | None]]:
     """Every caveat of the kept effect ``cand`` at its fitted ``values`` (SI; a mapping in the
-    candidate's parameter order, or a sequence), as ``diagnosis.json`` lists them."""
+    candidate's parameter order, or a sequence), as ``diagnosis.json`` lists them;
+    ``frfs``: the kept model's FRF of each data set, ``(n_out, n_in, n_freq)`` (None: the
+    caveats that need it are not looked for)."""
     vals = [float(v) for v in (values.values() if isinstance(values, Mapping) else values)]
     if len(vals) != len(cand.parameters):
         return []
-    found = [*at_bound(cand, vals), *common_factor(cand, vals, channels)]
+    found = [*at_bound(cand, vals), *common_factor(cand, vals, channels),
+             *either_side(cand, vals, channels, frfs)]  # fmt: skip
     return [c.as_dict() for c in found]

@@ -74,7 +74,8 @@ def _caveats(diag: Diagnosis, k: Kept, j: int, params: dict[str, Any]) -> list[d
     """The ``j``-th effect's caveats (:mod:`.caveats`) at its fitted ``params`` (as
     :func:`_params` gives them), on the channels of every data set."""
     channels = [(tuple(d.outputs), tuple(d.inputs)) for d in diag.datasets]
-    return caveats(k.model.chain[j], [p["value"] for p in params.values()], channels)
+    return caveats(k.model.chain[j], [p["value"] for p in params.values()], channels,
+                   k.model.full_H or None)  # fmt: skip
 
 
 def effect_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
