@@ -60,6 +60,11 @@ NEW_ITER = 10
 LM_DAMPING = 1e-3
 #: IPOPT iterations of a refit start's first step (the nominal parameters, new ones held)
 HELD_ITER = 20
+#: IPOPT iterations of a placed start's relaxation before its figure (:func:`relaxed`): enough
+#: to undo the parameter refit's bend around the missing mode, which is what misleads the
+#: figure; the figure needs no converged point, and every structural candidate's placed
+#: starts pay for these iterations in the screening
+RELAX_ITER = 10
 #: two starts whose new parameters differ by less than this factor are one
 SAME_START = 1.05
 
@@ -135,8 +140,8 @@ def held_schedule(refit: Refit, presolve: int = 0) -> list[Step]:
 
 
 def relaxed(refit: Refit, state: State) -> State:
-    """``state`` after the first step of the held schedule (the nominal parameters relaxed
-    around the candidate's new ones, those held).
+    """``state`` after :data:`RELAX_ITER` iterations of the held schedule's first step (the
+    nominal parameters relaxed around the candidate's new ones, those held).
 
     A placed start stays where it was placed: where the parameter refit has bent the model
     around the missing mode, a solve of the new parameters alone runs the spring out of the
@@ -149,7 +154,7 @@ def relaxed(refit: Refit, state: State) -> State:
     held = held_schedule(refit)[:-1]
     if not held or held[0].names is None:
         return state
-    return refit.solve_only(state, held[0].names, HELD_ITER)[0]
+    return refit.solve_only(state, held[0].names, RELAX_ITER)[0]
 
 
 def _scales(refit: Refit, cand: Candidate, places: Places) -> list[tuple[str, float, bool]]:
