@@ -151,18 +151,13 @@ def other_side_share(H: np.ndarray, M: np.ndarray, left: bool) -> float:
     if H.ndim != 3 or H.shape[2] == 0:
         return 1.0
     Hf = np.moveaxis(H, 2, 0)  # (n_freq, n_out, n_in)
-    H0 = np.linalg.solve(M, Hf) if left else np.linalg.solve(M.T, Hf.transpose(0, 2, 1))
-    if not left:  # solved for H0ᵀ: Mᵀ H0ᵀ = Hᵀ
-        H0 = H0.transpose(0, 2, 1)
+    if not left:  # H = H0 M is Hᵀ = Mᵀ H0ᵀ: an output mixing of the transposed FRF
+        Hf, M = Hf.transpose(0, 2, 1), M.T
+    H0 = np.linalg.solve(M, Hf)
     w = 1.0 / np.linalg.norm(H0, axis=(1, 2)).clip(min=1e-300)
-    D = (Hf - H0) * w[:, None, None]
-    A = H0 * w[:, None, None]
-    # the other side: outputs mixed → find F with A F ≈ D; inputs mixed → E with E A ≈ D
-    if left:
-        A2, B2 = A.reshape(-1, A.shape[2]), D.reshape(-1, D.shape[2])
-    else:
-        At, Dt = A.transpose(0, 2, 1), D.transpose(0, 2, 1)
-        A2, B2 = At.reshape(-1, At.shape[2]), Dt.reshape(-1, Dt.shape[2])
+    # the other side's constant mixing F: H0 F ≈ D, stacked over the frequencies
+    A2 = (H0 * w[:, None, None]).reshape(-1, H0.shape[2])
+    B2 = ((Hf - H0) * w[:, None, None]).reshape(-1, H0.shape[2])
     size = float(np.linalg.norm(B2))
     if not size > 0.0:
         return 1.0

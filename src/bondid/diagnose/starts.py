@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -209,12 +209,11 @@ def candidate_starts(
             # a placed start's figure is taken where the nominal parameters have relaxed
             # around it (:func:`relaxed`); the refit starts from the placed point itself, as
             # its held schedule does that relaxation first
-            figure = predicted_cost(refit, relaxed(refit, state)) if placed else None
+            figure = predicted_cost(refit, relaxed(refit, state) if placed else state)
         except FAILURES:
             continue
         seen.append(new)
-        spec = spec_of(refit, label, state, variant)
-        out.append(spec if figure is None else replace(spec, figure=figure))
+        out.append(StartSpec(label, state.x.copy(), state.theta.copy(), figure, variant))
     matched = _matched(refit, cand, places, full, variant)
     out += matched
     out = [s for s in out if math.isfinite(s.figure)]
