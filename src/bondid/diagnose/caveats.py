@@ -25,7 +25,7 @@ statement than they look, and both can be read off the effect alone:
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -41,8 +41,12 @@ PROBE_HZ = (3.0, 30.0, 300.0, 3000.0)
 #: relative spread across channels below which a factor counts as common to all
 COMMON_RTOL = 1e-9
 #: the other side's best constant mixing leaves less than this share of the effect's change
-#: of the FRF (each frequency weighed by the FRF's size there): the sides are one to the data
+#: of the FRF (in the fit's relative measure, on the channels the data inform): the sides
+#: are one to the data
 SIDE_SHARE = 0.1
+#: a point's size in the relative measure is floored this far below its channel's RMS, so
+#: that a cross channel's zero does not weigh without limit (60 dB: below any sensor's range)
+REL_FLOOR = 1e-3
 #: each data set's ``(outputs, inputs)``
 Channels = Sequence[tuple[Sequence[str], Sequence[str]]]
 
@@ -133,7 +137,9 @@ def common_factor(cand: Candidate, values: Sequence[float], channels: Channels) 
     )]  # fmt: skip
 
 
-def other_side_share(H: np.ndarray, M: np.ndarray, left: bool) -> float:
+def other_side_share(
+    H: np.ndarray, M: np.ndarray, left: bool, used: np.ndarray | None = None
+) -> float:
     """How much of a mixing's change of the FRF the other side's best constant mixing leaves.
 
     Args:
@@ -141,42 +147,61 @@ def other_side_share(H: np.ndarray, M: np.ndarray, left: bool) -> float:
         M: the mixing, ``(n_out, n_out)`` on the outputs (``left``) or ``(n_in, n_in)`` on
             the inputs.
         left: the mixing acts on the outputs (``M H0``), else on the inputs (``H0 M``).
+        used: ``(n_out, n_in)`` bool, the channels the data inform (None: all); a channel
+            left out of the fit cannot tell the sides apart.
 
     Returns:
         ``‖H0 F − D‖ / ‖D‖`` (``D = H − H0`` the mixing's change, ``F`` the least-squares
-        constant mixing on the other side, every frequency weighed by ``1/‖H0(ω)‖``); 1.0
-        where the change is zero or the FRF is empty.
+        constant mixing on the other side) in the fit's relative measure: every point of a
+        used channel weighed by ``1/|H|`` there, ``|H|`` floored :data:`REL_FLOOR` below the
+        channel's RMS; 1.0 where the change is zero or nothing is used.
     """
     H = np.asarray(H, complex)
     if H.ndim != 3 or H.shape[2] == 0:
         return 1.0
+    mask = np.ones(H.shape[:2], bool) if used is None else np.asarray(used, bool)
     Hf = np.moveaxis(H, 2, 0)  # (n_freq, n_out, n_in)
     if not left:  # H = H0 M is Hᵀ = Mᵀ H0ᵀ: an output mixing of the transposed FRF
-        Hf, M = Hf.transpose(0, 2, 1), M.T
+        Hf, M, mask = Hf.transpose(0, 2, 1), M.T, mask.T
     H0 = np.linalg.solve(M, Hf)
-    w = 1.0 / np.linalg.norm(H0, axis=(1, 2)).clip(min=1e-300)
-    # the other side's constant mixing F: H0 F ≈ D, stacked over the frequencies
-    A2 = (H0 * w[:, None, None]).reshape(-1, H0.shape[2])
-    B2 = ((Hf - H0) * w[:, None, None]).reshape(-1, H0.shape[2])
-    size = float(np.linalg.norm(B2))
+    size_f = np.abs(Hf)
+    rms = np.sqrt(np.mean(size_f**2, axis=0))
+    floor = np.maximum(size_f, REL_FLOOR * rms[None])
+    w = np.divide(1.0, floor, out=np.zeros_like(floor), where=(floor > 0.0) & mask[None])
+    D = Hf - H0
+    left_over = size = 0.0
+    # column j of F is fitted on column j of D, every point weighed as the cost weighs it
+    for j in range(Hf.shape[2]):
+        A = (H0 * w[:, :, j, None]).reshape(-1, H0.shape[2])
+        b = (D[:, :, j] * w[:, :, j]).reshape(-1)
+        f, *_ = np.linalg.lstsq(A, b, rcond=None)
+        left_over += float(np.linalg.norm(A @ f - b)) ** 2
+        size += float(np.linalg.norm(b)) ** 2
     if not size > 0.0:
         return 1.0
-    F, *_ = np.linalg.lstsq(A2, B2, rcond=None)
-    return float(np.linalg.norm(A2 @ F - B2)) / size
+    return math.sqrt(left_over / size)
+
+
+def channel_mask(outs: Sequence[str], ins: Sequence[str], names: Collection[str]) -> np.ndarray:
+    """``(n_out, n_in)`` bool: which channels ``OUT.IN`` of a data set are among ``names``."""
+    return np.array([[f"{o}.{i}" in names for i in ins] for o in outs], bool).reshape(
+        len(outs), len(ins)
+    )
 
 
 def either_side(
     cand: Candidate, values: Sequence[float], channels: Channels,
-    frfs: Sequence[np.ndarray] | None,
+    frfs: Sequence[np.ndarray] | None, used: Sequence[Collection[str]] | None = None,
 ) -> list[Caveat]:  # fmt: skip
     """The ``either_side`` caveat when the mixing ``cand`` at ``values`` is reproduced by a
     constant mixing on the other side in every data set (``frfs``: the kept model's FRF of
-    each, ``(n_out, n_in, n_freq)``, in the order of ``channels``)."""
+    each, ``(n_out, n_in, n_freq)``, in the order of ``channels``; ``used``: each data set's
+    channels ``OUT.IN`` the fit used, None: all)."""
     cls = available().get(cand.effect)
     if cls is None or not cls.mixes or not frfs or len(frfs) != len(channels):
         return []
     effect, theta = cls(), np.asarray(values, float)
-    shares = []
+    shares: list[float] = []
     for (outs, ins), H in zip(channels, frfs, strict=True):
         mix = effect.mixing(cand, theta, tuple(outs), tuple(ins))
         if mix is None or np.shape(H)[:2] != (len(outs), len(ins)):
@@ -186,7 +211,8 @@ def either_side(
         if np.allclose(M, np.eye(len(M))):
             return []  # no mixing at these values: nothing to place
         try:
-            shares.append(other_side_share(np.asarray(H), M, left))
+            mask = None if used is None else channel_mask(outs, ins, used[len(shares)])
+            shares.append(other_side_share(np.asarray(H), M, left, mask))
         except np.linalg.LinAlgError:  # a singular mixing or FRF: nothing can be said
             return []
     if not shares or max(shares) >= SIDE_SHARE:
@@ -205,14 +231,16 @@ def caveats(
     values: Mapping[str, float] | Sequence[float],
     channels: Channels,
     frfs: Sequence[np.ndarray] | None = None,
+    used: Sequence[Collection[str]] | None = None,
 ) -> list[dict[str, str | None]]:
     """Every caveat of the kept effect ``cand`` at its fitted ``values`` (SI; a mapping in the
     candidate's parameter order, or a sequence), as ``diagnosis.json`` lists them;
     ``frfs``: the kept model's FRF of each data set, ``(n_out, n_in, n_freq)`` (None: the
-    caveats that need it are not looked for)."""
+    caveats that need it are not looked for); ``used``: each data set's channels ``OUT.IN``
+    the fit used (None: all)."""
     vals = [float(v) for v in (values.values() if isinstance(values, Mapping) else values)]
     if len(vals) != len(cand.parameters):
         return []
     found = [*at_bound(cand, vals), *common_factor(cand, vals, channels),
-             *either_side(cand, vals, channels, frfs)]  # fmt: skip
+             *either_side(cand, vals, channels, frfs, used)]  # fmt: skip
     return [c.as_dict() for c in found]

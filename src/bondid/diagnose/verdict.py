@@ -74,8 +74,10 @@ def _caveats(diag: Diagnosis, k: Kept, j: int, params: dict[str, Any]) -> list[d
     """The ``j``-th effect's caveats (:mod:`.caveats`) at its fitted ``params`` (as
     :func:`_params` gives them), on the channels of every data set."""
     channels = [(tuple(d.outputs), tuple(d.inputs)) for d in diag.datasets]
+    by_file = diag.channels_by_file or {}
+    used = [by_file.get(d.source or "", diag.channels) for d in diag.datasets]
     return caveats(k.model.chain[j], [p["value"] for p in params.values()], channels,
-                   k.model.full_H or None)  # fmt: skip
+                   k.model.full_H or None, used)  # fmt: skip
 
 
 def effect_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
