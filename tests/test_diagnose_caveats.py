@@ -138,3 +138,41 @@ def test_the_either_side_caveat_follows_the_kept_models_frf(doc):
         if expected:
             assert "drives pushing across" in found[0]["text"]
     assert caveats(cand, vals, [(outs, ins)]) == []  # no FRF: not looked for
+
+
+def _three_axes(f_hz: np.ndarray) -> np.ndarray:
+    """A 3 × 3 receptance ``(3, 3, n_freq)``: x and y rigid (2 kg each, FRFs in a constant
+    ratio), z with a 5 %-damped mode at 300 Hz, and a weak resonant coupling ``h_yz = h_zy``
+    (a tenth of z's direct FRF)."""
+    s = 2j * np.pi * f_hz
+    wz = 2 * np.pi * 300.0
+    H = np.zeros((3, 3, f_hz.size), complex)
+    H[0, 0] = H[1, 1] = 1.0 / (2.0 * s**2)
+    H[2, 2] = 1.0 / (0.01 * (s**2 + 2 * 0.05 * wz * s + wz**2))
+    H[1, 2] = H[2, 1] = 0.1 * H[2, 2]
+    return H
+
+
+def test_only_the_channels_the_fit_used_can_tell_the_sides_apart(doc):
+    """Known answer: sensor x reading 2 % of y. On x.y the drives' side reproduces it (x and
+    y in a constant ratio); on x.z it cannot (y's coupling to z is resonant, x's is nil),
+    and there the relative change is whole. With x.z left out of the fit the sides are one
+    to the data and the caveat appears; with x.z used it does not."""
+    f = np.geomspace(5.0, 2000.0, 200)
+    M = np.eye(3, dtype=complex)
+    M[0, 1] = 0.02
+    H = np.einsum("ij,jkf->ikf", M, _three_axes(f))
+    used = np.ones((3, 3), bool)
+    assert other_side_share(H, M, True, used) >= OTHER_SIDE_MIN
+    used[0, 2] = False
+    assert other_side_share(H, M, True, used) <= SAME_SIDE_TOL
+
+    cand = candidate(doc, "sensor_misalignment", "x,y")
+    vals = [0.02 if i == 0 else 0.0 for i in range(len(cand.parameters))]
+    outs = ins = ("x", "y", "z")
+    mix = get_effect("sensor_misalignment").mixing(cand, np.array(vals), outs, ins)
+    assert np.allclose(mix.left, M)
+    everything = {f"{o}.{i}" for o in outs for i in ins}
+    for names, expected in ((everything, []), (everything - {"x.z"}, ["either_side"])):
+        found = caveats(cand, vals, [(outs, ins)], [H], [names])
+        assert [c["kind"] for c in found] == expected
