@@ -90,8 +90,10 @@ def test_the_report_lists_the_dropped_effect_apart(wrong_then_true):  # type: ig
 
     ctx, base, steps = wrong_then_true
     pr = prune(ctx, SyncPool(), steps, base)
+    every = [f"{o}.{i}" for d in ctx.full for o in d.outputs for i in d.inputs]
     diag = SimpleNamespace(pruning=pr, steps=steps, scores=steps[0].scores,
-                           baseline_score=steps[0].base_score, datasets=ctx.full)  # fmt: skip
+                           baseline_score=steps[0].base_score, datasets=ctx.full,
+                           channels=every, channels_by_file=None)  # fmt: skip
     effects = effect_entries(diag, 1.0)  # type: ignore[arg-type]
     assert [(x["effect"], x["location"]) for x in effects] == [("joint_compliance", TRUE_AT)]
     assert effects[0]["refitted_without_dropped"] and effects[0]["step"] == 2
