@@ -2,12 +2,22 @@
 
 from __future__ import annotations
 
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..exceptions import ChannelError, DataError
 from .quantity import QUANTITIES, convert_quantity
+
+
+def channel_mask(
+    outputs: Sequence[str], inputs: Sequence[str], names: Collection[str]
+) -> np.ndarray:
+    """Boolean ``(n_out, n_in)``: which channels ``OUT.IN`` of these outputs and inputs are
+    among ``names``."""
+    mask = [[f"{o}.{i}" in names for i in inputs] for o in outputs]
+    return np.array(mask, bool).reshape(len(outputs), len(inputs))
 
 
 @dataclass

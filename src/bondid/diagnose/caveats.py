@@ -30,6 +30,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from ..data.measurement import channel_mask
 from .effects import available
 from .effects.base import Candidate, NewParameter
 
@@ -182,13 +183,6 @@ def other_side_share(
     return math.sqrt(left_over / size)
 
 
-def channel_mask(outs: Sequence[str], ins: Sequence[str], names: Collection[str]) -> np.ndarray:
-    """``(n_out, n_in)`` bool: which channels ``OUT.IN`` of a data set are among ``names``."""
-    return np.array([[f"{o}.{i}" in names for i in ins] for o in outs], bool).reshape(
-        len(outs), len(ins)
-    )
-
-
 def either_side(
     cand: Candidate, values: Sequence[float], channels: Channels,
     frfs: Sequence[np.ndarray] | None, used: Sequence[Collection[str]] | None = None,
@@ -202,7 +196,8 @@ def either_side(
         return []
     effect, theta = cls(), np.asarray(values, float)
     shares: list[float] = []
-    for (outs, ins), H in zip(channels, frfs, strict=True):
+    names = [None] * len(channels) if used is None else list(used)
+    for (outs, ins), H, use in zip(channels, frfs, names, strict=True):
         mix = effect.mixing(cand, theta, tuple(outs), tuple(ins))
         if mix is None or np.shape(H)[:2] != (len(outs), len(ins)):
             return []
@@ -211,7 +206,7 @@ def either_side(
         if np.allclose(M, np.eye(len(M))):
             return []  # no mixing at these values: nothing to place
         try:
-            mask = None if used is None else channel_mask(outs, ins, used[len(shares)])
+            mask = None if use is None else channel_mask(outs, ins, use)
             shares.append(other_side_share(np.asarray(H), M, left, mask))
         except np.linalg.LinAlgError:  # a singular mixing or FRF: nothing can be said
             return []

@@ -4,9 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
-
-from ..data.measurement import FrfData
+from ..data.measurement import FrfData, channel_mask
 from ..model.document import UrdfDocument
 from .job import JobResult
 
@@ -70,7 +68,7 @@ def modes_on_channels(doc: UrdfDocument, d: FrfData, channels: list[str]) -> lis
     from ..modal.identify import model_modes
 
     lm = build_affine_model(doc, d.operating_point, outputs=d.outputs)
-    mask = np.array([[f"{o}.{i}" in channels for i in lm.inputs] for o in lm.outputs])
+    mask = channel_mask(lm.outputs, lm.inputs, channels)
     mod = model_modes(lm.linear_model(), freq_hz=d.freq_hz, channel_mask=mask)
     cols = [lm.inputs.index(i) for i in d.inputs]
     for m in mod:

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...data.measurement import FrfData
+from ...data.measurement import FrfData, channel_mask
 from ...data.quantity import convert_quantity
 from ...exceptions import DataError
 
@@ -263,7 +263,7 @@ def build_residual(
         if Hs.shape != d.H.shape:
             raise DataError(f"{where}: model FRF has shape {Hs.shape}, expected {d.H.shape}")
         v, w = _noise(d, k, noise_to_signal, weights)
-        chan = np.array([[f"{o}.{i}" in use for i in d.inputs] for o in d.outputs], bool)
+        chan = channel_mask(d.outputs, d.inputs, use)
         Hm = convert_quantity(d.H, d.freq_hz, d.quantity, "receptance")
         Hr = convert_quantity(Hs, d.freq_hz, d.quantity, "receptance")
         with np.errstate(invalid="ignore"):
