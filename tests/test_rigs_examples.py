@@ -95,3 +95,37 @@ def test_rig_check_runs_on_a_quick_fit(tmp_path):
     assert got["success"] and got["noise_level"] > 0 and (out / "resonances.png").is_file()
     assert len(got["truth_modes"]) == 6  # the plate's five modes in the band and the fixture
     assert got["data_resonances"] and got["model_modes_hz"]
+
+
+#: the 16-segment chain's nominal bending modes against the generator's finite-element bar:
+#: the handbook modulus (70 against 68.9 GPa) alone puts them 0.8 % high
+FINER_CHAIN_RTOL = 0.015
+
+
+def test_a_finer_beam_chain_keeps_the_points_and_resolves_the_sixth_mode(tmp_path):
+    import pinocchio as pin
+
+    from bondid.modes.__main__ import main as modes_main
+
+    beam = _module(EXAMPLES / "free_free_beam" / "make_beam.py")
+    with pytest.raises(ValueError, match="multiple of 8"):
+        beam.chain_urdf(12)
+    xs = {}
+    for n in (8, 16):
+        path = tmp_path / f"chain{n}.urdf"
+        path.write_text(beam.chain_urdf(n))
+        model = pin.buildModelFromUrdf(str(path))
+        data = model.createData()
+        pin.framesForwardKinematics(model, data, pin.neutral(model))
+        xs[n] = [data.oMf[model.getFrameId(f"p{k}")].translation[0] for k in range(9)]
+        assert modes_main(["--model", str(path), "--floating-base", "--out",
+                           str(tmp_path / f"m{n}"), "--quiet", "--no-html"]) == 0  # fmt: skip
+    # every hammer point at x = k L / 8 in both chains
+    np.testing.assert_allclose(xs[16], np.arange(9) * beam.LENGTH / 8, atol=1e-12)
+    np.testing.assert_allclose(xs[8], xs[16], atol=1e-12)
+    truth = np.array(beam.truth_modes_hz(1000.0))
+    for n, worst_ok in ((8, False), (16, True)):
+        modes = json.loads((tmp_path / f"m{n}" / "modes.json").read_text())["modes"]
+        f = np.array([m["f_hz"] for m in modes if m["f_hz"] > 10.0][: truth.size])
+        within = bool(np.all(np.abs(f / truth - 1.0) < FINER_CHAIN_RTOL))
+        assert within is worst_ok, (n, f / truth - 1.0)

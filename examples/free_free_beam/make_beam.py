@@ -22,7 +22,8 @@ Usage::
 writes ``DIR/hammer_dense.csv`` (every line), ``DIR/hammer_thinned.csv`` (every 32nd line
 and every line within ±0.5 Hz of each resonance of the data, as one reduces dense data by
 hand) and ``DIR/truth_modes.json`` (the generator's own bending frequencies). ``--model
-FILE`` also writes the chain model.
+FILE`` also writes the chain model, of ``--segments N`` segments (a multiple of 8, so that
+every hammer point falls on a joint; default 8).
 """
 
 from __future__ import annotations
@@ -144,7 +145,14 @@ def data_peaks_hz(f: np.ndarray, H: np.ndarray, prominence_db: float = 10.0) -> 
 
 
 def chain_urdf(n_seg: int = SEGMENTS) -> str:
-    """The handbook chain model (see the module docstring) as URDF text."""
+    """The handbook chain model (see the module docstring) as URDF text.
+
+    ``n_seg`` must be a multiple of ``POINTS - 1`` so that every hammer point falls on a
+    joint between segments (or on an end).
+    """
+    if n_seg < POINTS - 1 or n_seg % (POINTS - 1):
+        raise ValueError(f"--segments {n_seg}: must be a multiple of {POINTS - 1} (8, 16, 24, ...)")
+    per = n_seg // (POINTS - 1)
     l = LENGTH / n_seg
     m = RHO_NOMINAL * WIDTH * THICK * l
     EI = E_NOMINAL * WIDTH * THICK**3 / 12.0
@@ -153,7 +161,7 @@ def chain_urdf(n_seg: int = SEGMENTS) -> str:
     izz = m * (l**2 + WIDTH**2) / 12.0
     parts = [
         '<?xml version="1.0"?>',
-        "<!-- A free-free aluminium bar 1.0 m x 50 mm x 10 mm as 8 rigid segments joined by",
+        f"<!-- A free-free aluminium bar 1.0 m x 50 mm x 10 mm as {n_seg} rigid segments joined by",
         "     rotational springs EI/l about y (bending in the x-z plane), from handbook values",
         "     (E = 70 GPa, rho = 2700 kg/m3). The floating base comes from the study",
         "     (floating_base = true). p0..p8: the hammer points (and the accelerometer at p0). -->",
@@ -189,7 +197,7 @@ def chain_urdf(n_seg: int = SEGMENTS) -> str:
             "  </gazebo>",
         ]
     for k in range(POINTS):
-        seg, x = (k, 0.0) if k < n_seg else (n_seg - 1, l)
+        seg, x = (k * per, 0.0) if k * per < n_seg else (n_seg - 1, l)
         parts += [
             f'  <link name="p{k}"/>',
             f'  <joint name="fix_p{k}" type="fixed">',
@@ -220,6 +228,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--f-max", type=float, default=1000.0, help="last line [Hz]")
     p.add_argument("--seed", type=int, default=0, help="noise seed")
     p.add_argument("--model", type=Path, help="also write the chain model URDF here")
+    p.add_argument(
+        "--segments", type=int, default=SEGMENTS,
+        help=f"rigid segments of the chain model (a multiple of {POINTS - 1}; default {SEGMENTS})",
+    )  # fmt: skip
     a = p.parse_args(argv)
     a.out.mkdir(parents=True, exist_ok=True)
     f = np.linspace(0.0, a.f_max, a.lines)
@@ -236,7 +248,7 @@ def main(argv: list[str] | None = None) -> int:
              "thinned_lines": int(keep.size)}  # fmt: skip
     (a.out / "truth_modes.json").write_text(json.dumps(truth, indent=2) + "\n")
     if a.model is not None:
-        a.model.write_text(chain_urdf())
+        a.model.write_text(chain_urdf(a.segments))
     print(
         f"{a.out}: hammer_dense.csv ({f.size} lines), hammer_thinned.csv ({keep.size} lines);"
         f" bending modes {', '.join(f'{v:.2f}' for v in peaks)} Hz"
