@@ -128,3 +128,16 @@ def noisy_bonder_data(truth: UrdfDocument, n: int = 120, noise: float = 0.005) -
         )
         out.append(d)
     return out
+
+
+def central_jacobian(problem, pmodel, x: np.ndarray, floor: float) -> np.ndarray:
+    """Central differences ``(n_residuals, size)`` of ``problem.residual(pmodel, ·)`` at ``x``,
+    each parameter stepped by ``1e-6 · max(|x|, floor)``."""
+    out = np.empty((problem.n_residuals, x.size))
+    for k in range(x.size):
+        h = 1e-6 * max(abs(x[k]), floor)
+        up, dn = x.copy(), x.copy()
+        up[k] += h
+        dn[k] -= h
+        out[:, k] = (problem.residual(pmodel, up) - problem.residual(pmodel, dn)) / (2 * h)
+    return out

@@ -69,3 +69,21 @@ def test_an_effect_that_leaves_most_of_the_excess_is_tentative():
 def test_without_a_noise_level_nothing_is_claimed_either_way():
     out = outcome(2.0, 1.0, [{"accepted": True}], None)
     assert out.kind == UNKNOWN and out.grades == ["confirmed"]
+
+
+def test_a_final_model_at_the_level_of_all_data_explains():
+    """Kept effects above the held-out level, but the final model refitted on all data is at
+    their noise level (within the package's one ratio, 1.10): explained, saying both
+    figures; just above that ratio the answer stays partly explained."""
+    from bondid.optim.noise import AT_LEVEL
+
+    t = scoring.tests(2.0, 3.0, 2, NOISE)
+    out = outcome(3.0, 2.0, [t], NOISE, final_ratio=0.999 * AT_LEVEL)
+    assert out.kind == EXPLAINED and "all data" in out.text and "2.00x" in out.text
+    assert out.final_over_noise == pytest.approx(0.999 * AT_LEVEL)
+    assert out.as_dict()["final_over_noise"] == pytest.approx(0.999 * AT_LEVEL)
+    assert outcome(3.0, 2.0, [t], NOISE, final_ratio=1.001 * AT_LEVEL).kind == PARTLY
+    assert outcome(3.0, 2.0, [t], NOISE, final_ratio=None).kind == PARTLY
+    # without effects: the parameter refit itself, refitted on all data
+    bare = outcome(2.5, 2.5, [], NOISE, final_ratio=1.0)
+    assert bare.kind == EXPLAINED and "parameter refit" in bare.text

@@ -91,8 +91,12 @@ def test_the_diagnosis_model_text_finds_its_meshes_in_any_folder(tmp_path, monke
     assert box is not None and np.allclose(box[1] - box[0], 0.2, atol=SIZE_TOL)
     rot = [c for c in get_effect("joint_compliance").candidates(text)
            if c.spec["kind"] == "revolute"]  # fmt: skip
-    # the pivot variants reach the faces of the hull read from the mesh
-    pivots = np.array([v.spec["pivot"] for c in rot for v in c.variants])
+    # the pivot's starting places reach the faces of the hull read from the mesh
+    from bondid.model.pivot import pivot_of
+
+    effect = get_effect("joint_compliance")
+    pivots = np.array([pivot_of(effect.augment(text, v), c.spec["joint"])
+                       for c in rot for v in c.variants])  # fmt: skip
     assert rot and np.isclose(pivots, box[0]).any() and np.isclose(pivots, box[1]).any()
     assert restore_mesh_names(work.to_string(), names) == doc.to_string()
     bonder = UrdfDocument.load(Path(__file__).parents[1] / "urdf" / "bonder.urdf")

@@ -81,7 +81,9 @@ def test_an_effect_redundant_once_the_true_one_is_in_is_dropped(wrong_then_true)
     # rule's own tolerance: the wrong one does not earn its parameters)
     assert k.score <= 1.05 * steps[1].scores[0]
     assert out.final is k.model
-    assert out.n_refits == pool.calls == 1  # the model without the true one is step 1's
+    # both models without one effect are refitted; the one without the true effect is step
+    # 1's model again, refitted from the values beside the true one (the better one kept)
+    assert out.n_refits == pool.calls == 2
 
 
 def test_the_report_lists_the_dropped_effect_apart(wrong_then_true):  # type: ignore[no-untyped-def]
@@ -137,7 +139,7 @@ def test_a_failed_refit_without_an_effect_drops_nothing(wrong_then_true):  # typ
     ctx, base, steps = wrong_then_true
     pool = FailingPool()
     out = prune(ctx, pool, steps, base)
-    assert pool.calls == 1 and out.dropped == []
+    assert pool.calls == 2 and out.dropped == []
     assert [k.model for k in out.kept] == [steps[0].winner, steps[1].winner]
     assert all(k.forward for k in out.kept) and out.note == ""
 
@@ -194,7 +196,10 @@ def test_a_diagnosis_with_a_dropped_effect_writes_the_kept_one(doc, tmp_path, mo
         "joint_compliance", TRUE_AT)  # fmt: skip
     assert [x["location"] for x in content["effects"]] == [TRUE_AT]
     assert [x["location"] for x in content["dropped"]] == [WRONG_AT]
-    assert content["final_fit"]["effects"] == [{"effect": "joint_compliance", "location": TRUE_AT}]
+    # a translational compliance: nothing to say beyond its parameters (no pivot)
+    assert content["final_fit"]["effects"] == [
+        {"effect": "joint_compliance", "location": TRUE_AT, "detail": None}
+    ]
     assert content["scoring"]["elimination_note"] == ""
     assert f"dropped: joint_compliance@{WRONG_AT}" in summary(diag, content)
     written = write_outputs(diag, tmp_path, plots=True)

@@ -15,12 +15,12 @@ from bondid.linear.affine import build_affine_model
 from bondid.linear.parameter_map import ParameterMap
 from bondid.model import UrdfDocument
 from bondid.model.parameters import (
-    declare_tie,
     get_parameter,
     get_parameters,
     select_parameters,
     set_parameter,
 )
+from bondid.model.tie_declaration import declare_tie
 from bondid.model.ties import leader_ties, model_ties
 from bondid.optim.problem import FitProblem
 from bondid.optim.tied import TiedParameters

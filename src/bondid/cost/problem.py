@@ -27,6 +27,7 @@ from ..data.weights import check_weighting
 from ..exceptions import ConfigError
 from ..frf.jacobian import frequency_spans
 from ..linear.affine import AffineModel, build_affine_model, model_inputs, model_outputs
+from ..linear.coupling import coupling_terms, recouple
 from ..model.document import UrdfDocument
 from ..threads import thread_limit, thread_map
 from .mixing import free_mixes, mix_rows, mixed_affine
@@ -37,7 +38,7 @@ from .residuals import (
     parts,
     residual,
 )
-from .rows import Gains, Rows, gain_arrays
+from .rows import Derivatives, Gains, Rows, gain_arrays
 from .selection import CostOptions, DataSelection, select_points, used_points
 
 #: the former private name of :class:`DataSelection` (read by bondid.diagnose)
@@ -63,7 +64,9 @@ class ParameterModel(Protocol):
     have transducer gains: ``gain_values(x) -> {name: g}`` and ``gain_jacobian(x) -> {name:
     dg/dx (size,)}`` (optional; without them the gains stay the model's), and proportional
     damping: ``rayleigh_values(x) -> (α, β) | None`` and ``rayleigh_jacobian(x) -> d(α, β)/dx
-    (2, size)`` (optional; None or without them α and β stay the model's).
+    (2, size)`` (optional; None or without them α and β stay the model's), and mimic
+    multipliers: ``coupling_values(x) -> {joint: a}`` and ``coupling_jacobian(x) -> {joint:
+    da/dx (size,)}`` (optional; :mod:`bondid.linear.coupling`).
     """
 
     @property
@@ -109,10 +112,23 @@ def _free_rayleigh(
     return ab, np.asarray(pmodel.rayleigh_jacobian(x), dtype=float)  # type: ignore[attr-defined]
 
 
+def _free_couplings(
+    pmodel: ParameterModel, x: np.ndarray, jacobian: bool = False
+) -> tuple[dict[str, float], dict[str, np.ndarray]]:
+    """The free mimic multipliers of a parameter model at ``x`` (``coupling_values``) and,
+    when asked, their ``d a / d x`` ``(size,)`` (``coupling_jacobian``); empty without."""
+    fn = getattr(pmodel, "coupling_values", None)
+    values = dict(fn(x)) if fn is not None else {}
+    if not values or not jacobian:
+        return values, {}
+    return values, dict(pmodel.coupling_jacobian(x))  # type: ignore[attr-defined]
+
+
 def _block_affine(
-    b: DataSelection, values: _Values, gains: _Gains, rayleigh: tuple[float, float] | None = None
-) -> AffineModel:
-    affine = b.affine.with_values(*values)
+    b: DataSelection, values: _Values, gains: _Gains, rayleigh: tuple[float, float] | None = None,
+    couplings: dict[str, float] | None = None,
+) -> AffineModel:  # fmt: skip
+    affine = recouple(b.affine, couplings or {}).with_values(*values)
     if rayleigh is not None:
         affine = affine.with_rayleigh(*rayleigh)
     return affine.with_gains(*gain_arrays(affine, gains)) if gains else affine
@@ -202,12 +218,13 @@ class FrfProblem:
         and the data selections are shared: nothing is linearised or selected again."""
         values, gains = pmodel.values(x), _free_gains(pmodel, x)
         mixes, ab = free_mixes(pmodel, x)[0], _free_rayleigh(pmodel, x)[0]
+        couplings = _free_couplings(pmodel, x)[0]
         out = copy.copy(self)
         out.doc = doc
         out.modifier_theta = self._theta(pmodel, x)[0]
         out.blocks = [
             dataclasses.replace(
-                b, affine=self._mixed(i, _block_affine(b, values, gains, ab), mixes)
+                b, affine=self._mixed(i, _block_affine(b, values, gains, ab, couplings), mixes)
             )
             for i, b in enumerate(self.blocks)
         ]
@@ -247,13 +264,14 @@ class FrfProblem:
         values, gains = pmodel.values(x), _free_gains(pmodel, x)
         mixes, ab = free_mixes(pmodel, x)[0], _free_rayleigh(pmodel, x)[0]
         theta = self._theta(pmodel, x)[0]
+        couplings = _free_couplings(pmodel, x)[0]
 
         tasks = self._tasks()
 
         def one(task: tuple[int, slice | None]) -> np.ndarray:
             i, span = task
             b = self.blocks[i]
-            affine = self._mixed(i, _block_affine(b, values, gains, ab), mixes)
+            affine = self._mixed(i, _block_affine(b, values, gains, ab, couplings), mixes)
             return affine.linear_model().frf(b.freq_hz if span is None else b.freq_hz[span])
 
         pieces = thread_map(one, tasks, parallel=self.threaded)
@@ -340,8 +358,9 @@ class FrfProblem:
         rows = self._rows()
         mixes, dmixes = free_mixes(pmodel, x)
         ab, dab = _free_rayleigh(pmodel, x, jacobian=True)
-        derivatives = (*pmodel.jacobian(x), dab)
-        dpi = derivatives[0]
+        couplings, dcouplings = _free_couplings(pmodel, x, jacobian=True)
+        shared = (*pmodel.jacobian(x), dab)
+        dpi = shared[0]
         theta, dtheta = self._theta(pmodel, x)
         n_p, k = dpi.shape[2], parts(self.options.kind)
         sizes = [k * b.Hm.size for b in self.blocks]
@@ -357,7 +376,9 @@ class FrfProblem:
             b = self.blocks[i]
             rb = r[start[i] : start[i + 1]]
             Jb = J[start[i] : start[i + 1]].reshape(k, b.Hm.size, n_p)
-            affine = self._mixed(i, _block_affine(b, values, gains, ab), mixes)
+            affine = self._mixed(i, _block_affine(b, values, gains, ab, couplings), mixes)
+            terms = coupling_terms(affine, dcouplings) if dcouplings else None
+            derivatives: Derivatives = (*shared, terms)
             if b.flat is None and not gains and not mixes and theta is None:
                 rows.grid(b, affine, derivatives, rb, Jb, span)
                 return

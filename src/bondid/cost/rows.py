@@ -22,14 +22,16 @@ import numpy as np
 
 from ..frf.jacobian import frf_and_jacobian, jacobian_blocks
 from ..linear.affine import AffineModel
+from ..linear.coupling import CouplingTerms
 from .mixing import MixRows, mix_columns
 from .modifier import FrfModifier
 from .residuals import parts, residual, residual_jacobian, residual_jacobian_parts, robust
 from .selection import CostOptions, DataSelection
 
 Gains = dict[str, float]
-#: ``(dπ (nb, 10, n_p), dk (nv, n_p), dd (nv, n_p), d(α, β) (2, n_p) or None)``
-Derivatives = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]
+#: ``(dπ (nb, 10, n_p), dk (nv, n_p), dd (nv, n_p), d(α, β) (2, n_p) or None, the terms of
+#: free mimic multipliers or None)``
+Derivatives = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, CouplingTerms | None]
 #: a data set's mix rows and the mixes' d/dx
 Mix = tuple[MixRows, dict[str, np.ndarray]]
 
@@ -165,7 +167,9 @@ class Rows:
         formed at once. ``modifier`` = ``(θ, ∂θ/∂x or None)``."""
         assert self.modifier is not None and self.modifier_at is not None
         theta, dtheta = modifier
-        H, dH = frf_and_jacobian(affine, b.freq_hz, *derivatives[:3], drayleigh=derivatives[3])
+        H, dH = frf_and_jacobian(
+            affine, b.freq_hz, *derivatives[:3], drayleigh=derivatives[3], extra=derivatives[4]
+        )
         if gains[0]:
             no, ni, nf = H.shape
             rows = np.repeat(np.arange(no), ni * nf)

@@ -18,7 +18,12 @@ removes (:data:`CONFIRMED_SHARE`): an effect that leaves most of the excess in p
 
 "At the held-out noise level" is the rule's own first condition (:func:`.scoring.above_level`)
 on the model's held-out score: the test that decides whether a step can accept anything
-decides whether anything is left.
+decides whether anything is left. The search's models are fitted on the training bands only;
+the final model is the same model refitted on all the data (:mod:`.final_fit`), with no
+points held out. When that refit reaches the noise level of all the data
+(:class:`bondid.optim.noise.NoisePolicy`, the one test "at the noise level" of the package)
+where the search's model did not — a basin the training bands alone did not lead to, e.g. a
+pivot — nothing the data show is left either: the answer is *explained*, and says so.
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..optim.noise import NoisePolicy
 from . import scoring
 
 #: a kept effect that removes at least this share of its base's excess over the noise is
@@ -53,6 +59,8 @@ class Outcome:
         excess_removed: the share of the parameter refit's excess mean square over the noise
             that the kept effects remove (NaN without effects or a level).
         grades: per kept effect ``"confirmed"`` or ``"tentative"``, in order.
+        final_over_noise: the final model's weighted db_rms on all data over their noise
+            level (NaN unknown or not refitted).
     """
 
     kind: str
@@ -61,6 +69,7 @@ class Outcome:
     refit_over_noise: float = math.nan
     excess_removed: float = math.nan
     grades: list[str] = field(default_factory=list)
+    final_over_noise: float = math.nan
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -70,6 +79,7 @@ class Outcome:
             "refit_over_noise": self.refit_over_noise,
             "excess_removed": self.excess_removed,
             "grades": list(self.grades),
+            "final_over_noise": self.final_over_noise,
         }
 
 
@@ -87,6 +97,7 @@ def outcome(
     final_score: float,
     kept_tests: list[dict[str, Any]],
     noise: scoring.NoiseReference | None,
+    final_ratio: float | None = None,
 ) -> Outcome:
     """The outcome of a diagnosis.
 
@@ -96,6 +107,8 @@ def outcome(
             parameter refit's when none is kept).
         kept_tests: the rule's figures of each kept effect (:func:`.scoring.tests`), in order.
         noise: the held-out noise reference (None: unknown level).
+        final_ratio: the final model's weighted db_rms on all data over their noise level
+            (:mod:`.final_fit`; None: not refitted or unknown).
     """
     grades = [grade(t) for t in kept_tests]
     if not scoring.usable(noise) or not math.isfinite(final_score):
@@ -108,6 +121,13 @@ def outcome(
     if kept_tests and refit_score > L:
         removed = (refit_score**2 - final_score**2) / (refit_score**2 - L**2)
     left = scoring.above_level(final_score, noise)
+    fin = math.nan if final_ratio is None else float(final_ratio)
+    # ``fin`` is already a ratio to the noise level: a policy whose noise cost is 1
+    if left and NoisePolicy(cost=1.0).at_level(fin * fin):
+        what = "the model with the kept effect(s)" if kept_tests else "the parameter refit"
+        text = (f"explained: refitted on all data, {what} is at the noise level ({fin:.2f}x;"
+                f" on the held-out bands the search's fit was at {over:.2f}x)")  # fmt: skip
+        return Outcome(EXPLAINED, text, over, over0, removed, grades, fin)
     if not left:
         if kept_tests:
             text = (f"explained: with the kept effect(s) the model is at the held-out noise"
@@ -116,13 +136,13 @@ def outcome(
             text = (f"explained by the parameters alone: the parameter refit is at the"
                     f" held-out noise level ({over0:.2f}x); nothing is missing that these data"
                     f" show")  # fmt: skip
-        return Outcome(EXPLAINED, text, over, over0, removed, grades)
+        return Outcome(EXPLAINED, text, over, over0, removed, grades, fin)
     if kept_tests:
         text = (f"partly explained: the kept effect(s) remove {removed:.0%} of the excess over"
                 f" the noise, the model stays at {over:.2f}x the held-out noise level; the rest"
                 f" is something no candidate explains (see the remainder)")  # fmt: skip
-        return Outcome(PARTLY, text, over, over0, removed, grades)
+        return Outcome(PARTLY, text, over, over0, removed, grades, fin)
     text = (f"unexplained: the parameter refit is at {over0:.2f}x the held-out noise level and"
             f" no candidate passes the rule; something is missing that none of the candidates"
             f" explains (see the remainder)")  # fmt: skip
-    return Outcome(UNEXPLAINED, text, over, over0, removed, grades)
+    return Outcome(UNEXPLAINED, text, over, over0, removed, grades, fin)

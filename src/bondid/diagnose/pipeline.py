@@ -17,8 +17,9 @@
    (:mod:`.prune`). The first kept effect is the verdict.
 5. **The final model** (:mod:`.final_fit`): the refit with every kept effect (else the
    parameter refit) refitted on all data: the model to take away; no figure of 4 changes.
-6. **The outcome** (:mod:`.outcome`): explained, partly explained or unexplained, and what
-   the remainder looks like (:mod:`.remainder`).
+6. **The outcome** (:mod:`.outcome`): explained, partly explained or unexplained (given
+   the held-out figures of 4 and the final model's level on all data), and what the
+   remainder looks like (:mod:`.remainder`).
 """
 
 from __future__ import annotations
@@ -312,6 +313,11 @@ def diagnose(
         if during_final is not None:
             during_final(diag)
         diag.final = pending()
+        # the final fit's level counts only when it refitted the model (on all data); the
+        # search's model's own ratio is on its training bands, in-sample
+        ratio = diag.final.model.noise_ratio if diag.final.kept else None
+        diag.outcome = outcome(first.base_score, final_score, [k.test for k in kept], p.noise,
+                               ratio)  # fmt: skip
         say("final fit on all data")
         diag.remainder = describe(doc, datasets, p, diag.final.model, measured, s)
         say("the remainder described")

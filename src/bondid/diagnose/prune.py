@@ -7,7 +7,8 @@ cause), and then keeps parameters the data no longer ask for.
 
 Once two or more effects are accepted, each is tested again against the model with all the
 others: that model is refitted (every nominal parameter and the other effects' free, warm
-from the full model's values, :mod:`.refit_job`) and the rule of :func:`.scoring.tests` — the
+from the full model's values, :mod:`.refit_job`; a model the search already fitted keeps the
+better of its two refits) and the rule of :func:`.scoring.tests` — the
 same rule at every step — asks whether the effect still earns its parameters on held-out
 data. Of the effects that fail it, the one whose removal leaves the best held-out score is
 dropped, and the test repeats on the effects left until each passes or one is left. A refit
@@ -137,15 +138,22 @@ class _Models:
             if s.winner is not None:
                 self.known[_key(s.winner.chain)] = (s.winner, s.scores[0])
 
-    def ensure(self, source: JobResult, chains: Sequence[Sequence[Candidate]]) -> None:
-        """Refit (in parallel) every chain of ``chains`` not known yet, warm from ``source``."""
-        todo = {_key(c): c for c in chains if _key(c) not in self.known}
+    def ensure(
+        self, source: JobResult, chains: Sequence[Sequence[Candidate]], again: bool = False
+    ) -> None:
+        """Refit (in parallel) every chain of ``chains`` not known yet, warm from ``source``;
+        ``again``: the known ones too, keeping the better held-out score of the two (a
+        model refitted without one effect, from the values the others took beside it, may
+        reach a basin its own forward step did not: a pivot found only with a later
+        effect's help)."""
+        todo = {_key(c): c for c in chains if again or _key(c) not in self.known}
         futures = {k: self.pool.submit(run_refit, reduced_task(self.ctx, source, c))
                    for k, c in todo.items()}  # fmt: skip
         for k, f in futures.items():
             r = f.result()
-            self.known[k] = (r, _score(r))
             self.n_refits += 1
+            if k not in self.known or _score(r) < self.known[k][1]:
+                self.known[k] = (r, _score(r))
 
     def __getitem__(self, chain: Sequence[Candidate]) -> tuple[JobResult, float]:
         return self.known[_key(chain)]
@@ -181,7 +189,7 @@ def prune(
     while len(chain) >= 2:
         rnd += 1
         full, s_full = models[chain]
-        models.ensure(full, [_without(chain, i) for i in range(len(chain))])
+        models.ensure(full, [_without(chain, i) for i in range(len(chain))], again=True)
         redundant = []
         for i, c in enumerate(chain):
             s_without = models[_without(chain, i)][1]

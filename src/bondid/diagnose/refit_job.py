@@ -34,7 +34,7 @@ from ..optim.multistart import Attempt, Budget, Outcome, Start, keep_best
 from ..optim.noise import NoisePolicy
 from ..optim.search import PRESOLVE_ITER, Step
 from .augmented import Augmented, build, chain_of
-from .effects import Candidate
+from .effects import Candidate, get_effect
 from .job import AttemptNote, JobResult, Task
 from .pool import cancelled
 from .refit import Refit, State
@@ -64,6 +64,8 @@ class Models:
         self._built: dict[int, Augmented] = {}
 
     def __getitem__(self, k: int) -> Augmented:
+        if k and _same_model(self.options[k], self.options[0]):
+            return self[0]  # a variant that only starts elsewhere: the candidate's model
         if k not in self._built:
             from ..optim.ipopt import WARM_START
 
@@ -76,14 +78,26 @@ class Models:
         return self._built[k]
 
 
+def _same_model(a: Candidate | None, b: Candidate | None) -> bool:
+    """Do options ``a`` and ``b`` build the same model (same effect, place, construction and
+    parameters: they differ in where the parameters start only)?"""
+    if a is None or b is None:
+        return False
+    return (a.effect, a.location, a.spec) == (b.effect, b.location, b.spec) and [
+        (p.name, p.lower, p.upper, p.members) for p in a.parameters
+    ] == [(p.name, p.lower, p.upper, p.members) for p in b.parameters]
+
+
 def screening_starts(models: Models, places: Places) -> list[StartSpec]:
     """The starts of a task's candidate and its variants, in the order a refit tries them.
 
     The candidate's own starts (:func:`.starts.candidate_starts`) come first in line; each
-    variant (the same effect at the same place, differing in a detail no fit varies, e.g.
-    a pivot) gets one start, from the candidate's best new values when it has the same
-    parameters (else its own best scan start), and takes its place among the others by its
-    figure. The nominal origin of the best start stays second (see :mod:`.starts`).
+    variant (the same effect at the same place, differing in a detail no fit varies, e.g. an
+    elastic centre, or in where a parameter starts, e.g. a pivot's shift) gets one start,
+    from the candidate's best new values when it has the same parameters (its own start
+    values of the signed ones where they differ; else its own best scan start), and takes
+    its place among the others by its figure. The nominal origin of the best start stays
+    second (see :mod:`.starts`).
     """
     own_option = models.options[0]
     if own_option is None:
@@ -121,6 +135,11 @@ def _variant_start(
         return candidate_starts(refit, option, mine, k, models.task.full)[:1]
     best = own[0]
     new = models[0].refit.new_values(State(best.x, best.theta))
+    # a variant that starts a signed parameter elsewhere (a pivot's shift) keeps its own
+    # start there; its springs take the candidate's best values, as every variant's do
+    for i, (p, q) in enumerate(zip(option.parameters, cand.parameters, strict=True)):
+        if p.signed and p.initial != q.initial:
+            new[i] = p.initial
     state, _ = refit.solve_new(refit.with_new(refit.state0, new), NEW_ITER)
     return [spec_of(refit, f"{best.label}, {option.description}", state, k)]
 
@@ -251,6 +270,8 @@ def finish(task: Task, models: Models, outcome: Outcome, t0: float) -> JobResult
                               noise.ratio_of(a.data_cost) or math.nan, a.iterations, a.error)
                   for a in outcome.attempts)  # fmt: skip
     variant = "" if k == 0 or option is None else option.description
+    if option is not None:
+        variant = get_effect(option.effect).detail(fit.document, option) or variant
     return JobResult(
         label="refit" if option is None else option.label,
         effect=None if option is None else option.effect,

@@ -40,6 +40,7 @@ from typing import Any
 from ..atomic import write_text_atomic
 from ..jsonsafe import json_safe as _num
 from ..model.packages import restore_mesh_names
+from ..model.pivot import settled_text
 from . import scoring
 from .gap import GapReport, gap_report
 from .job import JobResult
@@ -284,12 +285,25 @@ def _final_section(diag: Diagnosis) -> dict[str, Any] | None:
         return None
     m = f.model
     return {
-        "effects": [{"effect": c.effect, "location": c.location} for c in f.source.chain],
+        "effects": [{"effect": c.effect, "location": c.location, "detail": d or None}
+                    for c, d in zip(f.source.chain, _details(m), strict=True)],
         "kept": f.kept, "note": f.note, "starts": f.starts or None,
         "db_rms_before": f.source.db_rms, "db_rms": m.db_rms,
         "db_rms_unweighted": m.db_rms_unweighted, "file": "final.urdf",
         "parameters": _parameter_rows(m),
     }  # fmt: skip
+
+
+def _details(m: JobResult) -> list[str]:
+    """What the model ``m`` says of each of its effects beyond their parameters (e.g. where
+    a rotation pivots, :meth:`~.effects.base.Effect.detail`), in the order of its chain."""
+    if not m.chain or not m.urdf:
+        return [""] * len(m.chain)
+    from ..model.document import UrdfDocument
+    from .effects import get_effect
+
+    doc = UrdfDocument.from_string(m.urdf, source="final model")
+    return [get_effect(c.effect).detail(doc, c) for c in m.chain]
 
 
 def _parameter_rows(r: JobResult) -> list[dict[str, Any]]:
@@ -309,8 +323,10 @@ def write_outputs(
     content["warnings"] = list(warnings)
     written = [write_text_atomic(out_dir / "diagnosis.json", json.dumps(content, indent=2) + "\n")]
 
-    def urdf(name: str, text: str) -> None:  # the meshes named as the user named them
-        written.append(write_text_atomic(out_dir / name, restore_mesh_names(text, diag.mesh_names)))
+    def urdf(name: str, text: str) -> None:
+        # a free pivot written as the joint's own pivot; the meshes named as the user did
+        text = restore_mesh_names(settled_text(text, name), diag.mesh_names)
+        written.append(write_text_atomic(out_dir / name, text))
 
     urdf("refit.urdf", diag.baseline.urdf)
     if diag.winner is not None and diag.winner.urdf:

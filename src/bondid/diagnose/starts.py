@@ -194,6 +194,9 @@ def candidate_starts(
     first, the nominal origin of the best second (module docstring). A start whose model
     fails is left out; an empty list means every one failed."""
     exps = np.array([p.scan for p in cand.parameters], float)
+    # starts are told apart by their positive parameters (a signed one, e.g. a pivot's
+    # shift, may sit at 0 or change sign: no ratio to compare)
+    positive = np.array([not p.signed for p in cand.parameters], bool)
     v0 = refit.new_values(refit.state0)
     out: list[StartSpec] = []
     seen: list[np.ndarray] = []
@@ -202,7 +205,7 @@ def candidate_starts(
         try:
             if not placed:
                 state = refit.solve_new(state, NEW_ITER)[0]
-            new = refit.new_values(state)
+            new = refit.new_values(state)[positive]
             if any(np.all(np.abs(np.log(np.maximum(new, 1e-300) / np.maximum(o, 1e-300)))
                           < math.log(SAME_START)) for o in seen):  # fmt: skip
                 continue

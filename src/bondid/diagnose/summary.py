@@ -79,6 +79,8 @@ def summary(diag: Diagnosis, content: dict[str, Any]) -> str:
     ff = content.get("final_fit")
     if ff:
         lines.append(f"final model refitted on all data (final.urdf): {ff['note']}")
+        lines += [f"  {e['effect']}@{e['location']}: {e['detail']}"
+                  for e in ff.get("effects") or [] if e.get("detail")]  # fmt: skip
     rem = content.get("remainder") or {}
     if rem.get("summary"):
         lines.append("what the final model still misses:")

@@ -26,12 +26,8 @@ from ..data.measurement import FrfData
 from ..data.reduce import reduce_datasets
 from ..exceptions import ConfigError, DependencyError, SolverError
 from ..model.document import UrdfDocument
-from ..model.parameters import (
-    declare_tie,
-    get_parameters,
-    parameter_infos,
-    select_parameters,
-)
+from ..model.parameters import get_parameters, parameter_infos, select_parameters
+from ..model.tie_declaration import declare_tie
 from ..setup.damping import damping_json, data_band, declare_damping
 from .options import build_parser, resolve_settings
 from .settings import StudySettings
@@ -46,6 +42,7 @@ _KIND_GLOB = {
     "damping": "*.damping",
     "gain": "gain.*",
     "mix": "mix.*",
+    "multiplier": "*.multiplier",
     "rayleigh": "rayleigh.*",
 }
 

@@ -103,7 +103,9 @@ from .settings import StudySettings as StudySettings
 from .settings import add_bound
 
 #: Parameter kinds a bound key may name (besides names and globs).
-KINDS = ("mass", "com", "inertia", "stiffness", "damping", "gain", "mix", "rayleigh")
+KINDS = (
+    "mass", "com", "inertia", "stiffness", "damping", "gain", "mix", "multiplier", "rayleigh",
+)  # fmt: skip
 
 _TOP_KEYS = (
     "model", "data", "parameters", "bounds", "cost", "search", "points", "gains", "points_file",

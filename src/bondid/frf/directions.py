@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..linear.affine import AffineModel
+from ..linear.coupling import CouplingTerms
 
 #: relative asymmetry below which a direction matrix counts as symmetric
 SYMMETRY_RTOL = 1e-10
@@ -70,6 +71,7 @@ class Directions:
         dk: np.ndarray,
         dd: np.ndarray,
         drayleigh: np.ndarray | None = None,
+        extra: CouplingTerms | None = None,
     ) -> Directions:
         """Directions of ``n_p`` parameters from their derivatives.
 
@@ -79,13 +81,23 @@ class Directions:
             dk, dd: ``(nv, n_p)`` derivatives of the joint springs (N/m or N·m/rad) and
                 dampers (N·s/m or N·m·s/rad).
             drayleigh: ``(2, n_p)`` derivatives of ``α`` (1/s) and ``β`` (s), or None (held).
+            extra: the derivatives through free mimic multipliers
+                (:mod:`bondid.linear.coupling`), or None.
         """
         n, n_p = affine.nv, dpi.shape[2]
         Kp = np.einsum("bkp,bkij->pij", dpi, affine.G_basis)
         Mp = np.einsum("bkp,bkij->pij", dpi, affine.M_basis)
         idx = np.arange(n)
         Kp[:, idx, idx] += dk.T
+        if extra is not None:
+            Kp += extra.K
+            Mp += extra.M
         Dp = _damping_directions(affine, Kp, Mp, dd, drayleigh)
+        if extra is not None and np.any(extra.D):
+            if Dp is None:
+                Dp = np.zeros((n_p, n, n))
+                Dp[:, idx, idx] += dd.T
+            Dp = Dp + extra.D
         symmetric = is_symmetric(Kp) and is_symmetric(Mp) and (Dp is None or is_symmetric(Dp))
         if symmetric:
             pn, pm = np.triu_indices(n)

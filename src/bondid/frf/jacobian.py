@@ -18,6 +18,7 @@ import numpy as np
 
 from ..data.quantity import quantity_factor
 from ..linear.affine import AffineModel
+from ..linear.coupling import CouplingTerms
 from ..linear.response import dynamic_stiffness, omega, solve_columns
 from .directions import Directions, is_symmetric
 
@@ -54,6 +55,7 @@ def jacobian_blocks(
     dk: np.ndarray,
     dd: np.ndarray,
     drayleigh: np.ndarray | None = None,
+    extra: CouplingTerms | None = None,
     span: slice | None = None,
 ) -> Iterator[tuple[slice, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]]:
     """Receptance and its derivatives, one block of frequencies at a time.
@@ -72,7 +74,7 @@ def jacobian_blocks(
     M = affine.mass_matrix()
     K = affine.stiffness_matrix()
     D = affine.damping_matrix()
-    dirs = Directions.build(affine, dpi, dk, dd, drayleigh)
+    dirs = Directions.build(affine, dpi, dk, dd, drayleigh, extra)
     C, B = affine.C, affine.B
     n_out, n_in, n_p = C.shape[0], B.shape[1], dirs.n_p
     symmetric = is_symmetric(np.stack([M, K, D]))
@@ -102,7 +104,18 @@ def jacobian_blocks(
         Xr = np.transpose(X[:, :, ci], (2, 0, 1)).reshape(-1, X.shape[1])
         dH = dirs.derivatives(Yr, Xr, np.tile(ws, co.size)).reshape(2, co.size, nf, n_p)
         dH = dH[:, pair] if mirrored else dH.reshape(2, n_out, n_in, nf, n_p)
+        if extra is not None:
+            dH = dH + _input_output_terms(extra, X, Yt)
         yield slice(s, s + nf), H, dH, (X, Yt)
+
+
+def _input_output_terms(extra: CouplingTerms, X: np.ndarray, Yt: np.ndarray) -> np.ndarray:
+    """``∂C/∂x X + Y ∂B/∂x`` ``(2, n_out, n_in, nf, n_p)`` (real and imaginary parts): the
+    part of the FRF derivative through ``B`` and ``C`` (free mimic multipliers,
+    :mod:`bondid.linear.coupling`), from the block's solves ``X`` ``(nf, nv, n_in)`` and
+    ``Yt`` ``(nf, nv, n_out)``."""
+    d = np.einsum("pon,fni->oifp", extra.dC, X) + np.einsum("fno,pni->oifp", Yt, extra.dB)
+    return np.stack([d.real, d.imag])
 
 
 def frf_and_jacobian(
@@ -114,6 +127,7 @@ def frf_and_jacobian(
     quantity: str = "receptance",
     *,
     drayleigh: np.ndarray | None = None,
+    extra: CouplingTerms | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """FRF and its derivatives at the affine model's current values.
 
@@ -125,6 +139,8 @@ def frf_and_jacobian(
         quantity: receptance, mobility or accelerance.
         drayleigh: ``(2, n_p)`` derivatives of the proportional damping's ``α``, ``β`` (None:
             held at the model's).
+        extra: the derivatives through free mimic multipliers
+            (:func:`bondid.linear.coupling.coupling_terms`; None: none free).
 
     Returns:
         ``H`` ``(n_out, n_in, n_f)`` and ``J`` ``(n_out, n_in, n_f, n_p)``, complex, both
@@ -134,7 +150,7 @@ def frf_and_jacobian(
     n_out, n_in, n_p = affine.C.shape[0], affine.B.shape[1], dpi.shape[2]
     H = np.empty((n_out, n_in, freq_hz.size), dtype=complex)
     J = np.empty((n_out, n_in, freq_hz.size, n_p), dtype=complex)
-    for sl, Hb, dH, _ in jacobian_blocks(affine, freq_hz, dpi, dk, dd, drayleigh):
+    for sl, Hb, dH, _ in jacobian_blocks(affine, freq_hz, dpi, dk, dd, drayleigh, extra):
         H[:, :, sl] = Hb
         J.real[:, :, sl] = dH[0]
         J.imag[:, :, sl] = dH[1]

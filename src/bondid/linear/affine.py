@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -39,7 +40,14 @@ from .channels import channel_gains, io_matrices
 from .channels import model_inputs as model_inputs  # re-exported: the model's channel names
 from .channels import model_outputs as model_outputs
 from .linear_model import LinearModel
-from .mimic import Coupling, full_operating_point, mimic_couplings, reduce_matrices, reduction
+from .mimic import (
+    Coupled,
+    Coupling,
+    full_operating_point,
+    mimic_couplings,
+    reduce_matrices,
+    reduction,
+)
 from .operating_point import configuration
 
 #: pi_from_inertial is the consistency layer's map (mass, CoM, I about CoM) → π.
@@ -92,6 +100,10 @@ class AffineModel:
     gain_out: np.ndarray | None = None
     alpha: float = 0.0
     beta: float = 0.0
+    #: a model with ``<mimic>`` joints: its linearisation in every joint and the couplings
+    #: (:class:`bondid.linear.mimic.Coupled`), so that a multiplier can be varied; None
+    #: without mimic joints
+    coupled: Any = None
 
     def __post_init__(self) -> None:
         if self.B_kin is None:
@@ -252,7 +264,7 @@ def build_affine_model(
         q0=q0,
         operating_point=op,
     )
-    am = _reduce_mimic(full, couplings) if couplings else full
+    am = reduce_mimic(full, couplings) if couplings else full
     r = model_rayleigh(doc)
     if r is not None:
         am = am.with_rayleigh(r.alpha, r.beta)
@@ -280,8 +292,12 @@ def _springs_and_dampers(
     return stiffness, damping
 
 
-def _reduce_mimic(am: AffineModel, couplings: Mapping[str, Coupling]) -> AffineModel:
-    """The model in the independent coordinates (see :mod:`bondid.linear.mimic`)."""
+def reduce_mimic(am: AffineModel, couplings: Mapping[str, Coupling]) -> AffineModel:
+    """The model ``am`` (every joint free, no gains) in the independent coordinates of
+    ``couplings`` (see :mod:`bondid.linear.mimic`); it keeps ``am`` and ``couplings`` in
+    :attr:`AffineModel.coupled` (a multiplier may then be varied,
+    :mod:`bondid.linear.coupling`)."""
+
     T, red = reduction(am.dofs, couplings)
     free = np.array([d not in couplings for d in am.dofs])
     fixed_k = np.diag(np.where(free, 0.0, am.stiffness))  # mimic joints' own springs
@@ -296,6 +312,7 @@ def _reduce_mimic(am: AffineModel, couplings: Mapping[str, Coupling]) -> AffineM
         M_rest=r["M"], G_rest=r["G"], D_rest=r["D"], stiffness=am.stiffness[free],
         damping=am.damping[free], B=T.T @ am.B, C=am.C @ T, inputs=am.inputs,
         outputs=am.outputs, q0=am.q0, operating_point=am.operating_point,
+        coupled=Coupled(am, dict(couplings)),
     )  # fmt: skip
 
 

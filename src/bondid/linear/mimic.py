@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -25,6 +26,22 @@ class Coupling:
     master: str
     multiplier: float = 1.0
     offset: float = 0.0
+
+
+@dataclass(frozen=True)
+class Coupled:
+    """A model with mimic joints in every joint's coordinates (kept on its reduced
+    :class:`~.affine.AffineModel` so that a multiplier can be varied,
+    :mod:`bondid.linear.coupling`).
+
+    Attributes:
+        full: its linearisation with every joint free (an :class:`~.affine.AffineModel`;
+            kinematic ``B``, ``C``, no gains).
+        couplings: mimic joint → its :class:`Coupling` (master, multiplier, offset).
+    """
+
+    full: Any
+    couplings: dict[str, Coupling]
 
 
 def mimic_couplings(doc: UrdfDocument, where: str) -> dict[str, Coupling]:

@@ -9,7 +9,9 @@ A parameter vector ``p`` holds a chosen subset of the named parameters (``x_stag
 * ``gain.in.X`` / ``gain.out.Y`` and ``mix.P`` → the transducer gains and the points' mixes
   (:meth:`ParameterMap.gain_values`, :meth:`ParameterMap.mix_values`),
 * ``rayleigh.alpha`` / ``rayleigh.beta`` → the proportional damping ``α M + β K``
-  (:meth:`ParameterMap.rayleigh_values`).
+  (:meth:`ParameterMap.rayleigh_values`),
+* ``JOINT.multiplier`` → a mimic joint's multiplier (:meth:`ParameterMap.coupling_values`,
+  :mod:`.coupling`).
 
 :meth:`ParameterMap.jacobian` gives the exact derivatives, so dH/dp follows by the chain rule.
 """
@@ -27,6 +29,8 @@ from ..model.document import UrdfDocument
 from ..model.parameters import COM_AXES, INERTIA_ENTRY, get_parameters, parameter_infos
 from .affine import AffineModel
 
+#: parameter kinds that act on the model as a whole, not on π or a joint's spring/damper
+_MODEL_LEVEL = ("gain", "mix", "rayleigh", "multiplier")
 # position of each URDF inertia component in Pinocchio's π (Ixx, Ixy, Iyy, Ixz, Iyz, Izz)
 _PI_SLOT = {"ixx": 4, "ixy": 5, "iyy": 6, "ixz": 7, "iyz": 8, "izz": 9}
 
@@ -57,8 +61,10 @@ class ParameterMap:
                 raise ParameterError(
                     f"{doc.source or '<URDF>'}: unknown parameter {n!r}; see parameter_names()"
                 )
-            if info.kind in ("gain", "mix", "rayleigh"):
-                comp = {"gain": info.name, "mix": info.owner}.get(info.kind, info.component)
+            if info.kind in _MODEL_LEVEL:
+                comp = {"gain": info.name, "mix": info.owner, "multiplier": info.owner}.get(
+                    info.kind, info.component
+                )
                 self.slots.append(_Slot(info.kind, -1, comp))
             elif info.is_inertial:
                 if info.owner not in affine.bodies:
@@ -80,38 +86,48 @@ class ParameterMap:
     def size(self) -> int:
         return len(self.names)
 
-    def gain_values(self, p: np.ndarray) -> dict[str, float]:
-        """Free transducer gains by name (the gain part of the parameter-model protocol)."""
+    def _of_kind(self, kind: str, p: np.ndarray) -> dict[str, float]:
+        """The free parameters of ``kind`` by their component (a gain's, a point's or a mimic
+        joint's name) at ``p``: model-level parameters are their own values."""
         return {
             str(s.component): float(v)
             for s, v in zip(self.slots, np.asarray(p, dtype=float), strict=True)
-            if s.kind == "gain"
+            if s.kind == kind
         }
+
+    def _rows_of_kind(self, kind: str) -> dict[str, np.ndarray]:
+        """d value / d p ``(size,)`` of every free parameter of ``kind`` (a unit row)."""
+        return {
+            str(s.component): np.eye(self.size)[col]
+            for col, s in enumerate(self.slots)
+            if s.kind == kind
+        }
+
+    def gain_values(self, p: np.ndarray) -> dict[str, float]:
+        """Free transducer gains by name (the gain part of the parameter-model protocol)."""
+        return self._of_kind("gain", p)
 
     def gain_jacobian(self, p: np.ndarray) -> dict[str, np.ndarray]:
         """d g / d p ``(size,)`` of every free gain (a unit row: gains are parameters)."""
-        out = {}
-        for col, s in enumerate(self.slots):
-            if s.kind == "gain":
-                out[str(s.component)] = np.eye(self.size)[col]
-        return out
+        return self._rows_of_kind("gain")
 
     def mix_values(self, p: np.ndarray) -> dict[str, float]:
         """Free mixes by point name (the mix part of the parameter-model protocol,
         :mod:`bondid.cost.mixing`)."""
-        return {
-            str(s.component): float(v)
-            for s, v in zip(self.slots, np.asarray(p, dtype=float), strict=True)
-            if s.kind == "mix"
-        }
+        return self._of_kind("mix", p)
 
     def mix_jacobian(self, p: np.ndarray) -> dict[str, np.ndarray]:
         """d μ / d p ``(size,)`` of every free mix (a unit row)."""
-        return {
-            str(s.component): np.eye(self.size)[col]
-            for col, s in enumerate(self.slots)
-            if s.kind == "mix"
-        }
+        return self._rows_of_kind("mix")
+
+    def coupling_values(self, p: np.ndarray) -> dict[str, float]:
+        """Free mimic multipliers by joint name (the coupling part of the parameter-model
+        protocol, :mod:`.coupling`)."""
+        return self._of_kind("multiplier", p)
+
+    def coupling_jacobian(self, p: np.ndarray) -> dict[str, np.ndarray]:
+        """d a / d p ``(size,)`` of every free multiplier (a unit row)."""
+        return self._rows_of_kind("multiplier")
 
     def rayleigh_values(self, p: np.ndarray) -> tuple[float, float] | None:
         """``(α (1/s), β (s))`` at ``p`` when one of them is free, else None (the Rayleigh
@@ -172,7 +188,7 @@ class ParameterMap:
         dk = np.zeros((self.nv, self.size))
         dd = np.zeros((self.nv, self.size))
         for col, s in enumerate(self.slots):
-            if s.kind in ("gain", "mix", "rayleigh"):
+            if s.kind in _MODEL_LEVEL:
                 continue
             if s.kind == "stiffness":
                 dk[s.index, col] = 1.0

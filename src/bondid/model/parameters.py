@@ -14,6 +14,8 @@ name                           meaning                                      unit
 ``mix.P``                      share of point P's second component          per its kinds
 ``rayleigh.alpha``             mass-proportional damping α (D += α·M)       1/s
 ``rayleigh.beta``              stiffness-proportional damping β (D += β·K)  s
+``JOINT.multiplier``           a ``<mimic>`` joint's multiplier (δq = a·δq   its unit per
+                               of the joint it mimics)                      the master's
 =============================  ==========================================  ===============
 
 ``rayleigh.*`` exist only in a model that declares proportional damping
@@ -21,6 +23,10 @@ name                           meaning                                      unit
 
 A mix is a parameter only for a point declared with a second component (a patch driving
 bending and torsion: :mod:`bondid.model.points`); it belongs to the group ``mixes`` only.
+
+A multiplier is a parameter of every ``<mimic>`` joint (a coupled drive's ratio; the
+translation per radian that places a compliance's pivot, :mod:`bondid.linear.coupling`);
+it belongs to the group ``couplings`` only.
 
 A gain is a parameter only where the model declares it (``<transducer_gain>``, from a study's
 ``[gains]`` table or ``--points`` file; see :mod:`bondid.model.points`); it belongs to the
@@ -34,9 +40,10 @@ Groups: ``inertial`` (the 10 parameters of every moving link with an ``<inertial
 ``parasitic`` (stiffness and damping of every movable joint without a transmission),
 ``joints`` (stiffness and damping of every movable joint), ``all`` (``inertial`` + ``joints``
 + ``rayleigh.*``), ``gains`` (the declared transducer gains), ``mixes`` (the points' mixes),
-``default`` (``inertial`` + every joint stiffness and damping and Rayleigh coefficient whose
-model value is not 0: ``python -m bondid.fit``'s default free set; a 0 the model sets, no
-spring on a driven axis, is a modelling decision, not an uncertain number).
+``couplings`` (the mimic joints' multipliers), ``default`` (``inertial`` + every joint
+stiffness and damping and Rayleigh coefficient whose model value is not 0: ``python -m
+bondid.fit``'s default free set; a 0 the model sets, no spring on a driven axis, is a
+modelling decision, not an uncertain number).
 """
 
 from __future__ import annotations
@@ -52,7 +59,7 @@ from ..exceptions import ParameterError
 from .document import UrdfDocument, rotation_and_translation
 from .points import MIX_PREFIX
 from .rayleigh import RAYLEIGH_OWNER, RAYLEIGH_UNITS, Rayleigh, model_rayleigh, set_rayleigh
-from .ties import TIEABLE, Tie, followers, model_ties, set_tie
+from .ties import followers, model_ties
 
 COM_AXES = ("x", "y", "z")
 INERTIA_COMPONENTS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
@@ -65,7 +72,9 @@ INERTIA_ENTRY = {
     "iyz": (1, 2),
     "izz": (2, 2),
 }
-GROUPS = ("inertial", "parasitic", "joints", "all", "gains", "mixes", "default")
+GROUPS = ("inertial", "parasitic", "joints", "all", "gains", "mixes", "couplings", "default")
+#: the unit of each joint kind's coordinate (a multiplier's unit is the ratio of two)
+_COORD_UNITS = {"prismatic": "m", "revolute": "rad", "continuous": "rad"}
 
 
 @dataclass(frozen=True)
@@ -122,6 +131,11 @@ def parameter_infos(doc: UrdfDocument) -> list[ParameterInfo]:
         ku, du = _joint_units(j.type)
         out.append(ParameterInfo(f"{j.name}.stiffness", "stiffness", j.name, None, ku))
         out.append(ParameterInfo(f"{j.name}.damping", "damping", j.name, None, du))
+    for name, master in mimic.items():
+        j = doc.joint(name)
+        if j.type in _COORD_UNITS:
+            unit = f"{_COORD_UNITS[j.type]}/{_COORD_UNITS.get(doc.joint(master).type, '1')}"
+            out.append(ParameterInfo(f"{name}.multiplier", "multiplier", name, None, unit))
     for name in doc.gains:
         out.append(ParameterInfo(name, "gain", name, None, "1"))
     for pt in doc.points:
@@ -221,6 +235,9 @@ def get_parameter(doc: UrdfDocument, name: str) -> float:
         return doc.gains[name]
     if info.kind == "mix":
         return next(p.mix for p in doc.points if p.name == info.owner)
+    if info.kind == "multiplier":
+        m = doc.joint(info.owner).mimic
+        return 1.0 if m.multiplier is None else float(m.multiplier)
     if info.kind == "rayleigh":
         declared = model_rayleigh(doc)
         return 0.0 if declared is None else declared.get(str(info.component))
@@ -253,6 +270,9 @@ def set_parameter(doc: UrdfDocument, name: str, value: float) -> None:
     if info.kind == "mix":
         point = next(p for p in doc.points if p.name == info.owner)
         doc.set_point(replace(point, mix=value))
+        return
+    if info.kind == "multiplier":
+        doc.joint(info.owner).mimic.multiplier = value
         return
     if info.kind == "rayleigh":
         old = model_rayleigh(doc) or Rayleigh(0.0, 0.0)
@@ -297,11 +317,13 @@ def group_members(doc: UrdfDocument, group: str) -> list[str]:
     if group == "joints":
         return [p.name for p in infos if p.kind in joint_kinds]
     if group == "all":
-        return [p.name for p in infos if p.kind not in ("gain", "mix")]
+        return [p.name for p in infos if p.kind not in ("gain", "mix", "multiplier")]
     if group == "gains":
         return [p.name for p in infos if p.kind == "gain"]
     if group == "mixes":
         return [p.name for p in infos if p.kind == "mix"]
+    if group == "couplings":
+        return [p.name for p in infos if p.kind == "multiplier"]
     if group == "default":
         return [
             p.name
@@ -343,47 +365,3 @@ def select_parameters(
     ordered = [n for n in all_names if n in chosen]
     tied = followers(model_ties(doc), ordered)
     return [n for n in ordered if n not in tied]
-
-
-def declare_tie(doc: UrdfDocument, name: str, items: Iterable[str], where: str) -> Tie:
-    """Tie the joint parameters that ``items`` (names and globs, comma- or space-separated)
-    match into one value, in ``doc`` (:mod:`.ties`); every member is set to the first one's
-    value (model order).
-
-    Raises:
-        ParameterError: a pattern matches nothing, fewer than two parameters, a parameter
-            that is not a joint stiffness or damping, members of two kinds, or a member
-            already in another tie (the message names ``where``).
-    """
-    infos = {p.name: p for p in parameter_infos(doc)}
-    hits: set[str] = set()
-    for item in items:
-        for token in item.replace(",", " ").split():
-            found = [n for n in infos if fnmatch.fnmatchcase(n, token)]
-            if not found:
-                raise ParameterError(
-                    f"{where}: tie {name!r}: {token!r} matches no parameter of"
-                    f" {doc.source or '<URDF>'}; give joint stiffness or damping names or globs"
-                    " (*.damping, seg*.stiffness)"
-                )
-            hits.update(found)
-    members = [n for n in infos if n in hits]
-    kinds = {infos[n].kind for n in members}
-    if len(members) < 2 or not kinds <= set(TIEABLE) or len(kinds) != 1:
-        raise ParameterError(
-            f"{where}: tie {name!r} holds {', '.join(members)}; valid: two or more joint"
-            f" parameters of one kind ({' or '.join(TIEABLE)})"
-        )
-    for other in model_ties(doc):
-        shared = set(other.members) & set(members)
-        if other.name != name and shared:
-            raise ParameterError(
-                f"{where}: tie {name!r}: {', '.join(sorted(shared))} already in tie"
-                f" {other.name!r}; a parameter can be in one tie only"
-            )
-    value = get_parameter(doc, members[0])
-    for m in members[1:]:
-        set_parameter(doc, m, value)
-    tie = Tie(name, tuple(members))
-    set_tie(doc, tie)
-    return tie

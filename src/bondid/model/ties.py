@@ -3,7 +3,7 @@
 A *tie* is a group of joint parameters of one kind (``stiffness`` or ``damping``) that take
 one value: one damping for every joint of a lightly damped structure, one stiffness for each
 set of identical segments. It is declared with ``--tie PATTERN`` or a study's ``[ties]`` table
-(names and globs, :func:`bondid.model.parameters.declare_tie`) and kept in the model as a URDF
+(names and globs, :func:`bondid.model.tie_declaration.declare_tie`) and kept in the model as a URDF
 extension element that other URDF readers ignore, so every command and every copy of the
 model (``fitted.urdf`` too) sees it::
 

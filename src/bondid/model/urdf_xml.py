@@ -66,10 +66,32 @@ def urdf_text(urdf: Any, lost: list[LostPart], extras: list[ET.Element]) -> str:
     ``extras`` appended (pretty-printed, full double precision)."""
     core = ET.fromstring(urdf.write_xml_string())
     restore(core, lost)
+    _write_mimics(core, urdf.robot.joints)
     for el in extras:
         core.append(copy.deepcopy(el))
     ET.indent(core, space="  ")
     return '<?xml version="1.0"?>\n' + ET.tostring(core, encoding="unicode") + "\n"
+
+
+def _write_mimics(core: ET.Element, joints: Any) -> None:
+    """Write every joint's ``<mimic>`` from its current values (yourdfpy does not write it,
+    and the element kept from the file would hold a multiplier since changed), in place."""
+    by_name = {el.get("name"): el for el in core.findall("joint")}
+    for j in joints:
+        el = by_name.get(j.name)
+        if el is None:
+            continue
+        for old in el.findall("mimic"):
+            el.remove(old)
+        m = getattr(j, "mimic", None)
+        if m is None:
+            continue
+        attrib = {"joint": str(m.joint)}
+        if m.multiplier is not None:
+            attrib["multiplier"] = repr(float(m.multiplier))
+        if m.offset is not None:
+            attrib["offset"] = repr(float(m.offset))
+        ET.SubElement(el, "mimic", attrib)
 
 
 def _import_yourdfpy() -> Any:

@@ -20,6 +20,10 @@ Relative bounds are ``value · (1 ± rel)`` around the model's value, with these
   the data (invisible); a damper above ``D_MAX`` damps a mode at ten times ``f_max``
   critically. So every default bound is finite and a fit cannot diverge to infinity.
 
+* ``multiplier`` (a ``<mimic>`` joint's): ``a ± rel · max(|a|, s)`` (it may change sign):
+  ``s`` is the length ``ℓ`` of the first body downstream with geometry (0.1 m without) for a
+  translation per radian (a free pivot, :mod:`bondid.model.pivot`), else 1.
+
 * ``rayleigh`` (``rayleigh.alpha``, ``rayleigh.beta``): ``[0, α_max]`` and ``[0, β_max]`` —
   ``α_max`` alone damps the model's lowest vibration mode critically, ``β_max`` alone a mode at
   ``f_max`` (:func:`bondid.linear.rayleigh.upper_bounds`); a relative width given for them
@@ -54,6 +58,7 @@ DEFAULT_REL: dict[str, float] = {
     "damping": 0.5,
     "gain": 9.0,  # a factor 1 + r either way: 10
     "mix": 10.0,  # a point's mix: ± r · max(|μ|, 1)
+    "multiplier": 1.0,  # a mimic multiplier: ± r · max(|a|, its scale)
     "rayleigh": math.inf,  # [0, the coefficient that alone damps critically]
 }
 
@@ -176,6 +181,20 @@ def default_bounds(
     return lo, hi
 
 
+def _downstream_length(doc: UrdfDocument, joint: str) -> float:
+    """The size ``ℓ`` (m) of the first link below ``joint`` with geometry (the bounding-box
+    diagonal of its hull), else :data:`_DEFAULT_LENGTH`."""
+    child = doc.joint(joint).child
+    while True:
+        h = link_hulls(doc, [child])[child]
+        if h is not None:
+            return float(h.size)
+        below = [j for j in doc.robot.joints if j.parent == child]
+        if not below:
+            return _DEFAULT_LENGTH
+        child = below[0].child
+
+
 def _relative_bound(
     doc: UrdfDocument, info: Any, r: float, hulls: Mapping[str, Any], f_max: float, cache: dict
 ) -> tuple[float, float]:
@@ -202,6 +221,10 @@ def _relative_bound(
         return a, b
     if info.kind == "mix":  # may change sign: room around 0 as around the value
         half = r * max(abs(v), 1.0)
+        return v - half, v + half
+    if info.kind == "multiplier":  # may change sign, as a mix
+        s = _downstream_length(doc, info.owner) if info.unit == "m/rad" else 1.0
+        half = r * max(abs(v), s)
         return v - half, v + half
     if info.kind == "rayleigh" and (math.isinf(r) or v == 0.0):
         return 0.0, _rayleigh_upper(doc, str(info.component), f_max, cache)

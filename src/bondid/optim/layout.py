@@ -19,8 +19,9 @@ Layout of the decision vector ``z`` (all entries O(1)):
 * for every free ``JOINT.stiffness`` / ``JOINT.damping``, one entry ``p / s`` with ``s`` the
   magnitude of its starting value (1 in SI units when that is 0);
 * for every free transducer gain one entry ``ln(g / g₀)``, for every free point mix one entry
-  ``(μ − μ₀) / s`` (``s`` = ``max(|μ₀|, 1)``: a mix may change sign), for every free Rayleigh
-  coefficient one entry ``α / s`` (``β / s``) (:mod:`.model_vars`).
+  ``(μ − μ₀) / s`` (``s`` = ``max(|μ₀|, 1)``: a mix may change sign), for every free mimic
+  multiplier one entry ``(a − a₀) / s`` (likewise), for every free Rayleigh coefficient one
+  entry ``α / s`` (``β / s``) (:mod:`.model_vars`).
 
 Each body block and each joint, gain, mix or Rayleigh entry is a record of :mod:`.variables`.
 
@@ -107,6 +108,7 @@ class Layout(ModelVars):
         self.joints: list[JointVar] = []
         self.gains: list[GainVar] = []
         self.mixes: list[MixVar] = []
+        self.couplings: list[MixVar] = []
         self.rayleigh: list[RayleighVar] = []
         self.notes: list[str] = []
         offset = 10 * len(self.blocks)
@@ -115,6 +117,8 @@ class Layout(ModelVars):
                 self.gains.append(GainVar(info.name, offset, j))
             elif info.kind == "mix":
                 self.mixes.append(MixVar(info.name, info.owner, offset, j))
+            elif info.kind == "multiplier":
+                self.couplings.append(MixVar(info.name, info.owner, offset, j))
             elif info.kind == "rayleigh":
                 self.rayleigh.append(RayleighVar(info.name, str(info.component), offset, j))
             elif not info.is_inertial:

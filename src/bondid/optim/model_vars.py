@@ -5,14 +5,16 @@ Each is one entry of the decision vector ``z`` (after the bodies and the joint p
 
 * a transducer gain ``g = g₀ · e^z`` (log scale, the sign of ``g₀`` kept);
 * a point mix ``μ = μ₀ + s · z`` with ``s = max(|μ₀|, 1)`` (a mix may change sign);
+* a mimic multiplier ``a = a₀ + s · z`` with ``s = max(|a₀|, s_min)`` (it may change sign;
+  ``s_min`` = :data:`MULTIPLIER_SCALE`, the size of a pivot's shift per radian);
 * a Rayleigh coefficient ``α = s · z`` (``β = s · z``) with ``s`` its start, or, for a start
   at 0, the model's reference coefficient (:func:`bondid.linear.rayleigh.reference`): a zero
   start then moves off its bound by a fraction of a light damping, not of 1 s.
 
 Their records are in :mod:`.variables`; :class:`ModelVars` gives :class:`~.layout.Layout`
 the optional parts of the parameter-model protocol (:class:`bondid.cost.ParameterModel`):
-``gain_values``/``gain_jacobian``, ``mix_values``/``mix_jacobian`` and
-``rayleigh_values``/``rayleigh_jacobian``.
+``gain_values``/``gain_jacobian``, ``mix_values``/``mix_jacobian``,
+``coupling_values``/``coupling_jacobian`` and ``rayleigh_values``/``rayleigh_jacobian``.
 """
 
 from __future__ import annotations
@@ -22,6 +24,10 @@ import numpy as np
 from ..linear.affine import AffineModel
 from .variables import GainVar, MixVar, RayleighVar
 
+#: the smallest variable scale of a mimic multiplier: a free pivot (m/rad) starts at 0 and
+#: moves by centimetres (a gear ratio is scaled by its own size)
+MULTIPLIER_SCALE = 0.01
+
 
 class ModelVars:
     """The model-level variables of a :class:`~.layout.Layout` (module docstring)."""
@@ -29,6 +35,8 @@ class ModelVars:
     size: int
     gains: list[GainVar]
     mixes: list[MixVar]
+    #: the free mimic multipliers (``point`` holds the mimic joint's name)
+    couplings: list[MixVar]
     rayleigh: list[RayleighVar]
 
     def _model_vars_of(self, affine: AffineModel) -> None:
@@ -50,6 +58,10 @@ class ModelVars:
             mv.mu0 = float(p0[mv.name_index])
             mv.scale = max(abs(mv.mu0), 1.0)
             z[mv.index] = 0.0
+        for cv in self.couplings:
+            cv.mu0 = float(p0[cv.name_index])
+            cv.scale = max(abs(cv.mu0), MULTIPLIER_SCALE)
+            z[cv.index] = 0.0
         for rv in self.rayleigh:
             v = float(p0[rv.name_index])
             ref = self.rayleigh_ref[0 if rv.component == "alpha" else 1]
@@ -60,7 +72,7 @@ class ModelVars:
         """Write the named values of the variables at ``z`` into ``out`` ``(n,)``."""
         for gv in self.gains:
             out[gv.name_index] = gv.g0 * float(np.exp(z[gv.index]))
-        for mv in self.mixes:
+        for mv in [*self.mixes, *self.couplings]:
             out[mv.name_index] = mv.mu0 + mv.scale * float(z[mv.index])
         for rv in self.rayleigh:
             out[rv.name_index] = rv.scale * float(z[rv.index])
@@ -76,7 +88,7 @@ class ModelVars:
             lbz[gv.index] = np.log(r[0]) if r[0] > 0 else -np.inf
             ubz[gv.index] = np.log(r[1]) if r[1] > 0 and np.isfinite(r[1]) else np.inf
             labels.append((gv.name, gv.index))
-        for mv in self.mixes:
+        for mv in [*self.mixes, *self.couplings]:
             lbz[mv.index] = (lower[mv.name_index] - mv.mu0) / mv.scale
             ubz[mv.index] = (upper[mv.name_index] - mv.mu0) / mv.scale
             labels.append((mv.name, mv.index))
@@ -86,19 +98,36 @@ class ModelVars:
             labels.append((rv.name, rv.index))
         return labels
 
-    # -- point mixes (the optional mix part of the parameter-model protocol) -----------------
+    # -- point mixes and mimic multipliers (optional parts of the protocol) -----------------
+    @staticmethod
+    def _linear_values(vs: list[MixVar], z: np.ndarray) -> dict[str, float]:
+        """``μ₀ + s·z`` of the linear variables ``vs`` by owner (point or mimic joint)."""
+        return {v.point: v.mu0 + v.scale * float(z[v.index]) for v in vs}
+
+    def _linear_rows(self, vs: list[MixVar]) -> dict[str, np.ndarray]:
+        """d value / d z ``(size,)`` of the linear variables ``vs`` by owner."""
+        out = {}
+        for v in vs:
+            row = np.zeros(self.size)
+            row[v.index] = v.scale
+            out[v.point] = row
+        return out
+
     def mix_values(self, z: np.ndarray) -> dict[str, float]:
         """Free mixes by point name at ``z``."""
-        return {m.point: m.mu0 + m.scale * float(z[m.index]) for m in self.mixes}
+        return self._linear_values(self.mixes, z)
 
     def mix_jacobian(self, z: np.ndarray) -> dict[str, np.ndarray]:
         """d μ / d z ``(size,)`` of every free mix."""
-        out = {}
-        for m in self.mixes:
-            row = np.zeros(self.size)
-            row[m.index] = m.scale
-            out[m.point] = row
-        return out
+        return self._linear_rows(self.mixes)
+
+    def coupling_values(self, z: np.ndarray) -> dict[str, float]:
+        """Free multipliers by mimic joint at ``z``."""
+        return self._linear_values(self.couplings, z)
+
+    def coupling_jacobian(self, z: np.ndarray) -> dict[str, np.ndarray]:
+        """d a / d z ``(size,)`` of every free multiplier."""
+        return self._linear_rows(self.couplings)
 
     # -- transducer gains (the optional gain part of the parameter-model protocol) ----------
     def gain_values(self, z: np.ndarray) -> dict[str, float]:

@@ -58,6 +58,12 @@ class ModifiedLayout:
     def mix_jacobian(self, z: np.ndarray) -> dict[str, np.ndarray]:
         return {k: self._pad(v) for k, v in self.layout.mix_jacobian(z).items()}
 
+    def coupling_values(self, z: np.ndarray) -> dict[str, float]:
+        return self.layout.coupling_values(z)
+
+    def coupling_jacobian(self, z: np.ndarray) -> dict[str, np.ndarray]:
+        return {k: self._pad(v) for k, v in self.layout.coupling_jacobian(z).items()}
+
     def rayleigh_values(self, z: np.ndarray) -> tuple[float, float] | None:
         return self.layout.rayleigh_values(z)
 

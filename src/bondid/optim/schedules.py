@@ -65,7 +65,7 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 #: A band stage is a rough pre-fit: it gets a quarter of ``max_iter`` (at least this many).
 STAGE_MIN_ITER = 20
 _STAGE_KINDS = {
-    "stiffness": ("stiffness",),
+    "stiffness": ("stiffness", "multiplier"),
     "damping": ("damping", "rayleigh"),
     "inertia": ("mass", "com", "inertia"),
 }

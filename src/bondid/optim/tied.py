@@ -112,6 +112,13 @@ class TiedParameters:
         jac = self.map.mix_jacobian(self.T @ np.asarray(x, dtype=float))
         return {k: v @ self.T for k, v in jac.items()}
 
+    def coupling_values(self, x: np.ndarray) -> dict[str, float]:
+        return self.map.coupling_values(self.T @ np.asarray(x, dtype=float))
+
+    def coupling_jacobian(self, x: np.ndarray) -> dict[str, np.ndarray]:
+        jac = self.map.coupling_jacobian(self.T @ np.asarray(x, dtype=float))
+        return {k: v @ self.T for k, v in jac.items()}
+
     def rayleigh_values(self, x: np.ndarray) -> tuple[float, float] | None:
         return self.map.rayleigh_values(self.T @ np.asarray(x, dtype=float))
 
@@ -124,8 +131,8 @@ def fitted_document(
     doc: UrdfDocument, layout: Layout, z: np.ndarray, p: np.ndarray
 ) -> UrdfDocument:
     """A copy of ``doc`` with the fitted bodies at ``z`` and the joint parameters, gains,
-    mixes and Rayleigh coefficients ``p`` (named values ``(n,)``; tied members follow ``z``).
-    Fixed inertial components keep their exact URDF values."""
+    mixes, multipliers and Rayleigh coefficients ``p`` (named values ``(n,)``; tied members
+    follow ``z``). Fixed inertial components keep their exact URDF values."""
     out = doc.copy()
     for link, vals in layout.body_values(z).items():
         blk = next(b for b in layout.blocks if b.link == link)
@@ -140,7 +147,7 @@ def fitted_document(
         set_parameter(out, jv.name, max(float(v), 0.0))
     for gv in layout.gains:
         set_parameter(out, gv.name, float(p[gv.name_index]))
-    for mv in layout.mixes:
+    for mv in [*layout.mixes, *layout.couplings]:
         set_parameter(out, mv.name, float(p[mv.name_index]))
     for rv in layout.rayleigh:
         set_parameter(out, rv.name, max(float(p[rv.name_index]), 0.0))

@@ -18,11 +18,11 @@ A candidate says how it augments the model and which new parameters it brings:
   after the mixing).
 
 Every new parameter is positive and refitted on a log scale within its bounds, except a
-*signed* modifier parameter (``NewParameter.signed``: a mixing entry, a log-gain, near 0 and
-of either sign), refitted on a linear scale in steps of its ``typical`` size. ``scan`` is the
-exponent with which it follows a common scale factor in the coarse 1-D scan that picks the
-refit's starting point (0 = not scanned; 1 = proportional; 0.5 = with the square root, e.g. a
-damping that keeps the damping ratio while a stiffness is scanned).
+*signed* parameter (``NewParameter.signed``: a mixing entry, a log-gain, a pivot's shift,
+near 0 and of either sign), refitted on a linear scale in steps of its ``typical`` size.
+``scan`` is the exponent with which it follows a common scale factor in the coarse 1-D scan
+that picks the refit's starting point (0 = not scanned; 1 = proportional; 0.5 = with the
+square root, e.g. a damping that keeps the damping ratio while a stiffness is scanned).
 
 Adding an effect is one file: subclass :class:`Effect`, set ``name`` and ``description``,
 implement :meth:`~Effect.candidates` (and :meth:`~Effect.augment` or :meth:`~Effect.modifier`),
@@ -58,8 +58,9 @@ class NewParameter:
             to determine at least one of a candidate's strength parameters
             (:func:`bondid.diagnose.scoring.strength_z`). For a signed parameter the Wald
             test ``|value|/std`` is that of its absence (0).
-        signed: a modifier parameter refitted on a linear scale, of either sign (absent at
-            0); structural parameters are never signed.
+        signed: refitted on a linear scale, of either sign (absent at 0): a modifier's
+            parameter, or a structural one whose member is a model-level parameter of either
+            sign (a mimic multiplier: a pivot's shift).
         typical: the typical size of a signed parameter, the unit of its refit's variable.
     """
 
@@ -130,6 +131,11 @@ class Effect:
     def augment(self, doc: UrdfDocument, candidate: Candidate) -> UrdfDocument:
         """A copy of ``doc`` with the effect built in at the candidate's initial values."""
         return doc.copy()
+
+    def detail(self, doc: UrdfDocument, candidate: Candidate) -> str:
+        """What the refitted model ``doc`` with ``candidate`` built in says about it beyond
+        its parameters, in words (e.g. where a rotation pivots); "" when nothing."""
+        return ""
 
     def modifier(
         self,

@@ -4,15 +4,20 @@ Every interface between two bodies (:func:`~.topology.interfaces`) × every axis
 ry rz`` (child-body frame) along which its chain does not move yet is one candidate, located
 ``"PARENT->CHILD:AXIS"``. The DOF is inserted with
 :func:`bondid.model.insert_parasitic_joint` after the interface's last joint, so the child
-body keeps its placement and its parameters; a rotational DOF pivots about the interface's
-bearing centre (the mean of its existing parasitic pivots; the child's CoM when it has none);
-where a guide really pivots is seldom known, so the candidate carries variants
-(:attr:`~.base.Candidate.variants`, each with a start of its own) whose pivot is moved, one
-direction across the axis at a time, to the child frame's origin, the child's CoM and the two
-faces of its collision hull (:func:`pivot_options`).
-New parameters: the joint's stiffness and damping. The start puts its mode at 300 Hz with 3 %
-damping (from the DOF's effective inertia); the starting-point scan moves it from 15 Hz to
-12 kHz keeping the damping ratio.
+body keeps its placement and its parameters.
+
+A rotational DOF pivots about a point the data choose: where a guide really pivots is seldom
+known, so the pivot is a parameter. The joint is inserted at the interface's bearing centre
+(the mean of its existing parasitic pivots; the child's CoM when it has none) and its pivot
+freed across the axis (:func:`bondid.model.pivot.free_pivot`: two shifts, ``pivot_u`` and
+``pivot_v`` [m/rad], that enter the linearised model exactly). The pivot's cost landscape has
+walls (a shift moves the new mode's residues through zero), so the candidate carries variants
+(:attr:`~.base.Candidate.variants`, each a start of its own for the same model) whose pivot
+starts elsewhere: one direction across the axis at a time at the child frame's origin, the
+child's CoM and the two faces of its collision hull (:func:`pivot_options`).
+New parameters: the joint's stiffness and damping (and the two pivot shifts). The start puts
+its mode at 300 Hz with 3 % damping (from the DOF's effective inertia); the starting-point
+scan moves it from 15 Hz to 12 kHz keeping the damping ratio.
 """
 
 from __future__ import annotations
@@ -23,8 +28,9 @@ import numpy as np
 
 from ...model.authoring import insert_parasitic_joint
 from ...model.document import UrdfDocument, rotation_and_translation
+from ...model.pivot import across, free_pivot, pivot_joints, pivot_of
 from . import register
-from .base import Candidate, Effect, spring_parameters
+from .base import Candidate, Effect, NewParameter, spring_parameters
 from .topology import Interface, axis_vector, effective_inertia, interfaces, link_box
 
 #: a link's hull box: lower and upper corners (m, link frame)
@@ -37,6 +43,8 @@ SCAN_HZ = tuple(float(f) for f in np.geomspace(15.0, 12000.0, 70))
 
 #: pivots closer than this to one already listed are not tried again [m]
 PIVOT_TOL = 0.003
+#: how far a free pivot may move from the bearing centre of a child without geometry [m]
+REACH_M = 0.2
 
 
 def pivot_options(
@@ -86,16 +94,18 @@ class JointCompliance(Effect):
                     continue
                 if box is None:  # the child's hull, read once per interface
                     box = (link_box(doc, itf.child),)
-                main, *others = pivot_options(doc, itf, vec, box[0])
-                variants = tuple(self._candidate(doc, itf, axis, p) for p in others)
-                cand = self._candidate(doc, itf, axis, main)
+                centre, *others = pivot_options(doc, itf, vec, box[0])
+                cand = self._candidate(doc, itf, axis, centre, box[0])
+                variants = tuple(_starting_at(cand, p) for p in others)
                 out.append(replace(cand, variants=variants))
         return out
 
     def _candidate(
-        self, doc: UrdfDocument, itf: Interface, axis: str, pivot: np.ndarray
-    ) -> Candidate:
-        """The candidate about ``pivot`` (child frame, m)."""
+        self, doc: UrdfDocument, itf: Interface, axis: str, pivot: np.ndarray,
+        box: Box | None = None,
+    ) -> Candidate:  # fmt: skip
+        """The candidate about ``pivot`` (child frame, m); a rotational one with its pivot
+        free within ``box`` (the child's hull box) enlarged by half its size."""
         kind, vec = axis_vector(axis)
         jname = joint_name(itf.parent, itf.child, axis)
         spec: dict = {
@@ -105,14 +115,23 @@ class JointCompliance(Effect):
             "axis": [float(x) for x in vec],
             "pivot": [float(x) for x in pivot],
         }
-        probe = self._insert(doc, spec, 1.0, 0.0)
+        probe = self._insert(doc, spec, 1.0, 0.0, ())
         m = effective_inertia(probe, jname)
         k0 = m * (2 * np.pi * F_REF_HZ) ** 2
         d0 = 2 * ZETA * np.sqrt(k0 * m)
-        params = spring_parameters(
+        params: tuple[NewParameter, ...] = spring_parameters(
             jname, k0, d0, ((3.0 / F_REF_HZ) ** 2, (40000 / F_REF_HZ) ** 2), kind != "prismatic"
         )
-        where = "" if kind == "prismatic" else f" pivot {np.round(pivot * 1e3, 1).tolist()} mm"
+        where = ""
+        if kind != "prismatic":
+            reach = _reach(box)
+            params = (*params, *(
+                NewParameter(f"pivot_{c}", 0.0, -reach, reach, "m/rad",
+                             ((f"{n}.multiplier", 1.0),), signed=True, typical=reach / 10)
+                for c, n in zip("uv", pivot_joints(jname), strict=True)
+            ))  # fmt: skip
+            spec["free_pivot"] = True
+            where = f" pivot free across the axis from {np.round(pivot * 1e3, 1).tolist()} mm"
         return Candidate(
             self.name,
             f"{itf.parent}->{itf.child}:{axis}",
@@ -124,7 +143,9 @@ class JointCompliance(Effect):
         )
 
     @staticmethod
-    def _insert(doc: UrdfDocument, spec: dict, k: float, d: float) -> UrdfDocument:
+    def _insert(
+        doc: UrdfDocument, spec: dict, k: float, d: float, shifts: tuple[float, ...]
+    ) -> UrdfDocument:
         new = doc.copy()
         insert_parasitic_joint(
             new,
@@ -136,8 +157,44 @@ class JointCompliance(Effect):
             stiffness=k,
             damping=d,
         )
+        if spec.get("free_pivot"):
+            for name, v in zip(free_pivot(new, spec["joint"]), shifts or (0.0, 0.0), strict=True):
+                new.joint(name).mimic.multiplier = float(v)
         return new
 
     def augment(self, doc: UrdfDocument, candidate: Candidate) -> UrdfDocument:
-        k, d = (p.initial for p in candidate.parameters)
-        return self._insert(doc, candidate.spec, k, d)
+        k, d, *shifts = (p.initial for p in candidate.parameters)
+        return self._insert(doc, candidate.spec, k, d, tuple(shifts))
+
+    def detail(self, doc: UrdfDocument, candidate: Candidate) -> str:
+        """Where the fitted model ``doc`` pivots (rotational candidates)."""
+        if not candidate.spec.get("free_pivot") or candidate.spec["joint"] not in doc.joint_names:
+            return ""
+        p = pivot_of(doc, candidate.spec["joint"])
+        return f"pivot {np.round(p * 1e3, 1).tolist()} mm"
+
+
+def _reach(box: Box | None) -> float:
+    """How far [m] a free pivot may move from the bearing centre: the diagonal of the child's
+    hull box (its half on either side, and half as much again), else :data:`REACH_M`."""
+    if box is None:
+        return REACH_M
+    return float(np.linalg.norm(np.asarray(box[1], float) - np.asarray(box[0], float)))
+
+
+def _starting_at(cand: Candidate, pivot: np.ndarray) -> Candidate:
+    """``cand`` (variants cleared) with its pivot shifts starting where they place the pivot
+    at ``pivot`` (child frame, m; its part across the axis): ``u = a × (p₀ − p)``,
+    :mod:`bondid.model.pivot`."""
+    a = np.asarray(cand.spec["axis"], float)
+    u = np.cross(a, np.asarray(cand.spec["pivot"], float) - np.asarray(pivot, float))
+    shifts = [float(e @ u) for e in across(a)]
+    pars = tuple(
+        replace(p, initial=float(np.clip(shifts[["pivot_u", "pivot_v"].index(p.name)],
+                                         p.lower, p.upper)))
+        if p.name in ("pivot_u", "pivot_v") else p
+        for p in cand.parameters
+    )  # fmt: skip
+    where = f"pivot starting at {np.round(np.asarray(pivot) * 1e3, 1).tolist()} mm"
+    return replace(cand, parameters=pars, variants=(),
+                   description=f"{cand.description.split(' pivot ')[0]} {where}")  # fmt: skip

@@ -95,8 +95,8 @@ def interfaces(doc: UrdfDocument) -> list[Interface]:
         present: set[str] = set()
         pivots = []
         for j, F in zip(chain, frames, strict=True):
-            if j.type not in MOVABLE_TYPES:
-                continue
+            if j.type not in MOVABLE_TYPES or getattr(j, "mimic", None) is not None:
+                continue  # a mimic joint follows another (a free pivot): no DOF of its own
             axis = np.asarray(j.axis if j.axis is not None else (1.0, 0.0, 0.0), float)
             a = Rc.T @ (F[:3, :3] @ (axis / np.linalg.norm(axis)))
             k = int(np.argmax(np.abs(a)))
