@@ -16,7 +16,6 @@ exact, with ``g`` the channel's transducer gain: one more FRF column (row) per m
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Any
 
 import numpy as np
 
@@ -27,15 +26,6 @@ from ..model.document import UrdfDocument
 
 #: per mixed point of a linearisation: its two component rows ``(nv,)`` each
 MixRows = dict[str, tuple[np.ndarray, np.ndarray]]
-
-
-def free_mixes(pmodel: Any, x: np.ndarray) -> tuple[dict[str, float], dict[str, np.ndarray]]:
-    """The free mixes of a parameter model at ``x`` and their derivatives (empty without)."""
-    values = getattr(pmodel, "mix_values", None)
-    if values is None:
-        return {}, {}
-    mixes = dict(values(x))
-    return mixes, (dict(pmodel.mix_jacobian(x)) if mixes else {})
 
 
 def mix_rows(doc: UrdfDocument, affine: AffineModel) -> MixRows:

@@ -30,7 +30,7 @@ from ..linear.affine import AffineModel, build_affine_model, model_inputs, model
 from ..linear.coupling import coupling_terms, recouple
 from ..model.document import UrdfDocument
 from ..threads import thread_limit, thread_map
-from .mixing import free_mixes, mix_rows, mixed_affine
+from .mixing import mix_rows, mixed_affine
 from .modifier import FrfModifier
 from .residuals import (
     check_kind,
@@ -88,16 +88,17 @@ _Values = tuple[np.ndarray, np.ndarray, np.ndarray]
 _Gains = Gains
 
 
-def _free_gains(pmodel: ParameterModel, x: np.ndarray) -> _Gains:
-    """Free transducer gains of a parameter model (those with ``gain_values``), by name."""
-    fn = getattr(pmodel, "gain_values", None)
-    return dict(fn(x)) if fn is not None else {}
-
-
-def _free_gain_jacobian(pmodel: ParameterModel, x: np.ndarray) -> dict[str, np.ndarray]:
-    """d g / d x ``(size,)`` of every free gain of a parameter model (``gain_jacobian``)."""
-    fn = getattr(pmodel, "gain_jacobian", None)
-    return dict(fn(x)) if fn is not None else {}
+def _free_part(
+    pmodel: ParameterModel, x: np.ndarray, part: str, jacobian: bool = False
+) -> tuple[dict[str, float], dict[str, np.ndarray]]:
+    """An optional part of the parameter-model protocol at ``x``: the free values by name
+    (``{part}_values``: transducer gains, point mixes, mimic multipliers) and, when asked,
+    their ``d/dx`` ``(size,)`` (``{part}_jacobian``); empty when the model has none."""
+    fn = getattr(pmodel, f"{part}_values", None)
+    values = dict(fn(x)) if fn is not None else {}
+    if not values or not jacobian:
+        return values, {}
+    return values, dict(getattr(pmodel, f"{part}_jacobian")(x))
 
 
 def _free_rayleigh(
@@ -110,18 +111,6 @@ def _free_rayleigh(
     if ab is None or not jacobian:
         return ab, None
     return ab, np.asarray(pmodel.rayleigh_jacobian(x), dtype=float)  # type: ignore[attr-defined]
-
-
-def _free_couplings(
-    pmodel: ParameterModel, x: np.ndarray, jacobian: bool = False
-) -> tuple[dict[str, float], dict[str, np.ndarray]]:
-    """The free mimic multipliers of a parameter model at ``x`` (``coupling_values``) and,
-    when asked, their ``d a / d x`` ``(size,)`` (``coupling_jacobian``); empty without."""
-    fn = getattr(pmodel, "coupling_values", None)
-    values = dict(fn(x)) if fn is not None else {}
-    if not values or not jacobian:
-        return values, {}
-    return values, dict(pmodel.coupling_jacobian(x))  # type: ignore[attr-defined]
 
 
 def _block_affine(
@@ -197,6 +186,14 @@ class FrfProblem:
             self._mix_rows = [mix_rows(self.doc, b.affine) for b in self.blocks]
         return mixed_affine(affine, self._mix_rows[i], mixes)
 
+    def _block_affines(
+        self, values: _Values, gains: _Gains, ab: tuple[float, float] | None,
+        couplings: dict[str, float], mixes: dict[str, float],
+    ) -> list[AffineModel]:  # fmt: skip
+        """Every data set's linearisation at the given values (one per data set)."""
+        return [self._mixed(i, _block_affine(b, values, gains, ab, couplings), mixes)
+                for i, b in enumerate(self.blocks)]  # fmt: skip
+
     # -- the same linearisations, other selections or values ---------------------------------
     @property
     def datasets(self) -> list[FrfData]:
@@ -216,18 +213,15 @@ class FrfProblem:
         """The same problem with every linearisation's parameter values set to ``pmodel``'s
         values at ``x`` (``doc``: the model document holding those values). The affine bases
         and the data selections are shared: nothing is linearised or selected again."""
-        values, gains = pmodel.values(x), _free_gains(pmodel, x)
-        mixes, ab = free_mixes(pmodel, x)[0], _free_rayleigh(pmodel, x)[0]
-        couplings = _free_couplings(pmodel, x)[0]
+        values, gains = pmodel.values(x), _free_part(pmodel, x, "gain")[0]
+        mixes, ab = _free_part(pmodel, x, "mix")[0], _free_rayleigh(pmodel, x)[0]
+        couplings = _free_part(pmodel, x, "coupling")[0]
         out = copy.copy(self)
         out.doc = doc
         out.modifier_theta = self._theta(pmodel, x)[0]
-        out.blocks = [
-            dataclasses.replace(
-                b, affine=self._mixed(i, _block_affine(b, values, gains, ab, couplings), mixes)
-            )
-            for i, b in enumerate(self.blocks)
-        ]
+        affines = self._block_affines(values, gains, ab, couplings, mixes)
+        out.blocks = [dataclasses.replace(b, affine=a)
+                      for b, a in zip(self.blocks, affines, strict=True)]  # fmt: skip
         return out
 
     @property
@@ -261,18 +255,18 @@ class FrfProblem:
     def used_frf(self, pmodel: ParameterModel, x: np.ndarray) -> list[np.ndarray]:
         """Model FRF at each data set's used frequencies, ``(n_out, n_in_model, n_fu)`` each
         (receptance; :func:`bondid.frf.aligned.model_frf` gives it in a data set's layout)."""
-        values, gains = pmodel.values(x), _free_gains(pmodel, x)
-        mixes, ab = free_mixes(pmodel, x)[0], _free_rayleigh(pmodel, x)[0]
+        values, gains = pmodel.values(x), _free_part(pmodel, x, "gain")[0]
+        mixes, ab = _free_part(pmodel, x, "mix")[0], _free_rayleigh(pmodel, x)[0]
         theta = self._theta(pmodel, x)[0]
-        couplings = _free_couplings(pmodel, x)[0]
+        couplings = _free_part(pmodel, x, "coupling")[0]
 
         tasks = self._tasks()
+        affines = self._block_affines(values, gains, ab, couplings, mixes)
 
         def one(task: tuple[int, slice | None]) -> np.ndarray:
             i, span = task
             b = self.blocks[i]
-            affine = self._mixed(i, _block_affine(b, values, gains, ab, couplings), mixes)
-            return affine.linear_model().frf(b.freq_hz if span is None else b.freq_hz[span])
+            return affines[i].linear_model().frf(b.freq_hz if span is None else b.freq_hz[span])
 
         pieces = thread_map(one, tasks, parallel=self.threaded)
         out = []
@@ -353,12 +347,12 @@ class FrfProblem:
         The data sets (one linearisation each) are evaluated on parallel threads when each is
         large enough (:attr:`threaded`), each writing its rows of the result.
         """
-        values, gains = pmodel.values(x), _free_gains(pmodel, x)
-        dgains = _free_gain_jacobian(pmodel, x) if gains else {}
+        values = pmodel.values(x)
+        gains, dgains = _free_part(pmodel, x, "gain", jacobian=True)
         rows = self._rows()
-        mixes, dmixes = free_mixes(pmodel, x)
+        mixes, dmixes = _free_part(pmodel, x, "mix", jacobian=True)
         ab, dab = _free_rayleigh(pmodel, x, jacobian=True)
-        couplings, dcouplings = _free_couplings(pmodel, x, jacobian=True)
+        couplings, dcouplings = _free_part(pmodel, x, "coupling", jacobian=True)
         shared = (*pmodel.jacobian(x), dab)
         dpi = shared[0]
         theta, dtheta = self._theta(pmodel, x)
@@ -370,15 +364,17 @@ class FrfProblem:
 
         mod = self.modifier
         mixing = theta is not None and mod is not None and mod.mixing is not None
+        # each data set's model once, whatever number of frequency spans it is cut into
+        affines = self._block_affines(values, gains, ab, couplings, mixes)
+        terms = [coupling_terms(a, dcouplings) if dcouplings else None for a in affines]
 
         def one(task: tuple[int, slice | None]) -> None:
             i, span = task
             b = self.blocks[i]
             rb = r[start[i] : start[i + 1]]
             Jb = J[start[i] : start[i + 1]].reshape(k, b.Hm.size, n_p)
-            affine = self._mixed(i, _block_affine(b, values, gains, ab, couplings), mixes)
-            terms = coupling_terms(affine, dcouplings) if dcouplings else None
-            derivatives: Derivatives = (*shared, terms)
+            affine = affines[i]
+            derivatives: Derivatives = (*shared, terms[i])
             if b.flat is None and not gains and not mixes and theta is None:
                 rows.grid(b, affine, derivatives, rb, Jb, span)
                 return

@@ -21,7 +21,7 @@ on the model's held-out score: the test that decides whether a step can accept a
 decides whether anything is left. The search's models are fitted on the training bands only;
 the final model is the same model refitted on all the data (:mod:`.final_fit`), with no
 points held out. When that refit reaches the noise level of all the data
-(:class:`bondid.optim.noise.NoisePolicy`, the one test "at the noise level" of the package)
+(:data:`bondid.optim.noise.AT_LEVEL`, the one ratio "at the noise level" of the package)
 where the search's model did not — a basin the training bands alone did not lead to, e.g. a
 pivot — nothing the data show is left either: the answer is *explained*, and says so.
 """
@@ -32,7 +32,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..optim.noise import NoisePolicy
+from ..optim.noise import AT_LEVEL
 from . import scoring
 
 #: a kept effect that removes at least this share of its base's excess over the noise is
@@ -122,8 +122,7 @@ def outcome(
         removed = (refit_score**2 - final_score**2) / (refit_score**2 - L**2)
     left = scoring.above_level(final_score, noise)
     fin = math.nan if final_ratio is None else float(final_ratio)
-    # ``fin`` is already a ratio to the noise level: a policy whose noise cost is 1
-    if left and NoisePolicy(cost=1.0).at_level(fin * fin):
+    if left and math.isfinite(fin) and fin <= AT_LEVEL:
         what = "the model with the kept effect(s)" if kept_tests else "the parameter refit"
         text = (f"explained: refitted on all data, {what} is at the noise level ({fin:.2f}x;"
                 f" on the held-out bands the search's fit was at {over:.2f}x)")  # fmt: skip

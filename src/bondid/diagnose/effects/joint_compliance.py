@@ -131,14 +131,15 @@ class JointCompliance(Effect):
                 for c, n in zip("uv", pivot_joints(jname), strict=True)
             ))  # fmt: skip
             spec["free_pivot"] = True
-            where = f" pivot free across the axis from {np.round(pivot * 1e3, 1).tolist()} mm"
+            where = f" pivot free across the axis from {_mm(pivot)} mm"
+        location = f"{itf.parent}->{itf.child}:{axis}"
         return Candidate(
             self.name,
-            f"{itf.parent}->{itf.child}:{axis}",
+            location,
             params,
             spec,
             tuple((f / F_REF_HZ) ** 2 for f in SCAN_HZ),
-            f"{kind} DOF along {axis} between {itf.parent} and {itf.child}{where}",
+            _what(kind, location) + where,
             F_REF_HZ,
         )
 
@@ -170,8 +171,7 @@ class JointCompliance(Effect):
         """Where the fitted model ``doc`` pivots (rotational candidates)."""
         if not candidate.spec.get("free_pivot") or candidate.spec["joint"] not in doc.joint_names:
             return ""
-        p = pivot_of(doc, candidate.spec["joint"])
-        return f"pivot {np.round(p * 1e3, 1).tolist()} mm"
+        return f"pivot {_mm(pivot_of(doc, candidate.spec['joint']))} mm"
 
 
 def _reach(box: Box | None) -> float:
@@ -182,19 +182,30 @@ def _reach(box: Box | None) -> float:
     return float(np.linalg.norm(np.asarray(box[1], float) - np.asarray(box[0], float)))
 
 
+def _what(kind: str, location: str) -> str:
+    """``"revolute DOF along ry between A and B"`` for ``location`` ``"A->B:ry"``."""
+    pair, axis = location.rsplit(":", 1)
+    parent, child = pair.split("->")
+    return f"{kind} DOF along {axis} between {parent} and {child}"
+
+
+def _mm(p: np.ndarray) -> list[float]:
+    """A point [m] in millimetres, to 0.1 mm, for the descriptions."""
+    return np.round(np.asarray(p, float) * 1e3, 1).tolist()
+
+
 def _starting_at(cand: Candidate, pivot: np.ndarray) -> Candidate:
     """``cand`` (variants cleared) with its pivot shifts starting where they place the pivot
     at ``pivot`` (child frame, m; its part across the axis): ``u = a × (p₀ − p)``,
     :mod:`bondid.model.pivot`."""
     a = np.asarray(cand.spec["axis"], float)
     u = np.cross(a, np.asarray(cand.spec["pivot"], float) - np.asarray(pivot, float))
-    shifts = [float(e @ u) for e in across(a)]
+    shifts = {f"pivot_{c}": float(e @ u) for c, e in zip("uv", across(a), strict=True)}
     pars = tuple(
-        replace(p, initial=float(np.clip(shifts[["pivot_u", "pivot_v"].index(p.name)],
-                                         p.lower, p.upper)))
-        if p.name in ("pivot_u", "pivot_v") else p
+        replace(p, initial=float(np.clip(shifts[p.name], p.lower, p.upper)))
+        if p.name in shifts else p
         for p in cand.parameters
     )  # fmt: skip
-    where = f"pivot starting at {np.round(np.asarray(pivot) * 1e3, 1).tolist()} mm"
+    what = _what(cand.spec["kind"], str(cand.location))
     return replace(cand, parameters=pars, variants=(),
-                   description=f"{cand.description.split(' pivot ')[0]} {where}")  # fmt: skip
+                   description=f"{what} pivot starting at {_mm(pivot)} mm")  # fmt: skip
