@@ -130,14 +130,48 @@ def noisy_bonder_data(truth: UrdfDocument, n: int = 120, noise: float = 0.005) -
     return out
 
 
-def central_jacobian(problem, pmodel, x: np.ndarray, floor: float) -> np.ndarray:
-    """Central differences ``(n_residuals, size)`` of ``problem.residual(pmodel, ·)`` at ``x``,
-    each parameter stepped by ``1e-6 · max(|x|, floor)``."""
-    out = np.empty((problem.n_residuals, x.size))
+def central_columns(fn, x: np.ndarray, floor: float):
+    """``(k, ∂fn/∂x_k)`` by central differences at ``x`` for every ``k``, each parameter
+    stepped by ``1e-6 · max(|x_k|, floor)`` (``fn``: ``(size,)`` → any array)."""
     for k in range(x.size):
         h = 1e-6 * max(abs(x[k]), floor)
         up, dn = x.copy(), x.copy()
         up[k] += h
         dn[k] -= h
-        out[:, k] = (problem.residual(pmodel, up) - problem.residual(pmodel, dn)) / (2 * h)
+        yield k, (fn(up) - fn(dn)) / (2 * h)
+
+
+def central_jacobian(problem, pmodel, x: np.ndarray, floor: float) -> np.ndarray:
+    """Central differences ``(n_residuals, size)`` of ``problem.residual(pmodel, ·)`` at ``x``,
+    each parameter stepped by ``1e-6 · max(|x|, floor)``."""
+    out = np.empty((problem.n_residuals, x.size))
+    for k, col in central_columns(lambda p: problem.residual(pmodel, p), x, floor):
+        out[:, k] = col
     return out
+
+
+def frf_jacobian_errors(doc, names, freq_hz: np.ndarray, outputs, floor: float = 0.0):
+    """The engine's FRF and Jacobian (:func:`bondid.frf.jacobian.frf_and_jacobian`, with the
+    proportional-damping rows) against the plain engine: ``(relative FRF error, {name:
+    Jacobian column's largest error relative to the central difference's largest entry})``."""
+    from bondid.frf.jacobian import frf_and_jacobian
+    from bondid.linear.affine import build_affine_model
+    from bondid.linear.parameter_map import ParameterMap
+
+    am = build_affine_model(doc, outputs=outputs)
+    pmap = ParameterMap(doc, am, names)
+    p0 = pmap.p0
+    H, J = frf_and_jacobian(am, freq_hz, *pmap.jacobian(p0), drayleigh=pmap.rayleigh_jacobian(p0))
+    frf_error = float(np.max(np.abs(H - am.linear_model().frf(freq_hz))) / np.abs(H).max())
+
+    def frf_at(p):
+        coefficients = pmap.rayleigh_values(p)
+        assert coefficients is not None
+        model = am.with_values(*pmap.values(p)).with_rayleigh(*coefficients)
+        return model.linear_model().frf(freq_hz)
+
+    errors = {
+        names[k]: float(np.max(np.abs(J[..., k] - fd)) / np.abs(fd).max())
+        for k, fd in central_columns(frf_at, p0, floor)
+    }
+    return frf_error, errors

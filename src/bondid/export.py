@@ -49,6 +49,11 @@ def state_space(
         outputs: output names (joints or points); default the model's inputs.
         quantity: receptance (positions), mobility (velocities) or accelerance
             (accelerations; then ``D ≠ 0``).
+
+    A structural loss factor (``<rayleigh_damping eta>``) has no state-space form; it enters
+    as the viscous damping that dissipates as much at each mode's own frequency
+    (:meth:`bondid.linear.linear_model.LinearModel.viscous`), so the state space matches the
+    model's FRF at the resonances and departs from it between them.
     """
     from .exceptions import DataError
 
@@ -85,8 +90,9 @@ def to_control(
         quantity: receptance, mobility or accelerance (of both results).
 
     Returns:
-        The state space (named inputs/outputs, see the module docstring) and the FRD
-        ``(n_out, n_in, n_freq)`` at ``ω = 2π·freq_hz`` rad/s.
+        The state space (named inputs/outputs, see the module docstring; a loss factor as in
+        :func:`state_space`) and the FRD ``(n_out, n_in, n_freq)`` at ``ω = 2π·freq_hz``
+        rad/s (exact, a loss factor included).
     """
     control = _control()
     f = np.asarray(freq_hz, dtype=float)

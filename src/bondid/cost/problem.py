@@ -63,8 +63,9 @@ class ParameterModel(Protocol):
     :class:`bondid.optim.tied.TiedParameters` (named parameters with ties). A model may also
     have transducer gains: ``gain_values(x) -> {name: g}`` and ``gain_jacobian(x) -> {name:
     dg/dx (size,)}`` (optional; without them the gains stay the model's), and proportional
-    damping: ``rayleigh_values(x) -> (α, β) | None`` and ``rayleigh_jacobian(x) -> d(α, β)/dx
-    (2, size)`` (optional; None or without them α and β stay the model's), and mimic
+    damping: ``rayleigh_values(x) -> (α, β, η) | None`` and ``rayleigh_jacobian(x) ->
+    d(α, β, η)/dx (3, size)`` (optional; None or without them α, β and the loss factor η stay
+    the model's), and mimic
     multipliers: ``coupling_values(x) -> {joint: a}`` and ``coupling_jacobian(x) -> {joint:
     da/dx (size,)}`` (optional; :mod:`bondid.linear.coupling`).
     """
@@ -103,9 +104,9 @@ def _free_part(
 
 def _free_rayleigh(
     pmodel: ParameterModel, x: np.ndarray, jacobian: bool = False
-) -> tuple[tuple[float, float] | None, np.ndarray | None]:
-    """``(α, β)`` of a parameter model with free proportional damping (else None) and, when
-    asked, ``d(α, β)/dx`` ``(2, size)``."""
+) -> tuple[tuple[float, ...] | None, np.ndarray | None]:
+    """``(α, β, η)`` of a parameter model with free proportional damping (else None) and,
+    when asked, ``d(α, β, η)/dx`` ``(3, size)``."""
     fn = getattr(pmodel, "rayleigh_values", None)
     ab = fn(x) if fn is not None else None
     if ab is None or not jacobian:
@@ -114,7 +115,7 @@ def _free_rayleigh(
 
 
 def _block_affine(
-    b: DataSelection, values: _Values, gains: _Gains, rayleigh: tuple[float, float] | None = None,
+    b: DataSelection, values: _Values, gains: _Gains, rayleigh: tuple[float, ...] | None = None,
     couplings: dict[str, float] | None = None,
 ) -> AffineModel:  # fmt: skip
     affine = recouple(b.affine, couplings or {}).with_values(*values)
@@ -187,7 +188,7 @@ class FrfProblem:
         return mixed_affine(affine, self._mix_rows[i], mixes)
 
     def _block_affines(
-        self, values: _Values, gains: _Gains, ab: tuple[float, float] | None,
+        self, values: _Values, gains: _Gains, ab: tuple[float, ...] | None,
         couplings: dict[str, float], mixes: dict[str, float],
     ) -> list[AffineModel]:  # fmt: skip
         """Every data set's linearisation at the given values (one per data set)."""

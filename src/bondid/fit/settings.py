@@ -65,7 +65,8 @@ class StudySettings:
             that state none (:mod:`bondid.setup.operating_points`).
         ties: tie name -> the names and globs of its joint parameters (one value each tie;
             :mod:`bondid.model.ties`).
-        damping, damping_start: the damping model and the (α, β) to start from, or None
+        damping, damping_start: the damping model and the (α, β) (a loss factor: (η,)) to
+            start from, or None
             (:mod:`bondid.setup.damping`).
     """
 
@@ -104,7 +105,7 @@ class StudySettings:
     operating_points: dict[str, dict[str, float]] = field(default_factory=dict)
     ties: dict[str, list[str]] = field(default_factory=dict)
     damping: str = "model"
-    damping_start: tuple[float, float] | None = None
+    damping_start: tuple[float, ...] | None = None
 
     def to_json_dict(self) -> dict[str, Any]:
         """The settings as plain JSON values (paths as strings)."""
@@ -147,7 +148,7 @@ class StudySettings:
         }
 
 
-def _pair(v: tuple[float, float] | None) -> list[float] | None:
+def _pair(v: tuple[float, ...] | None) -> list[float] | None:
     return None if v is None else list(v)
 
 

@@ -31,8 +31,9 @@ Every section and key is optional::
     points_file = "points.toml"              # --points: [points] and [gains] tables
     package_path = ["../ros_ws/src"]         # --package-path (package:// meshes)
     floating_base = false                    # --floating-base (a free-free structure)
-    damping = "rayleigh"                     # --damping: model|joints|rayleigh|rayleigh-only
-                                             # or {kind = "rayleigh", alpha = 0.5, beta = 1e-6}
+    damping = "rayleigh"                     # --damping: model|joints|rayleigh|rayleigh-only|
+                                             # structural, or {kind = "rayleigh", alpha = 0.5,
+                                             # beta = 1e-6} or {kind = "structural", eta = 0.008}
 
     [operating_points]                       # --operating-point FILE=x=0.1,y=0.3
     "pose_b.uff" = {x = 0.1, y = 0.3}        # for data files that state none (m or rad)

@@ -74,10 +74,11 @@ def jacobian_blocks(
     M = affine.mass_matrix()
     K = affine.stiffness_matrix()
     D = affine.damping_matrix()
+    G = affine.loss_matrix(K)
     dirs = Directions.build(affine, dpi, dk, dd, drayleigh, extra)
     C, B = affine.C, affine.B
     n_out, n_in, n_p = C.shape[0], B.shape[1], dirs.n_p
-    symmetric = is_symmetric(np.stack([M, K, D]))
+    symmetric = is_symmetric(np.stack([M, K, D]))  # G = ηK is symmetric with K
     mirrored = symmetric and C.shape == B.T.shape and np.array_equal(C, B.T)
     co, ci = _channels(n_out, n_in, mirrored)
     pair = np.zeros((n_out, n_in), dtype=int)  # computed channel of each (output, input)
@@ -89,7 +90,7 @@ def jacobian_blocks(
     for s in range(lo, hi, _BLOCK_FREQ):
         ws = w[s : min(s + _BLOCK_FREQ, hi)]
         nf = ws.size
-        Z = dynamic_stiffness(M, K, D, ws)
+        Z = dynamic_stiffness(M, K, D, ws, G)
         Xa = solve_columns(Z, rhs)
         X = Xa[:, :, :n_in]  # (f, m, i)
         if mirrored:

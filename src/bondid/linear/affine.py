@@ -76,6 +76,7 @@ class AffineModel:
             Jacobian rows of measurement points).
         gain_in, gain_out: transducer gains ``(n_in,)``, ``(n_out,)`` (1 = none).
         alpha, beta: proportional damping ``α M + β K`` (1/s, s; 0 = none).
+        eta: structural loss factor: the dynamic stiffness gets ``jη K`` (1; 0 = none).
     """
 
     dofs: tuple[str, ...]
@@ -100,6 +101,7 @@ class AffineModel:
     gain_out: np.ndarray | None = None
     alpha: float = 0.0
     beta: float = 0.0
+    eta: float = 0.0
     #: a model with ``<mimic>`` joints: its linearisation in every joint and the couplings
     #: (:class:`bondid.linear.mimic.Coupled`), so that a multiplier can be varied; None
     #: without mimic joints
@@ -147,11 +149,19 @@ class AffineModel:
             D = D + self.beta * self.stiffness_matrix(pi, stiffness)
         return D
 
+    def loss_matrix(self, K: np.ndarray | None = None) -> np.ndarray | None:
+        """The hysteretic stiffness ``η K`` ``(nv, nv)`` (``K``: the stiffness matrix, default
+        the current one), or None without a loss factor."""
+        if not self.eta:
+            return None
+        return self.eta * (self.stiffness_matrix() if K is None else K)
+
     def linear_model(self) -> LinearModel:
         """The numeric :class:`LinearModel` at the current parameters."""
+        K = self.stiffness_matrix()
         return LinearModel(
             self.mass_matrix(),
-            self.stiffness_matrix(),
+            K,
             self.damping_matrix(),
             self.B.copy(),
             self.C.copy(),
@@ -159,6 +169,7 @@ class AffineModel:
             self.inputs,
             self.outputs,
             self.q0.copy(),
+            self.loss_matrix(K),
         )
 
     def with_values(
@@ -175,9 +186,9 @@ class AffineModel:
             damping=self.damping if damping is None else np.asarray(damping, float),
         )
 
-    def with_rayleigh(self, alpha: float, beta: float) -> AffineModel:
-        """A copy with other proportional damping coefficients (1/s, s)."""
-        return replace(self, alpha=float(alpha), beta=float(beta))
+    def with_rayleigh(self, alpha: float, beta: float, eta: float = 0.0) -> AffineModel:
+        """A copy with other proportional damping coefficients (1/s, s) and loss factor."""
+        return replace(self, alpha=float(alpha), beta=float(beta), eta=float(eta))
 
     def with_gains(
         self, gain_in: np.ndarray | None = None, gain_out: np.ndarray | None = None
@@ -267,7 +278,7 @@ def build_affine_model(
     am = reduce_mimic(full, couplings) if couplings else full
     r = model_rayleigh(doc)
     if r is not None:
-        am = am.with_rayleigh(r.alpha, r.beta)
+        am = am.with_rayleigh(r.alpha, r.beta, r.loss)
     return am.with_gains(*channel_gains(doc, inputs, outs))
 
 

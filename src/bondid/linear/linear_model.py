@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
+
+
+def _symmetric(A: np.ndarray) -> np.ndarray:
+    return 0.5 * (A + A.T)
 
 
 def state_matrix(M: np.ndarray, K: np.ndarray, D: np.ndarray) -> np.ndarray:
@@ -60,6 +64,10 @@ class LinearModel:
         inputs: input (excited joint) names, length ``n_in``.
         outputs: output (sensed joint) names, length ``n_out``.
         q0: the configuration, ``(nq,)``.
+        G: hysteretic stiffness ``(nv, nv)`` (the structural loss factor times K): the
+            dynamic stiffness is ``K + jG − ω²M + jωD``; None without one. It has no
+            time-domain form: :meth:`viscous` gives the model the modes and the state space
+            use.
     """
 
     M: np.ndarray
@@ -71,15 +79,34 @@ class LinearModel:
     inputs: tuple[str, ...]
     outputs: tuple[str, ...]
     q0: np.ndarray
+    G: np.ndarray | None = None
 
     @property
     def nv(self) -> int:
         return int(self.M.shape[0])
 
+    def viscous(self) -> LinearModel:
+        """This model with its hysteretic stiffness replaced by the viscous damping that
+        dissipates as much at each vibration mode's own frequency: ``D + M Φ diag(φᵢᵀGφᵢ/ωᵢ)
+        Φᵀ M`` over the mass-normalised undamped modes ``Φ`` (exact at every resonance of a
+        loss factor on a symmetric K; rigid-body modes take none). Itself without ``G``."""
+        if self.G is None:
+            return self
+        import scipy.linalg
+
+        w2, phi = scipy.linalg.eigh(_symmetric(self.K), _symmetric(self.M))
+        keep = w2 > 1e-12 * max(float(np.abs(w2).max(initial=0.0)), 1e-300)
+        phi, w = phi[:, keep], np.sqrt(w2[keep])
+        g = np.einsum("ni,nm,mi->i", phi, self.G, phi)
+        MP = self.M @ phi
+        D = self.D + (MP * (g / w)) @ MP.T
+        return replace(self, D=D, G=None)
+
     def state_space(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(A (2nv,2nv), B (2nv,n_in), C (n_out,2nv), D (n_out,n_in)) with x = [δq, δq̇]."""
+        """(A (2nv,2nv), B (2nv,n_in), C (n_out,2nv), D (n_out,n_in)) with x = [δq, δq̇]; a
+        hysteretic stiffness enters as its viscous equivalent (:meth:`viscous`)."""
         n = self.nv
-        A = state_matrix(self.M, self.K, self.D)
+        A = state_matrix(self.M, self.K, self.viscous().D)
         Bs = np.vstack([np.zeros((n, self.B.shape[1])), np.linalg.inv(self.M) @ self.B])
         Cs = np.hstack([self.C, np.zeros((self.C.shape[0], n))])
         Ds = np.zeros((self.C.shape[0], self.B.shape[1]))
@@ -89,4 +116,4 @@ class LinearModel:
         """FRF ``(n_out, n_in, n_freq)`` at ``freq_hz`` (Hz); see :func:`bondid.frf.frf`."""
         from .response import frf
 
-        return frf(self.M, self.K, self.D, self.B, self.C, freq_hz, quantity)
+        return frf(self.M, self.K, self.D, self.B, self.C, freq_hz, quantity, G=self.G)

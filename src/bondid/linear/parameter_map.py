@@ -8,8 +8,8 @@ A parameter vector ``p`` holds a chosen subset of the named parameters (``x_stag
 * ``JOINT.stiffness`` / ``JOINT.damping`` → the spring / damper of that coordinate (identity),
 * ``gain.in.X`` / ``gain.out.Y`` and ``mix.P`` → the transducer gains and the points' mixes
   (:meth:`ParameterMap.gain_values`, :meth:`ParameterMap.mix_values`),
-* ``rayleigh.alpha`` / ``rayleigh.beta`` → the proportional damping ``α M + β K``
-  (:meth:`ParameterMap.rayleigh_values`),
+* ``rayleigh.alpha`` / ``rayleigh.beta`` / ``rayleigh.eta`` → the proportional damping
+  ``α M + β K`` and the loss factor of ``K`` (:meth:`ParameterMap.rayleigh_values`),
 * ``JOINT.multiplier`` → a mimic joint's multiplier (:meth:`ParameterMap.coupling_values`,
   :mod:`.coupling`).
 
@@ -27,10 +27,13 @@ from ..consistency.pseudo_inertia import pi_from_urdf, urdf_from_pi
 from ..exceptions import ParameterError
 from ..model.document import UrdfDocument
 from ..model.parameters import COM_AXES, INERTIA_ENTRY, get_parameters, parameter_infos
+from ..model.rayleigh import RAYLEIGH_UNITS
 from .affine import AffineModel
 
 #: parameter kinds that act on the model as a whole, not on π or a joint's spring/damper
 _MODEL_LEVEL = ("gain", "mix", "rayleigh", "multiplier")
+#: the proportional-damping coefficients in the order of ``rayleigh_values``
+RAYLEIGH_COMPONENTS = tuple(RAYLEIGH_UNITS)
 # position of each URDF inertia component in Pinocchio's π (Ixx, Ixy, Iyy, Ixz, Iyz, Izz)
 _PI_SLOT = {"ixx": 4, "ixy": 5, "iyy": 6, "ixz": 7, "iyz": 8, "izz": 9}
 
@@ -77,7 +80,7 @@ class ParameterMap:
         self.base_pi = affine.pi.copy()
         self.base_stiffness = affine.stiffness.copy()
         self.base_damping = affine.damping.copy()
-        self.base_rayleigh = (affine.alpha, affine.beta)
+        self.base_rayleigh = (affine.alpha, affine.beta, affine.eta)
         self.p0 = get_parameters(doc, self.names)
         self.nb = len(affine.bodies)
         self.nv = affine.nv
@@ -129,22 +132,22 @@ class ParameterMap:
         """d a / d p ``(size,)`` of every free multiplier (a unit row)."""
         return self._rows_of_kind("multiplier")
 
-    def rayleigh_values(self, p: np.ndarray) -> tuple[float, float] | None:
-        """``(α (1/s), β (s))`` at ``p`` when one of them is free, else None (the Rayleigh
-        part of the parameter-model protocol, :mod:`bondid.cost.problem`)."""
-        ab = dict(zip(("alpha", "beta"), self.base_rayleigh, strict=True))
+    def rayleigh_values(self, p: np.ndarray) -> tuple[float, float, float] | None:
+        """``(α (1/s), β (s), η)`` at ``p`` when one of them is free, else None (the
+        proportional-damping part of the parameter-model protocol, :mod:`bondid.cost.problem`)."""
+        ab = dict(zip(RAYLEIGH_COMPONENTS, self.base_rayleigh, strict=True))
         free = False
         for s, v in zip(self.slots, np.asarray(p, dtype=float), strict=True):
             if s.kind == "rayleigh":
                 ab[str(s.component)], free = float(v), True
-        return (ab["alpha"], ab["beta"]) if free else None
+        return (ab["alpha"], ab["beta"], ab["eta"]) if free else None
 
     def rayleigh_jacobian(self, p: np.ndarray) -> np.ndarray:
-        """``d(α, β)/dp`` ``(2, size)`` (unit rows: the coefficients are parameters)."""
-        out = np.zeros((2, self.size))
+        """``d(α, β, η)/dp`` ``(3, size)`` (unit rows: the coefficients are parameters)."""
+        out = np.zeros((3, self.size))
         for col, s in enumerate(self.slots):
             if s.kind == "rayleigh":
-                out[0 if s.component == "alpha" else 1, col] = 1.0
+                out[RAYLEIGH_COMPONENTS.index(str(s.component)), col] = 1.0
         return out
 
     def _inertials(self, p: np.ndarray) -> list[tuple[float, np.ndarray, np.ndarray]]:

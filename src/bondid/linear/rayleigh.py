@@ -69,11 +69,12 @@ def _span(affine: AffineModel, band_hz: tuple[float, float] | None) -> tuple[flo
 
 def reference(
     affine: AffineModel, band_hz: tuple[float, float] | None = None
-) -> tuple[float, float]:
-    """``(α_ref, β_ref)``: ``α_ref`` alone gives ``ZETA_REF`` at the lowest vibration mode in
-    ``band_hz`` (Hz), ``β_ref`` alone at the highest one (1/s, s; always > 0)."""
+) -> tuple[float, float, float]:
+    """``(α_ref, β_ref, η_ref)``: ``α_ref`` alone gives ``ZETA_REF`` at the lowest vibration
+    mode in ``band_hz`` (Hz), ``β_ref`` alone at the highest one, the loss factor ``η_ref``
+    alone at every mode (1/s, s, 1; always > 0)."""
     w_lo, w_hi = _span(affine, band_hz)
-    return 2.0 * ZETA_REF * w_lo, 2.0 * ZETA_REF / w_hi
+    return 2.0 * ZETA_REF * w_lo, 2.0 * ZETA_REF / w_hi, 2.0 * ZETA_REF
 
 
 def fit_coefficients(f_hz: np.ndarray, zeta: np.ndarray) -> tuple[float, float]:
@@ -97,7 +98,7 @@ def rayleigh_start(
     ref = reference(affine, band_hz)
     modes = [m for m in _within(_modes(affine, damped=True), band_hz) if m[1] > ZETA_MIN]
     if not modes:
-        return RayleighStart(*ref, how=f"no damped mode: ζ = {ZETA_REF:g} at the band's ends")
+        return RayleighStart(*ref[:2], how=f"no damped mode: ζ = {ZETA_REF:g} at the band's ends")
     f, z = (np.array(v) for v in zip(*modes, strict=True))
     a, b = fit_coefficients(f, z)
     how = (
@@ -107,8 +108,22 @@ def rayleigh_start(
     return RayleighStart(max(a, 0.01 * ref[0]), max(b, 0.01 * ref[1]), how)
 
 
-def upper_bounds(affine: AffineModel, f_max_hz: float) -> tuple[float, float]:
-    """``(α_max, β_max)``: α alone critical (ζ = 1) at the lowest vibration mode, β alone
-    critical at ``f_max_hz`` (the data's highest frequency, Hz)."""
+def loss_start(
+    affine: AffineModel, band_hz: tuple[float, float] | None = None
+) -> tuple[float, str]:
+    """The start of the loss factor ``η`` and how it was found: twice the median damping ratio
+    the model's dampers give its vibration modes in ``band_hz`` (Hz; a loss factor gives
+    every mode ``ζ = η/2``), else :func:`reference`'s."""
+    modes = [m for m in _within(_modes(affine, damped=True), band_hz) if m[1] > ZETA_MIN]
+    if not modes:
+        return 2.0 * ZETA_REF, f"no damped mode: ζ = {ZETA_REF:g} at every mode"
+    z = float(np.median([m[1] for m in modes]))
+    return 2.0 * z, f"twice the median damping ratio of {len(modes)} mode(s), ζ = {z:.3g}"
+
+
+def upper_bounds(affine: AffineModel, f_max_hz: float) -> tuple[float, float, float]:
+    """``(α_max, β_max, η_max)``: α alone critical (ζ = 1) at the lowest vibration mode, β
+    alone critical at ``f_max_hz`` (the data's highest frequency, Hz), η alone critical at
+    every mode."""
     w_lo, _ = _span(affine, None)
-    return 2.0 * w_lo, 2.0 / (2.0 * np.pi * float(f_max_hz))
+    return 2.0 * w_lo, 2.0 / (2.0 * np.pi * float(f_max_hz)), 2.0

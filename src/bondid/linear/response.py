@@ -28,11 +28,16 @@ def omega(freq_hz: np.ndarray) -> np.ndarray:
     return 2.0 * np.pi * f
 
 
-def dynamic_stiffness(M: np.ndarray, K: np.ndarray, D: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """Z(ω) = K − ω²M + jωD, shape ``(n_freq, nv, nv)``, complex; ``w`` in rad/s."""
+def dynamic_stiffness(
+    M: np.ndarray, K: np.ndarray, D: np.ndarray, w: np.ndarray, G: np.ndarray | None = None
+) -> np.ndarray:
+    """Z(ω) = K + jG − ω²M + jωD, shape ``(n_freq, nv, nv)``, complex; ``w`` in rad/s, ``G``
+    the hysteretic stiffness ``(nv, nv)`` (None: none)."""
     Z = np.empty((w.size, *M.shape), dtype=complex)
     Z.real[...] = K[None] - (w**2)[:, None, None] * M[None]
     Z.imag[...] = w[:, None, None] * D[None]
+    if G is not None:
+        Z.imag[...] += G[None]
     return Z
 
 
@@ -59,8 +64,10 @@ def frf(
     C: np.ndarray,
     freq_hz: np.ndarray,
     quantity: str = "receptance",
+    G: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Frequency response of ``M q̈ + D q̇ + K q = B u, y = C q``.
+    """Frequency response of ``M q̈ + D q̇ + K q = B u, y = C q`` (with a hysteretic
+    stiffness ``G``: ``K + jG − ω²M + jωD``).
 
     Args:
         M, K, D: ``(nv, nv)`` mass, stiffness and damping matrices (SI).
@@ -68,6 +75,7 @@ def frf(
         C: ``(n_out, nv)`` output matrix (positions).
         freq_hz: ``(n_freq,)`` frequencies in Hz, > 0.
         quantity: ``receptance`` (position/force), ``mobility`` or ``accelerance``.
+        G: ``(nv, nv)`` hysteretic stiffness (a structural loss factor times K), or None.
 
     Returns:
         Complex array ``(n_out, n_in, n_freq)``.
@@ -75,7 +83,7 @@ def frf(
     w = omega(freq_hz)
     H = np.empty((C.shape[0], B.shape[1], w.size), dtype=complex)
     for s in range(0, w.size, BLOCK_FREQ):
-        X = solve_columns(dynamic_stiffness(M, K, D, w[s : s + BLOCK_FREQ]), B)
+        X = solve_columns(dynamic_stiffness(M, K, D, w[s : s + BLOCK_FREQ], G), B)
         H[:, :, s : s + BLOCK_FREQ] = np.einsum("oi,fin->onf", C, X)
     if quantity != "receptance":
         H = H * quantity_factor(freq_hz, quantity)

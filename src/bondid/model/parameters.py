@@ -14,12 +14,14 @@ name                           meaning                                      unit
 ``mix.P``                      share of point P's second component          per its kinds
 ``rayleigh.alpha``             mass-proportional damping α (D += α·M)       1/s
 ``rayleigh.beta``              stiffness-proportional damping β (D += β·K)  s
+``rayleigh.eta``               structural loss factor η (K → K·(1 + jη))    1
 ``JOINT.multiplier``           a ``<mimic>`` joint's multiplier (δq = a·δq   its unit per
                                of the joint it mimics)                      the master's
 =============================  ==========================================  ===============
 
 ``rayleigh.*`` exist only in a model that declares proportional damping
-(:mod:`bondid.model.rayleigh`); they belong to ``all`` and (when not 0) to ``default``.
+(:mod:`bondid.model.rayleigh`; ``rayleigh.eta`` only when it declares a loss factor); they
+belong to ``all`` and (when not 0) to ``default``.
 
 A mix is a parameter only for a point declared with a second component (a patch driving
 bending and torsion: :mod:`bondid.model.points`); it belongs to the group ``mixes`` only.
@@ -141,8 +143,10 @@ def parameter_infos(doc: UrdfDocument) -> list[ParameterInfo]:
     for pt in doc.points:
         if pt.mixed:
             out.append(ParameterInfo(f"{MIX_PREFIX}{pt.name}", "mix", pt.name, None, "1"))
-    if model_rayleigh(doc) is not None:
-        for c, unit in RAYLEIGH_UNITS.items():
+    declared = model_rayleigh(doc)
+    if declared is not None:
+        for c in declared.components:
+            unit = RAYLEIGH_UNITS[c]
             out.append(ParameterInfo(f"{RAYLEIGH_OWNER}.{c}", "rayleigh", RAYLEIGH_OWNER, c, unit))
     return out
 

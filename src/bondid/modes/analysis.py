@@ -229,8 +229,10 @@ def _energy_share(phi: np.ndarray, W: np.ndarray) -> np.ndarray:
 
 
 def _receptance(lm: LinearModel, omega: float) -> np.ndarray:
-    """C (K − ω²M + jωD)⁻¹ B at one ω [rad/s] ``(n_out, n_in)``; NaN if singular."""
+    """C (K + jG − ω²M + jωD)⁻¹ B at one ω [rad/s] ``(n_out, n_in)``; NaN if singular."""
     Z = lm.K - omega**2 * lm.M + 1j * omega * lm.D
+    if lm.G is not None:
+        Z = Z + 1j * lm.G
     try:
         return lm.C @ np.linalg.solve(Z, lm.B)
     except np.linalg.LinAlgError:

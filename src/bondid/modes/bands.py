@@ -110,7 +110,7 @@ def model_features(
     Returns:
         Features sorted by frequency.
     """
-    lm = affine.linear_model()
+    lm = affine.linear_model().viscous()  # a loss factor as the modes see it
     feats = [Feature(f, z, "resonance") for f, z in underdamped(lm.M, lm.K, lm.D)]
     for ch in channels:
         out, _, inp = ch.rpartition(".")

@@ -24,9 +24,10 @@ Relative bounds are ``value · (1 ± rel)`` around the model's value, with these
   ``s`` is the length ``ℓ`` of the first body downstream with geometry (0.1 m without) for a
   translation per radian (a free pivot, :mod:`bondid.model.pivot`), else 1.
 
-* ``rayleigh`` (``rayleigh.alpha``, ``rayleigh.beta``): ``[0, α_max]`` and ``[0, β_max]`` —
-  ``α_max`` alone damps the model's lowest vibration mode critically, ``β_max`` alone a mode at
-  ``f_max`` (:func:`bondid.linear.rayleigh.upper_bounds`); a relative width given for them
+* ``rayleigh`` (``rayleigh.alpha``, ``rayleigh.beta``, ``rayleigh.eta``): ``[0, α_max]``,
+  ``[0, β_max]`` and ``[0, 2]`` — ``α_max`` alone damps the model's lowest vibration mode
+  critically, ``β_max`` alone a mode at ``f_max``, a loss factor of 2 every mode
+  (:func:`bondid.linear.rayleigh.upper_bounds`); a relative width given for them
   (``--bound rayleigh=0.5``) bounds them as a damper's instead.
 
 ``rel`` maps a kind (``mass``, ``com``, ``inertia``, ``stiffness``, ``damping``), a parameter name
@@ -46,6 +47,7 @@ import numpy as np
 
 from ..consistency.hull import Hull, link_hull
 from ..exceptions import ConfigError, ParameterError
+from ..linear.parameter_map import RAYLEIGH_COMPONENTS
 from ..model.document import UrdfDocument
 from ..model.parameters import ParameterInfo, get_parameter, link_inertial, parameter_infos
 
@@ -240,7 +242,7 @@ def _rayleigh_upper(doc: UrdfDocument, component: str, f_max: float, cache: dict
         from ..linear.rayleigh import upper_bounds
 
         cache["rayleigh"] = upper_bounds(build_affine_model(doc, {}), f_max)
-    return float(cache["rayleigh"][0 if component == "alpha" else 1])
+    return float(cache["rayleigh"][RAYLEIGH_COMPONENTS.index(component)])
 
 
 def _apply_absolute(

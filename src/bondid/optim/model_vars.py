@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..linear.affine import AffineModel
+from ..linear.parameter_map import RAYLEIGH_COMPONENTS
 from .variables import GainVar, MixVar, RayleighVar
 
 #: the smallest variable scale of a mimic multiplier: a free pivot (m/rad) starts at 0 and
@@ -42,8 +43,8 @@ class ModelVars:
     def _model_vars_of(self, affine: AffineModel) -> None:
         """Keep what the Rayleigh variables need of ``affine``: the coefficients that are
         not free, and the reference scales (when one is free)."""
-        self.base_rayleigh = (affine.alpha, affine.beta)
-        self.rayleigh_ref = (1.0, 1.0)
+        self.base_rayleigh = (affine.alpha, affine.beta, affine.eta)
+        self.rayleigh_ref = (1.0, 1.0, 1.0)
         if self.rayleigh:
             from ..linear.rayleigh import reference
 
@@ -64,7 +65,7 @@ class ModelVars:
             z[cv.index] = 0.0
         for rv in self.rayleigh:
             v = float(p0[rv.name_index])
-            ref = self.rayleigh_ref[0 if rv.component == "alpha" else 1]
+            ref = self.rayleigh_ref[RAYLEIGH_COMPONENTS.index(rv.component)]
             rv.scale = abs(v) if v != 0 else ref
             z[rv.index] = v / rv.scale
 
@@ -144,18 +145,19 @@ class ModelVars:
         return out
 
     # -- proportional damping (the optional Rayleigh part of the protocol) -------------------
-    def rayleigh_values(self, z: np.ndarray) -> tuple[float, float] | None:
-        """``(α (1/s), β (s))`` at ``z`` when one is free (the other the model's), else None."""
+    def rayleigh_values(self, z: np.ndarray) -> tuple[float, float, float] | None:
+        """``(α (1/s), β (s), η)`` at ``z`` when one is free (the others the model's), else
+        None."""
         if not self.rayleigh:
             return None
-        ab = dict(zip(("alpha", "beta"), self.base_rayleigh, strict=True))
+        ab = dict(zip(RAYLEIGH_COMPONENTS, self.base_rayleigh, strict=True))
         for rv in self.rayleigh:
             ab[rv.component] = rv.scale * float(z[rv.index])
-        return ab["alpha"], ab["beta"]
+        return ab["alpha"], ab["beta"], ab["eta"]
 
     def rayleigh_jacobian(self, z: np.ndarray) -> np.ndarray:
-        """``d(α, β)/dz`` ``(2, size)``."""
-        out = np.zeros((2, self.size))
+        """``d(α, β, η)/dz`` ``(3, size)``."""
+        out = np.zeros((3, self.size))
         for rv in self.rayleigh:
-            out[0 if rv.component == "alpha" else 1, rv.index] = rv.scale
+            out[RAYLEIGH_COMPONENTS.index(rv.component), rv.index] = rv.scale
         return out

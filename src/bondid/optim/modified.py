@@ -64,7 +64,7 @@ class ModifiedLayout:
     def coupling_jacobian(self, z: np.ndarray) -> dict[str, np.ndarray]:
         return {k: self._pad(v) for k, v in self.layout.coupling_jacobian(z).items()}
 
-    def rayleigh_values(self, z: np.ndarray) -> tuple[float, float] | None:
+    def rayleigh_values(self, z: np.ndarray) -> tuple[float, float, float] | None:
         return self.layout.rayleigh_values(z)
 
     def rayleigh_jacobian(self, z: np.ndarray) -> np.ndarray:

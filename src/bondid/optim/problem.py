@@ -348,7 +348,7 @@ class FitProblem:
         return self.frf.phase_wall_fraction(self.model, np.asarray(z, dtype=float))
 
 
-_NONNEG = (".stiffness", ".damping", ".mass", "rayleigh.alpha", "rayleigh.beta")
+_NONNEG = (".stiffness", ".damping", ".mass", "rayleigh.alpha", "rayleigh.beta", "rayleigh.eta")
 
 
 def _bounds(

@@ -119,7 +119,7 @@ class TiedParameters:
         jac = self.map.coupling_jacobian(self.T @ np.asarray(x, dtype=float))
         return {k: v @ self.T for k, v in jac.items()}
 
-    def rayleigh_values(self, x: np.ndarray) -> tuple[float, float] | None:
+    def rayleigh_values(self, x: np.ndarray) -> tuple[float, float, float] | None:
         return self.map.rayleigh_values(self.T @ np.asarray(x, dtype=float))
 
     def rayleigh_jacobian(self, x: np.ndarray) -> np.ndarray:

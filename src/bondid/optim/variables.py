@@ -112,9 +112,10 @@ def named_from_pi(pi: np.ndarray) -> dict[str, float]:
 
 @dataclass
 class RayleighVar:
-    """A free Rayleigh coefficient (``component`` ``alpha`` or ``beta``): value ``= s · z``."""
+    """A free proportional-damping coefficient (``component`` ``alpha``, ``beta`` or ``eta``):
+    value ``= s · z``."""
 
-    name: str  # rayleigh.alpha / rayleigh.beta
+    name: str  # rayleigh.alpha / rayleigh.beta / rayleigh.eta
     component: str
     index: int  # index in z
     name_index: int  # index in names

@@ -18,7 +18,7 @@ from ..cost import CostOptions, FrfProblem
 from ..cost.residuals import parts
 from ..data.measurement import FrfData
 from ..exceptions import ParameterError
-from ..linear.parameter_map import ParameterMap
+from ..linear.parameter_map import RAYLEIGH_COMPONENTS, ParameterMap
 from ..model.document import UrdfDocument
 from ..model.parameters import link_inertial, parameter_infos, select_parameters
 
@@ -112,7 +112,7 @@ def reference_scales(
     * ``LINK.com.*``: 10 % of the link's RMS mass radius ``√(tr I_c / 2m)`` (m);
     * ``LINK.inertia.*``: 10 % of the link's mean principal moment (kg·m²);
     * ``LINK.mass``: 1 % of the heaviest moving link (kg);
-    * ``rayleigh.alpha`` / ``.beta``: the model's reference coefficient
+    * ``rayleigh.alpha`` / ``.beta`` / ``.eta``: the model's reference coefficient
       (:func:`bondid.linear.rayleigh.reference`).
 
     Returns:
@@ -139,7 +139,7 @@ def reference_scales(
         elif info.kind == "rayleigh":
             from ..linear.rayleigh import reference
 
-            scale[i] = reference(affine)[0 if info.component == "alpha" else 1]
+            scale[i] = reference(affine)[RAYLEIGH_COMPONENTS.index(str(info.component))]
         else:
             m, _, Ic = link_inertial(doc, info.owner)
             tr = float(np.trace(Ic))

@@ -47,7 +47,7 @@ def stability_warnings(doc: UrdfDocument, op: Mapping[str, float], what: str) ->
     from ..linear.linear_model import state_eigenvalues
 
     try:
-        lm = build_affine_model(doc, dict(op)).linear_model()
+        lm = build_affine_model(doc, dict(op)).linear_model().viscous()
         lam = state_eigenvalues(lm.M, lm.K, lm.D)
     except (BondidError, np.linalg.LinAlgError, ValueError):
         return []
