@@ -121,22 +121,14 @@ class Directions:
             D2[pn == pm] = dd
         else:
             D2 = Dp[:, pn, pm].T
-        G2 = np.zeros((0, n_p)) if Gp is None else Gp[:, pn, pm].T
-        parts = [K2, M2, D2, G2]
-        used = [np.any(A != 0, axis=1) for A in parts]
-        any_used = used[0] | used[1] | used[2]
-        if Gp is not None:
-            any_used |= used[3]
-        keep = np.flatnonzero(any_used)
-        k_sel, m_sel, d_sel = (np.flatnonzero(u[keep]) for u in used[:3])
-        g_sel = np.flatnonzero(used[3][keep]) if Gp is not None else np.zeros(0, dtype=int)
-        rows = [-K2[keep][k_sel], M2[keep][m_sel], D2[keep][d_sel]]
-        if Gp is not None:
-            rows.append(G2[keep][g_sel])
+        G2 = np.zeros_like(K2) if Gp is None else Gp[:, pn, pm].T
+        used = [np.any(A != 0, axis=1) for A in (K2, M2, D2, G2)]
+        keep = np.flatnonzero(np.logical_or.reduce(used))
+        k_sel, m_sel, d_sel, g_sel = (np.flatnonzero(u[keep]) for u in used)
         pn, pm = pn[keep], pm[keep]
+        W = np.concatenate([-K2[keep][k_sel], M2[keep][m_sel], D2[keep][d_sel], G2[keep][g_sel]])
         mirror = np.flatnonzero(pn != pm) if symmetric else np.zeros(0, dtype=int)
-        W = np.ascontiguousarray(np.concatenate(rows))
-        return cls(n_p, pn, pm, mirror, k_sel, m_sel, d_sel, W, g_sel)
+        return cls(n_p, pn, pm, mirror, k_sel, m_sel, d_sel, np.ascontiguousarray(W), g_sel)
 
     def derivatives(self, Y: np.ndarray, X: np.ndarray, w: np.ndarray) -> np.ndarray:
         """``dH = −Σ_nm Y[n] (∂K − ω²∂M + jω∂D + j∂G)[n,m] X[m]`` per row, as real parts.
