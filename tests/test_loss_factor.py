@@ -242,3 +242,37 @@ def test_sensitivity_and_diagnosis_take_the_loss_factor(tmp_path):
     refit = model_rayleigh(UrdfDocument.load(out / "refit.urdf"))
     assert refit is not None and refit.alpha == refit.beta == 0.0
     assert refit.eta == pytest.approx(ETA, rel=RECOVER_RTOL), refit
+
+
+def test_free_mimic_multipliers_keep_a_held_loss_factor():
+    """The multipliers of a free pivot rebuild the reduced model at every evaluation; the
+    loss factor the model declares (held) stays in it: the model scores 0 on its own FRF,
+    and a model without the loss factor does not."""
+    from test_free_pivot import _freed
+
+    free, _ = _freed()
+    set_rayleigh(free, Rayleigh(0.0, 0.0, 0.05))
+    data = simulate(free, freq_hz=np.geomspace(5.0, 500.0, 80))
+    names = ["x_guide_ry_pivot_u.multiplier", "x_guide_ry_pivot_v.multiplier"]
+    problem = FrfProblem(free, [data])
+    pm = ParameterMap(free, problem.blocks[0].affine, names)
+    assert np.max(np.abs(problem.residual(pm, pm.p0))) <= EXACT_TOL
+    lossless, _ = _freed()
+    problem = FrfProblem(lossless, [data])
+    pm = ParameterMap(lossless, problem.blocks[0].affine, names)
+    assert np.max(np.abs(problem.residual(pm, pm.p0))) > 1e3 * EXACT_TOL
+
+
+def test_resonances_and_anti_resonances_are_damped_by_half_the_loss_factor():
+    """The features the diagnosis pairs with the data: every resonance of the bonder and
+    every anti-resonance of its ``x.x`` channel (the system clamped at ``x``) at ζ = η/2."""
+    from bondid.modes.bands import model_features
+
+    doc = UrdfDocument.load("urdf/bonder.urdf")
+    for j in doc.movable_joint_names:
+        doc.set_damping(j, 0.0)
+    set_rayleigh(doc, Rayleigh(0.0, 0.0, ETA))
+    feats = model_features(build_affine_model(doc), channels=["x.x"])
+    kinds = {f.kind for f in feats}
+    assert kinds == {"resonance", "anti-resonance"}
+    assert all(f.zeta == pytest.approx(ETA / 2, rel=1e-6) for f in feats), feats

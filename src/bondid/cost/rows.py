@@ -29,8 +29,8 @@ from .residuals import parts, residual, residual_jacobian, residual_jacobian_par
 from .selection import CostOptions, DataSelection
 
 Gains = dict[str, float]
-#: ``(dπ (nb, 10, n_p), dk (nv, n_p), dd (nv, n_p), d(α, β) (2, n_p) or None, the terms of
-#: free mimic multipliers or None)``
+#: ``(dπ (nb, 10, n_p), dk (nv, n_p), dd (nv, n_p), d(α, β, η) (3, n_p) or None, the terms
+#: of free mimic multipliers or None)``
 Derivatives = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, CouplingTerms | None]
 #: a data set's mix rows and the mixes' d/dx
 Mix = tuple[MixRows, dict[str, np.ndarray]]

@@ -186,9 +186,11 @@ class AffineModel:
             damping=self.damping if damping is None else np.asarray(damping, float),
         )
 
-    def with_rayleigh(self, alpha: float, beta: float, eta: float = 0.0) -> AffineModel:
-        """A copy with other proportional damping coefficients (1/s, s) and loss factor."""
-        return replace(self, alpha=float(alpha), beta=float(beta), eta=float(eta))
+    def with_rayleigh(self, alpha: float, beta: float, eta: float | None = None) -> AffineModel:
+        """A copy with other proportional damping coefficients (1/s, s) and loss factor
+        (None: this model's)."""
+        eta = self.eta if eta is None else float(eta)
+        return replace(self, alpha=float(alpha), beta=float(beta), eta=eta)
 
     def with_gains(
         self, gain_in: np.ndarray | None = None, gain_out: np.ndarray | None = None

@@ -63,7 +63,7 @@ def recouple(affine: AffineModel, multipliers: Mapping[str, float]) -> AffineMod
         couplings[name] = replace(couplings[name], multiplier=float(a))
     red = reduce_mimic(c.full, couplings)
     red = replace(red, pi=affine.pi, stiffness=affine.stiffness, damping=affine.damping,
-                  alpha=affine.alpha, beta=affine.beta)  # fmt: skip
+                  alpha=affine.alpha, beta=affine.beta, eta=affine.eta)  # fmt: skip
     return red.with_gains(affine.gain_in, affine.gain_out)
 
 

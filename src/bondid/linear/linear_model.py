@@ -11,6 +11,21 @@ def _symmetric(A: np.ndarray) -> np.ndarray:
     return 0.5 * (A + A.T)
 
 
+def viscous_equivalent(M: np.ndarray, K: np.ndarray, D: np.ndarray, G: np.ndarray) -> np.ndarray:
+    """The damping ``(n, n)`` that dissipates as much as ``D`` and the hysteretic stiffness
+    ``G`` together at each vibration mode's own frequency: ``D + M Φ diag(φᵢᵀGφᵢ/ωᵢ) Φᵀ M``
+    over the mass-normalised undamped modes ``Φ`` of ``(M, K)`` (exact at every resonance of
+    a loss factor on a symmetric K; rigid-body modes take none). SI units, ``(n, n)`` each."""
+    import scipy.linalg
+
+    w2, phi = scipy.linalg.eigh(_symmetric(K), _symmetric(M))
+    keep = w2 > 1e-12 * max(float(np.abs(w2).max(initial=0.0)), 1e-300)
+    phi, w = phi[:, keep], np.sqrt(w2[keep])
+    g = np.einsum("ni,nm,mi->i", phi, G, phi)
+    MP = M @ phi
+    return D + (MP * (g / w)) @ MP.T
+
+
 def state_matrix(M: np.ndarray, K: np.ndarray, D: np.ndarray) -> np.ndarray:
     """The state matrix ``A`` ``(2n, 2n)`` of ``M q̈ + D q̇ + K q = 0`` with ``x = [q, q̇]``
     (``M``, ``K``, ``D`` ``(n, n)``, SI units; ``M`` invertible)."""
@@ -86,21 +101,11 @@ class LinearModel:
         return int(self.M.shape[0])
 
     def viscous(self) -> LinearModel:
-        """This model with its hysteretic stiffness replaced by the viscous damping that
-        dissipates as much at each vibration mode's own frequency: ``D + M Φ diag(φᵢᵀGφᵢ/ωᵢ)
-        Φᵀ M`` over the mass-normalised undamped modes ``Φ`` (exact at every resonance of a
-        loss factor on a symmetric K; rigid-body modes take none). Itself without ``G``."""
+        """This model with its hysteretic stiffness replaced by its viscous equivalent
+        (:func:`viscous_equivalent`); itself without ``G``."""
         if self.G is None:
             return self
-        import scipy.linalg
-
-        w2, phi = scipy.linalg.eigh(_symmetric(self.K), _symmetric(self.M))
-        keep = w2 > 1e-12 * max(float(np.abs(w2).max(initial=0.0)), 1e-300)
-        phi, w = phi[:, keep], np.sqrt(w2[keep])
-        g = np.einsum("ni,nm,mi->i", phi, self.G, phi)
-        MP = self.M @ phi
-        D = self.D + (MP * (g / w)) @ MP.T
-        return replace(self, D=D, G=None)
+        return replace(self, D=viscous_equivalent(self.M, self.K, self.D, self.G), G=None)
 
     def state_space(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(A (2nv,2nv), B (2nv,n_in), C (n_out,2nv), D (n_out,n_in)) with x = [δq, δq̇]; a

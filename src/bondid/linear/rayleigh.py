@@ -112,8 +112,8 @@ def loss_start(
     affine: AffineModel, band_hz: tuple[float, float] | None = None
 ) -> tuple[float, str]:
     """The start of the loss factor ``η`` and how it was found: twice the median damping ratio
-    the model's dampers give its vibration modes in ``band_hz`` (Hz; a loss factor gives
-    every mode ``ζ = η/2``), else :func:`reference`'s."""
+    of the model's vibration modes in ``band_hz`` (Hz) as written (its joint dampers and any
+    ``α·M + β·K``; a loss factor gives every mode ``ζ = η/2``), else :func:`reference`'s."""
     modes = [m for m in _within(_modes(affine, damped=True), band_hz) if m[1] > ZETA_MIN]
     if not modes:
         return 2.0 * ZETA_REF, f"no damped mode: ζ = {ZETA_REF:g} at every mode"

@@ -125,7 +125,9 @@ class ModalResult:
         """Receptance ``(n_out, n_in, n_freq)`` rebuilt from the modal expansion.
 
         Rigid-body modes (λ = 0) contribute R/s; equals ``LinearModel.frf`` when ``A`` is
-        diagonalisable.
+        diagonalisable and the model has no loss factor (with one, the modes are those of
+        its viscous equivalent, :meth:`bondid.linear.linear_model.LinearModel.viscous`, and
+        the two agree at the resonances).
         """
         s = 2j * np.pi * np.asarray(freq_hz, dtype=float)
         n_out, n_in = len(self.outputs), len(self.inputs)

@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..linear.affine import AffineModel
-from ..linear.linear_model import underdamped
+from ..linear.linear_model import underdamped, viscous_equivalent
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..model.document import UrdfDocument
@@ -97,6 +97,15 @@ def _fmt(f: float) -> str:
     return f"{f:.3g}" if f < 1000 else f"{f / 1000:.3g}k"
 
 
+def _damped_modes(
+    M: np.ndarray, K: np.ndarray, D: np.ndarray, G: np.ndarray | None
+) -> list[tuple[float, float]]:
+    """``(f_hz, ζ)`` of ``M q̈ + D q̇ + K q = 0``; a hysteretic stiffness ``G`` as its viscous
+    equivalent at each of these modes' own frequencies (so a clamped system's loss factor
+    damps its own modes, not those of the whole model)."""
+    return underdamped(M, K, D if G is None else viscous_equivalent(M, K, D, G))
+
+
 def model_features(
     affine: AffineModel, channels: Sequence[str] = (), f_range: tuple[float, float] | None = None
 ) -> list[Feature]:
@@ -110,8 +119,8 @@ def model_features(
     Returns:
         Features sorted by frequency.
     """
-    lm = affine.linear_model().viscous()  # a loss factor as the modes see it
-    feats = [Feature(f, z, "resonance") for f, z in underdamped(lm.M, lm.K, lm.D)]
+    lm = affine.linear_model()
+    feats = [Feature(f, z, "resonance") for f, z in _damped_modes(lm.M, lm.K, lm.D, lm.G)]
     for ch in channels:
         out, _, inp = ch.rpartition(".")
         if out != inp or out not in affine.dofs:
@@ -119,9 +128,10 @@ def model_features(
         j = affine.dofs.index(out)
         keep = [i for i in range(affine.nv) if i != j]
         ix = np.ix_(keep, keep)
+        G = None if lm.G is None else lm.G[ix]
         feats += [
             Feature(f, z, "anti-resonance", ch)
-            for f, z in underdamped(lm.M[ix], lm.K[ix], lm.D[ix])
+            for f, z in _damped_modes(lm.M[ix], lm.K[ix], lm.D[ix], G)
         ]
     if f_range is not None:
         feats = [f for f in feats if f_range[0] <= f.f_hz <= f_range[1]]

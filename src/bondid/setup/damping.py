@@ -21,8 +21,11 @@ The start of ``α`` and ``β``, in this order: the values given (a study's ``[da
 the data's band (:func:`bondid.linear.rayleigh.rayleigh_start`). With ``rayleigh`` the joint
 dampers stay, so that estimate is scaled by :data:`ADDITIVE_SHARE`: the start then damps a
 little more than the model as written, not twice as much. The loss factor starts at the
-value given (``[damping]`` ``eta``), the model's own, else twice the median damping ratio the
-joint dampers give the model's modes in the band (:func:`bondid.linear.rayleigh.loss_start`).
+value given (``[damping]`` ``eta``), the model's own, else twice the median damping ratio of
+the model's modes in the band as written (its joint dampers and any ``α·M + β·K``:
+:func:`bondid.linear.rayleigh.loss_start`). With ``model``, ``rayleigh`` and
+``rayleigh-only`` a loss factor the model declares is kept (fitted only if ``--free`` names
+``rayleigh.eta``); ``joints`` drops it with the element.
 """
 
 from __future__ import annotations
@@ -134,7 +137,8 @@ def declare_damping(
         return _declare_loss(doc, start, band_hz, operating_point)
     own = model_rayleigh(doc)
     if start is not None:
-        value, how = Rayleigh(start[0], start[1]), "as given"
+        value = Rayleigh(start[0], start[1], None if own is None else own.eta)
+        how = "as given"
     elif own is not None:
         value, how = own, "the model's <rayleigh_damping>"
     else:
