@@ -276,3 +276,16 @@ def test_resonances_and_anti_resonances_are_damped_by_half_the_loss_factor():
     kinds = {f.kind for f in feats}
     assert kinds == {"resonance", "anti-resonance"}
     assert all(f.zeta == pytest.approx(ETA / 2, rel=1e-6) for f in feats), feats
+
+
+def test_the_summary_line_states_the_loss_factor_and_its_damping_ratio():
+    from bondid.setup.damping import damping_line
+
+    line = damping_line({"kind": "structural", "start": "as given", "alpha": 0.0, "beta": 0.0,
+                         "eta": 0.012})  # fmt: skip
+    assert line is not None
+    assert "K·(1 + jη), η = 0.012 (ζ = 0.600% at every mode" in line
+    assert line.endswith("η started from as given")
+    line = damping_line({"kind": "rayleigh", "start": None, "alpha": 1.0, "beta": 2e-6,
+                         "eta": 0.01})  # fmt: skip
+    assert line is not None and "loss factor η = 0.01" in line
