@@ -33,6 +33,9 @@ RECOVER_SIGMAS = 4.0
 RECOVER_RTOL = 0.05
 #: the fitted db_rms is "at the noise level" within this factor of the predicted level
 AT_NOISE = 1.10
+#: the state space (viscous equivalent) against the exact FRF at the undamped natural
+#: frequencies (relative, matrix norm): equal there but for the neighbouring modes' share
+RESONANCE_TOL = 2e-3
 
 ETA = 0.012  # the truth's loss factor: ζ = 0.6 % at every mode
 FREQ = np.geomspace(2.0, 200.0, 90)
@@ -87,6 +90,26 @@ def test_viscous_equivalent_damps_every_mode_by_half_the_loss_factor():
         assert f * np.sqrt(1 - zeta**2) == pytest.approx(f0 * np.sqrt(1 - zeta**2), rel=1e-8)
     plain = build_affine_model(_strip(0.3)).linear_model()
     assert plain.G is None and plain.viscous() is plain
+
+
+def test_state_space_matches_the_exact_frf_at_the_resonances():
+    """python-control's response of the state space (the loss factor as its viscous
+    equivalent) against the exact FRF: equal at each undamped natural frequency (where the
+    equivalent dissipates as the loss factor does), apart elsewhere."""
+    control = pytest.importorskip("control")
+    lm = build_affine_model(_lossy()).linear_model()
+    f0 = np.array([f for f, _ in underdamped(lm.M, lm.K, np.zeros_like(lm.M))])
+    A, Bs, Cs, Ds = lm.state_space()
+    sys = control.ss(A, Bs, Cs, Ds)
+
+    def gap(freq):
+        H = lm.frf(freq)
+        peer = np.asarray(sys.frequency_response(2 * np.pi * freq).complex).reshape(H.shape)
+        return np.linalg.norm(H - peer, axis=(0, 1)) / np.linalg.norm(H, axis=(0, 1))
+
+    at_modes, between = gap(f0), gap(np.sqrt(f0[:-1] * f0[1:]))
+    assert np.max(at_modes) < RESONANCE_TOL
+    assert np.min(between) > 3 * np.max(at_modes)
 
 
 def test_modal_analysis_reports_the_loss_factor_as_damping():
