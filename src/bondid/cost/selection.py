@@ -99,11 +99,6 @@ class DataSelection:
     scale: np.ndarray
     channel: np.ndarray
 
-    @property
-    def point_freq_hz(self) -> np.ndarray:
-        """Frequency (Hz) of each selected point ``(n_sel,)``."""
-        return self.freq_hz[self.fidx]
-
 
 def used_points(ds: FrfData, options: CostOptions) -> np.ndarray:
     """Boolean ``(n_out, n_in, n_freq)``: the points of ``ds`` a fit with ``options`` uses

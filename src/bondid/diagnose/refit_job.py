@@ -306,10 +306,3 @@ def finish(task: Task, models: Models, outcome: Outcome, t0: float) -> JobResult
 def _continued(label: str) -> str:
     """The label of a start that continues the search begun at ``label``."""
     return label if label.endswith(", continued") else f"{label}, continued"
-
-
-def task_with(task: Task, **changes: Any) -> Task:
-    """A copy of ``task`` with ``changes``."""
-    from dataclasses import replace
-
-    return replace(task, **changes)

@@ -260,11 +260,6 @@ def spec_of(refit: Refit, label: str, state: State, variant: int) -> StartSpec:
                      variant)  # fmt: skip
 
 
-def spring_count(cand: Candidate) -> int:
-    """How many of ``cand``'s parameters follow the scan in proportion (its springs)."""
-    return sum(1 for p in cand.parameters if p.scan == 1.0)
-
-
 def best_figure(starts: Sequence[StartSpec]) -> float:
     """The lowest finite figure of ``starts`` (inf when none)."""
     return min((s.figure for s in starts if math.isfinite(s.figure)), default=math.inf)
