@@ -17,6 +17,12 @@ kind                   form and figures
                        ``f_hz``, ``zeta``, the channels / rows / columns that show it, the
                        MAC to the nearest model mode
 ``misplaced_mode``     a mode both have, at another frequency or damping in the data
+``damping_law``        the paired modes' damping read as one law, when modes are damped
+                       otherwise in the data at their own frequencies: ``f_hz``, ``zeta``,
+                       ``zeta_model``, ``off`` per mode, the exponent of ``ζ ∝ f^b``
+                       (``exponent``, ``exponent_model``), ``law`` and the ``--damping`` kind
+                       that expresses it (:mod:`.damping_law`; a summary of the misplaced
+                       modes claimed: its share is theirs, it is never ``primary``)
 ``spurious_mode``      a model mode the data do not show (``scale``: the share they keep)
 ``confined``           the excess confined to one output row (sensor side), input column
                        (actuator side) or channel: its share against the even share

@@ -21,6 +21,7 @@ KINDS: tuple[str, ...] = (
     "missing_mode",
     "spurious_mode",
     "misplaced_mode",
+    "damping_law",
     "confined",
     "stiffness_offset",
     "mass_offset",

@@ -14,6 +14,8 @@ from ...jsonsafe import json_safe
 from . import words
 from .base import Finding
 from .context import Context, Settings
+from .damping_law import KIND as DAMPING_LAW
+from .damping_law import Pair, damping_law, pairs_of
 from .excess import ExcessFigures, excess_figures, positive_excess
 from .explain import explain
 from .location import confined
@@ -58,7 +60,8 @@ class Remainder:
         confined (kind ``"confined"``), else ``kind`` None with the channels and bands that
         carry most of it."""
         bands = [[b.f_lo_hz, b.f_hi_hz] for b in self.excess.where_bands]
-        for f in [*self.causes, *self.findings]:
+        own = [f for f in self.findings if f.kind != DAMPING_LAW]  # a summary, not a place
+        for f in [*(f for f in own if f.kind != "confined"), *own]:
             band = [list(f.band_hz)] if f.band_hz is not None else bands
             return {"kind": f.kind, "side": f.location.side, "names": list(f.location.names),
                     "bands_hz": band}  # fmt: skip
@@ -187,5 +190,20 @@ def describe_remainder(
     explained = (1.0 - left / total) if total > 0 else 0.0
     explained = float(min(max(explained, 0.0), 1.0)) if math.isfinite(explained) else 0.0
     causes.sort(key=lambda f: -f.share)
+    law = damping_law(causes, _mode_pairs(ctx)) if s.modes and causes else None
+    if law is not None:  # the modes' damping read as one law, ahead of the modes it sums up
+        causes.insert(0, law)
     findings: list[Finding] = [*causes, *sorted(confined(ex, s), key=lambda f: -f.share)]
     return Remainder(findings, ex, after, explained, ctx.notes, s)
+
+
+def _mode_pairs(ctx: Context) -> list[Pair]:
+    """The data's modes paired with the model's over every data set (:func:`.damping_law.
+    pairs_of`); none where the modal identification failed (its note is in ``ctx``)."""
+    from ...modal.pairing import pair_modes
+
+    rows = [
+        pair_modes(measured, model)
+        for measured, model in zip(ctx.measured(), ctx.model(), strict=True)
+    ]
+    return pairs_of(rows)
