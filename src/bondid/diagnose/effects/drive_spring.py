@@ -42,6 +42,8 @@ class DriveSpring(Effect):
             if doc.stiffness(j) > 0:
                 continue
             m = effective_inertia(doc, j)
+            if m <= 0:  # a drive that moves nothing of its own: no spring to show
+                continue
             k0 = m * (2 * np.pi * F_REF_HZ) ** 2
             d_model = doc.damping(j)
             d0 = d_model + 2 * ZETA * np.sqrt(k0 * m)

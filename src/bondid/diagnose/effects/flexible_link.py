@@ -113,11 +113,15 @@ class FlexibleLink(Effect):
             ax = long_axis(doc, link)
             if ax is None:
                 continue
-            main, *others = (self._candidate(doc, ax, f) for f in FRACTIONS)
-            out.append(replace(main, variants=tuple(others)))
+            options = [c for c in (self._candidate(doc, ax, f) for f in FRACTIONS) if c]
+            if options:
+                main, *others = options
+                out.append(replace(main, variants=tuple(others)))
         return out
 
-    def _candidate(self, doc: UrdfDocument, ax: LinkAxis, fraction: float) -> Candidate:
+    def _candidate(self, doc: UrdfDocument, ax: LinkAxis, fraction: float) -> Candidate | None:
+        """The link cut at ``fraction`` of its length; None when a hinge there would move no
+        inertia of its own (:func:`~.topology.effective_inertia`)."""
         link = ax.link
         labels = [axis_label(v, i) for i, v in enumerate(ax.across)]
         probe = build_split(doc, ax, fraction, 1.0, 0.0)
@@ -126,6 +130,8 @@ class FlexibleLink(Effect):
         for lab in labels:
             jn = hinge_joint(link, lab)
             m = effective_inertia(probe, jn)
+            if m <= 0:
+                return None
             k0 = m * w**2
             d0 = 2 * ZETA * np.sqrt(k0 * m)
             params_k.append(NewParameter(

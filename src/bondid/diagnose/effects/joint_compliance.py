@@ -90,22 +90,24 @@ class JointCompliance(Effect):
             for axis in itf.missing:
                 kind, vec = axis_vector(axis)
                 if kind != "revolute":
-                    out.append(self._candidate(doc, itf, axis, np.zeros(3)))
+                    out += [c for c in [self._candidate(doc, itf, axis, np.zeros(3))] if c]
                     continue
                 if box is None:  # the child's hull, read once per interface
                     box = (link_box(doc, itf.child),)
                 centre, *others = pivot_options(doc, itf, vec, box[0])
                 cand = self._candidate(doc, itf, axis, centre, box[0])
-                variants = tuple(_starting_at(cand, p) for p in others)
-                out.append(replace(cand, variants=variants))
+                if cand is not None:
+                    variants = tuple(_starting_at(cand, p) for p in others)
+                    out.append(replace(cand, variants=variants))
         return out
 
     def _candidate(
         self, doc: UrdfDocument, itf: Interface, axis: str, pivot: np.ndarray,
         box: Box | None = None,
-    ) -> Candidate:  # fmt: skip
+    ) -> Candidate | None:  # fmt: skip
         """The candidate about ``pivot`` (child frame, m); a rotational one with its pivot
-        free within ``box`` (the child's hull box) enlarged by half its size."""
+        free within ``box`` (the child's hull box) enlarged by half its size. None when the
+        DOF would move no inertia of its own (:func:`~.topology.effective_inertia`)."""
         kind, vec = axis_vector(axis)
         jname = joint_name(itf.parent, itf.child, axis)
         spec: dict = {
@@ -117,6 +119,8 @@ class JointCompliance(Effect):
         }
         probe = self._insert(doc, spec, 1.0, 0.0, ())
         m = effective_inertia(probe, jname)
+        if m <= 0:
+            return None
         k0 = m * (2 * np.pi * F_REF_HZ) ** 2
         d0 = 2 * ZETA * np.sqrt(k0 * m)
         params: tuple[NewParameter, ...] = spring_parameters(

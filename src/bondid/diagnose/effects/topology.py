@@ -95,6 +95,9 @@ def interfaces(doc: UrdfDocument) -> list[Interface]:
         present: set[str] = set()
         pivots = []
         for j, F in zip(chain, frames, strict=True):
+            if j.type == "floating":  # a free-free structure's base: free along every axis
+                present.update(AXES)
+                continue
             if j.type not in MOVABLE_TYPES or getattr(j, "mimic", None) is not None:
                 continue  # a mimic joint follows another (a free pivot): no DOF of its own
             axis = np.asarray(j.axis if j.axis is not None else (1.0, 0.0, 0.0), float)
@@ -127,7 +130,9 @@ def axis_vector(axis: str) -> tuple[str, np.ndarray]:
 
 def effective_inertia(doc: UrdfDocument, joint: str) -> float:
     """Inertia seen by a spring on ``joint`` with every other DOF free: ``1/(M⁻¹)_jj``
-    [kg or kg·m²], from the linearised model at the neutral configuration."""
+    [kg or kg·m²], from the linearised model at the neutral configuration; 0 when the mass
+    matrix is singular (the DOF moves nothing another DOF does not already move: a spring
+    there has no mode, and a candidate there nothing to show)."""
     from ...linear.affine import build_affine_model
 
     am = build_affine_model(doc)
@@ -137,7 +142,13 @@ def effective_inertia(doc: UrdfDocument, joint: str) -> float:
         )
     M = am.mass_matrix()
     j = am.dofs.index(joint)
-    return float(1.0 / np.linalg.inv(M)[j, j])
+    try:
+        flexibility = float(np.linalg.inv(M)[j, j])
+    except np.linalg.LinAlgError:
+        return 0.0
+    if not (np.isfinite(flexibility) and flexibility > 0):
+        return 0.0
+    return 1.0 / flexibility
 
 
 def link_box(doc: UrdfDocument, link: str) -> tuple[np.ndarray, np.ndarray] | None:
