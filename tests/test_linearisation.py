@@ -108,3 +108,22 @@ def test_operating_point_with_unknown_joint_is_rejected(robot):
     doc, _, _ = robot
     with pytest.raises(OperatingPointError, match="nonexistent"):
         build_affine_model(doc, {"nonexistent": 0.1})
+
+
+def test_mimic_reduction_is_the_congruence_on_every_leading_axis():
+    """``reduce_matrices`` gives ``Tᵀ X T`` slice by slice for a matrix and for stacks with
+    one and two leading axes (the parameter bases ``(nb, 10, n, n)``)."""
+    from bondid.linear.mimic import Coupling, reduce_matrices, reduction
+
+    dofs = ("a", "b", "c", "d")
+    T, red = reduction(dofs, {"c": Coupling("a", 0.37), "d": Coupling("b", -1.4)})
+    assert red == ("a", "b") and T.shape == (4, 2)
+    rng = np.random.default_rng(3)
+    mats = {"m": rng.standard_normal((4, 4)), "s": rng.standard_normal((5, 4, 4)),
+            "b": rng.standard_normal((2, 3, 4, 4))}  # fmt: skip
+    out = reduce_matrices(T, mats)
+    for k, X in mats.items():
+        flat = X.reshape(-1, 4, 4)
+        want = np.stack([T.T @ x @ T for x in flat]).reshape(*X.shape[:-2], 2, 2)
+        assert out[k].shape == want.shape
+        assert _rel(out[k], want) < TOL_EXACT

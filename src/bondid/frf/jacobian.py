@@ -115,7 +115,10 @@ def _input_output_terms(extra: CouplingTerms, X: np.ndarray, Yt: np.ndarray) -> 
     part of the FRF derivative through ``B`` and ``C`` (free mimic multipliers,
     :mod:`bondid.linear.coupling`), from the block's solves ``X`` ``(nf, nv, n_in)`` and
     ``Yt`` ``(nf, nv, n_out)``."""
-    d = np.einsum("pon,fni->oifp", extra.dC, X) + np.einsum("fno,pni->oifp", Yt, extra.dB)
+    # tensordot (BLAS) rather than einsum: this runs at every Jacobian of a refit with a free
+    # pivot, where the unoptimised two-operand contraction was a sixth of the refit's time
+    d = np.tensordot(extra.dC, X, axes=([2], [1])).transpose(1, 3, 2, 0)  # (o, i, f, p)
+    d += np.tensordot(Yt, extra.dB, axes=([1], [1])).transpose(1, 3, 0, 2)
     return np.stack([d.real, d.imag])
 
 

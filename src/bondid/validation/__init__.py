@@ -16,6 +16,8 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Mapping, Sequence
 
+import numpy as np
+
 from ..data.measurement import FrfData
 from ..model.document import UrdfDocument
 from .data import check_data
@@ -64,7 +66,10 @@ def check_inputs(
     """
     warnings = check_data(doc, datasets, paths)
     for ds in datasets:
-        warnings += check_operating_point(doc, ds.operating_point, str(ds.source or "data"))
+        f = np.asarray(ds.freq_hz, float)
+        f_min = float(f[f > 0].min()) if np.any(f > 0) else None
+        warnings += check_operating_point(doc, ds.operating_point, str(ds.source or "data"),
+                                          f_min)  # fmt: skip
     for what, op in (operating_points or {}).items():
         warnings += check_operating_point(doc, op, what)
     return warnings

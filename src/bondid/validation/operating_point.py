@@ -17,6 +17,10 @@ from ..ranges import POSITION
 
 #: an eigenvalue with Re λ > this fraction of |λ| (or > 1e-9 s⁻¹ for λ ≈ 0) counts as unstable
 UNSTABLE_TOL = 1e-9
+#: an unstable eigenvalue whose growth rate Re λ is below this fraction of the lowest measured
+#: angular frequency changes no measured line (its phase there by about twice this, in rad):
+#: a near-free motion with a negligible negative stiffness, not an unmeasurable machine
+UNSEEN_GROWTH = 1e-3
 
 
 def limit_warnings(doc: UrdfDocument, op: Mapping[str, float], what: str) -> list[str]:
@@ -41,8 +45,13 @@ def limit_warnings(doc: UrdfDocument, op: Mapping[str, float], what: str) -> lis
     return out
 
 
-def stability_warnings(doc: UrdfDocument, op: Mapping[str, float], what: str) -> list[str]:
-    """An eigenvalue of the linearised model with Re λ > 0 (e.g. gravity beats a spring)."""
+def stability_warnings(
+    doc: UrdfDocument, op: Mapping[str, float], what: str, f_min_hz: float | None = None
+) -> list[str]:
+    """An eigenvalue of the linearised model with Re λ > 0 (e.g. gravity beats a spring).
+
+    ``f_min_hz`` [Hz]: the lowest frequency measured there, when data were; an eigenvalue
+    growing slower than :data:`UNSEEN_GROWTH` × 2π ``f_min_hz`` is not reported."""
     from ..linear.affine import build_affine_model
     from ..linear.linear_model import state_eigenvalues
 
@@ -51,7 +60,10 @@ def stability_warnings(doc: UrdfDocument, op: Mapping[str, float], what: str) ->
         lam = state_eigenvalues(lm.M, lm.K, lm.D)
     except (BondidError, np.linalg.LinAlgError, ValueError):
         return []
-    bad = lam[lam.real > UNSTABLE_TOL * np.maximum(np.abs(lam), 1.0)]
+    floor = UNSTABLE_TOL * np.maximum(np.abs(lam), 1.0)
+    if f_min_hz is not None and f_min_hz > 0:
+        floor = np.maximum(floor, UNSEEN_GROWTH * 2 * np.pi * f_min_hz)
+    bad = lam[lam.real > floor]
     if bad.size == 0:
         return []
     worst = bad[np.argmax(bad.real)]
@@ -72,12 +84,14 @@ def check_range(op: Mapping[str, float], what: str) -> None:
 
 
 def check_operating_point(
-    doc: UrdfDocument, op: Mapping[str, float], what: str = "operating point"
-) -> list[str]:
-    """Limit and stability warnings for one operating point (``what`` names its origin).
+    doc: UrdfDocument, op: Mapping[str, float], what: str = "operating point",
+    f_min_hz: float | None = None,
+) -> list[str]:  # fmt: skip
+    """Limit and stability warnings for one operating point (``what`` names its origin;
+    ``f_min_hz`` [Hz] the lowest frequency measured there, see :func:`stability_warnings`).
 
     Raises:
         OperatingPointError: a value outside any physical range (:func:`check_range`).
     """
     check_range(op, what)
-    return limit_warnings(doc, op, what) + stability_warnings(doc, op, what)
+    return limit_warnings(doc, op, what) + stability_warnings(doc, op, what, f_min_hz)
