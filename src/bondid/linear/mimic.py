@@ -102,5 +102,4 @@ def reduce_matrices(
     Two broadcast matrix products: this runs at every cost evaluation of a model with a
     coupled joint (a free pivot), on the parameter bases too, where a three-operand
     contraction costs about a hundred times as much."""
-    Tt = np.ascontiguousarray(T.T)
-    return {k: np.matmul(np.matmul(Tt, v), T) for k, v in mats.items()}
+    return {k: T.T @ v @ T for k, v in mats.items()}

@@ -16,8 +16,6 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Mapping, Sequence
 
-import numpy as np
-
 from ..data.measurement import FrfData
 from ..model.document import UrdfDocument
 from .data import check_data
@@ -66,8 +64,7 @@ def check_inputs(
     """
     warnings = check_data(doc, datasets, paths)
     for ds in datasets:
-        f = np.asarray(ds.freq_hz, float)
-        f_min = float(f[f > 0].min()) if np.any(f > 0) else None
+        f_min = float(ds.freq_hz.min()) if ds.freq_hz.size else None  # positive (FrfData)
         warnings += check_operating_point(doc, ds.operating_point, str(ds.source or "data"),
                                           f_min)  # fmt: skip
     for what, op in (operating_points or {}).items():
