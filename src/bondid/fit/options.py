@@ -138,9 +138,10 @@ def _add_structure_args(p: argparse.ArgumentParser) -> None:
     add_damping_arg(p)
     p.add_argument(
         "--tie", action="append", metavar="PATTERN",
-        help="joint parameters sharing one value: names or globs of one kind (stiffness or"
-        " damping), e.g. --tie '*.damping' (one damping for every joint) or --tie"
-        " 'j2.stiffness,j3.stiffness'; repeatable, one tie each; kept in fitted.urdf",
+        help="parameters sharing one value: names or globs of one kind (joint stiffness or"
+        " damping; link mass, or one CoM or inertia component), e.g. --tie '*.damping' (one"
+        " damping for every joint), --tie 'j2.stiffness,j3.stiffness' or --tie"
+        " 'seg*.inertia.iyy' (identical parts); repeatable, one tie each; kept in fitted.urdf",
     )  # fmt: skip
 
 

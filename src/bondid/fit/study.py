@@ -49,9 +49,10 @@ Every section and key is optional::
     [gains]                                  # transducer gains (fixed unless --free names them)
     "gain.in.motor" = 0.35
 
-    [ties]                                   # --tie: joint parameters sharing one value
+    [ties]                                   # --tie: parameters sharing one value
     damping = "*.damping"                    # a tie's name = names or globs of one kind
     inner = ["j2.stiffness", "j3.stiffness"]
+    segment_mass = "seg*.mass"               # masses, CoM or inertia components too
 
     [search]
     multistart = 8                           # --multistart

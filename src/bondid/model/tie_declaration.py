@@ -13,13 +13,13 @@ from .ties import TIEABLE, Tie, model_ties, set_tie
 
 
 def declare_tie(doc: UrdfDocument, name: str, items: Iterable[str], where: str) -> Tie:
-    """Tie the joint parameters that ``items`` (names and globs, comma- or space-separated)
+    """Tie the parameters that ``items`` (names and globs, comma- or space-separated)
     match into one value, in ``doc`` (:mod:`.ties`); every member is set to the first one's
     value (model order).
 
     Raises:
         ParameterError: a pattern matches nothing, fewer than two parameters, a parameter
-            that is not a joint stiffness or damping, members of two kinds, or a member
+            of a kind that cannot be tied (a gain, a mix, ...), members of two kinds, or a member
             already in another tie (the message names ``where``).
     """
     infos = {p.name: p for p in parameter_infos(doc)}
@@ -30,16 +30,20 @@ def declare_tie(doc: UrdfDocument, name: str, items: Iterable[str], where: str) 
             if not found:
                 raise ParameterError(
                     f"{where}: tie {name!r}: {token!r} matches no parameter of"
-                    f" {doc.source or '<URDF>'}; give joint stiffness or damping names or globs"
-                    " (*.damping, seg*.stiffness)"
+                    f" {doc.source or '<URDF>'}; give parameter names or globs of one kind"
+                    " (*.damping, seg*.stiffness, seg*.mass, seg*.inertia.iyy)"
                 )
             hits.update(found)
     members = [n for n in infos if n in hits]
     kinds = {infos[n].kind for n in members}
-    if len(members) < 2 or not kinds <= set(TIEABLE) or len(kinds) != 1:
+    # a CoM or inertia tie holds one component: x of one body equal to y of another is not
+    # what identical parts share
+    components = {infos[n].component for n in members if infos[n].is_inertial}
+    if len(members) < 2 or not kinds <= set(TIEABLE) or len(kinds) != 1 or len(components) > 1:
         raise ParameterError(
-            f"{where}: tie {name!r} holds {', '.join(members)}; valid: two or more joint"
-            f" parameters of one kind ({' or '.join(TIEABLE)})"
+            f"{where}: tie {name!r} holds {', '.join(members)}; valid: two or more"
+            f" parameters of one kind ({', '.join(TIEABLE)}), and of one component for a"
+            " CoM or inertia tie (seg*.inertia.iyy)"
         )
     for other in model_ties(doc):
         shared = set(other.members) & set(members)

@@ -1,8 +1,9 @@
-"""Parameter ties declared in a model: joint springs or dampers that share one value.
+"""Parameter ties declared in a model: parameters of one kind that share one value.
 
-A *tie* is a group of joint parameters of one kind (``stiffness`` or ``damping``) that take
-one value: one damping for every joint of a lightly damped structure, one stiffness for each
-set of identical segments. It is declared with ``--tie PATTERN`` or a study's ``[ties]`` table
+A *tie* is a group of parameters of one kind (a joint's ``stiffness`` or ``damping``, a link's
+``mass``, CoM component or inertia component) that take one value: one damping for every joint
+of a lightly damped structure, one stiffness, one mass and one pitch inertia for each set of
+identical segments. It is declared with ``--tie PATTERN`` or a study's ``[ties]`` table
 (names and globs, :func:`bondid.model.tie_declaration.declare_tie`) and kept in the model as a URDF
 extension element that other URDF readers ignore, so every command and every copy of the
 model (``fitted.urdf`` too) sees it::
@@ -24,8 +25,8 @@ from typing import Any
 from ..exceptions import ModelError
 
 TIE_TAG = "parameter_tie"
-#: the parameter kinds a tie may hold
-TIEABLE = ("stiffness", "damping")
+#: the parameter kinds a tie may hold (all members of a tie are of one kind)
+TIEABLE = ("stiffness", "damping", "mass", "com", "inertia")
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,9 @@
 
 Rows, each scaled to O(1), per fitted body (:class:`~.layout.Layout`): fixed inertia components
 ``(I_c,k(θ) − v)/s_I = 0`` of a body whose other inertia components are free, bounds on free
-inertia components, and the CoM-in-hull inequalities ``(A t − b)/L ≤ 0`` (linear in z).
+inertia components, the CoM-in-hull inequalities ``(A t − b)/L ≤ 0`` (linear in z), and the
+ties of inertial parameters: ``α − α_lead = ½ ln f`` for a mass, ``(t_k − f t_lead,k)/L = 0``
+for a CoM component, ``(I_c,k − f I_lead,k)/s_I = 0`` for an inertia component.
 """
 
 from __future__ import annotations
@@ -12,9 +14,9 @@ from typing import Any
 
 import numpy as np
 
-from ..model.parameters import INERTIA_COMPONENTS
+from ..model.parameters import COM_AXES, INERTIA_COMPONENTS
 from .layout import Layout
-from .variables import _DIAG, _IJ, _OFF, _T, BodyBlock
+from .variables import _ALPHA, _DIAG, _IJ, _OFF, _T, BodyBlock
 
 
 @dataclass(frozen=True)
@@ -60,7 +62,8 @@ def layout_constraints(
         zb = zsym[blk.offset : blk.offset + 10]
         if blk.fixed_v is None:
             rows += _inertia_rows(layout, blk, zb, lower, upper)
-        if blk.hull is not None and any(k.startswith("com.") for k in blk.free):
+        rows += _tie_rows(layout, blk, zsym)
+        if blk.hull is not None and any(k.startswith("com.") for k in [*blk.free, *blk.tied]):
             t = blk.scale[_T] * zb[_T : _T + 3]  # shift of t is 0
             for A_row, b_row in zip(blk.hull.A, blk.hull.b, strict=True):
                 expr = (casadi.dot(casadi.DM(A_row), t) - b_row) / blk.length
@@ -75,6 +78,27 @@ def _inertia_rows(
     layout: Layout, blk: BodyBlock, zb: Any, lower: np.ndarray, upper: np.ndarray
 ) -> list[tuple[Any, float, float, str]]:
     """``(I_c,k(θ)/s_I, lower, upper, label)`` of a body's fixed and bounded components."""
+    I_c = _inertia_expr(blk, zb)
+    s_i = blk.inertia_scale
+    rows = []
+    for comp in INERTIA_COMPONENTS:
+        r, c = _IJ[comp]
+        key = f"inertia.{comp}"
+        if key in blk.tied:
+            continue  # held by its tie (:func:`_tie_rows`)
+        if key in blk.fixed:
+            v = blk.fixed[key] / s_i
+            rows.append((I_c[r, c] / s_i, v, v, f"{blk.link}.{key} fixed"))
+            continue
+        j = blk.free[key]
+        lo, hi = float(lower[j]), float(upper[j])
+        if np.isfinite(lo) or np.isfinite(hi):
+            rows.append((I_c[r, c] / s_i, lo / s_i, hi / s_i, layout.infos[j].name))
+    return rows
+
+
+def _inertia_expr(blk: BodyBlock, zb: Any) -> Any:
+    """The body's inertia about its CoM ``I_c(θ)`` (3×3 CasADi expression) at ``zb``."""
     import casadi
 
     ze = casadi.DM(blk.shift) + casadi.DM(blk.scale) * zb
@@ -84,18 +108,34 @@ def _inertia_rows(
     for idx, r, c in _OFF:
         V[r, c] = ze[idx]
     S = V @ V.T  # second moment about the CoM
-    I_c = casadi.trace(S) * casadi.DM.eye(3) - S
-    s_i = blk.inertia_scale
+    return casadi.trace(S) * casadi.DM.eye(3) - S
+
+
+def _component_expr(blk: BodyBlock, zb: Any, comp: str) -> Any:
+    """A body's ``comp`` (``mass`` as α, ``com.x`` as t_x, ``inertia.ixx``…) at ``zb``, in
+    the units the tie rows compare: α for a mass, metres, kg·m²."""
+    if comp == "mass":
+        return blk.shift[_ALPHA] + blk.scale[_ALPHA] * zb[_ALPHA]
+    if comp.startswith("com."):
+        k = COM_AXES.index(comp[4:])
+        return blk.scale[_T + k] * zb[_T + k]  # shift of t is 0
+    r, c = _IJ[comp[8:]]
+    return _inertia_expr(blk, zb)[r, c]
+
+
+def _tie_rows(layout: Layout, blk: BodyBlock, zsym: Any) -> list[tuple[Any, float, float, str]]:
+    """The equality rows of ``blk``'s tied inertial components, each scaled to O(1)."""
     rows = []
-    for comp in INERTIA_COMPONENTS:
-        r, c = _IJ[comp]
-        key = f"inertia.{comp}"
-        if key in blk.fixed:
-            v = blk.fixed[key] / s_i
-            rows.append((I_c[r, c] / s_i, v, v, f"{blk.link}.{key} fixed"))
-            continue
-        j = blk.free[key]
-        lo, hi = float(lower[j]), float(upper[j])
-        if np.isfinite(lo) or np.isfinite(hi):
-            rows.append((I_c[r, c] / s_i, lo / s_i, hi / s_i, layout.infos[j].name))
+    for comp, (j, factor) in blk.tied.items():
+        info = layout.infos[j]
+        lead = next(b for b in layout.blocks if b.link == info.owner)
+        lead_comp = "mass" if info.kind == "mass" else f"{info.kind}.{info.component}"
+        mine = _component_expr(blk, zsym[blk.offset : blk.offset + 10], comp)
+        theirs = _component_expr(lead, zsym[lead.offset : lead.offset + 10], lead_comp)
+        if comp == "mass":
+            expr, target = mine - theirs, 0.5 * float(np.log(factor))
+        else:
+            scale = blk.length if comp.startswith("com.") else blk.inertia_scale
+            expr, target = (mine - factor * theirs) / scale, 0.0
+        rows.append((expr, target, target, f"{blk.link}.{comp} tied to {info.name}"))
     return rows

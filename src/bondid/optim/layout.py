@@ -44,7 +44,13 @@ from ..consistency.projection import is_feasible, project_feasible
 from ..consistency.pseudo_inertia import pi_from_urdf, urdf_from_pi
 from ..linear.affine import AffineModel
 from ..model.document import UrdfDocument
-from ..model.parameters import COM_AXES, INERTIA_COMPONENTS, ParameterInfo, link_inertial
+from ..model.parameters import (
+    COM_AXES,
+    INERTIA_COMPONENTS,
+    ParameterInfo,
+    link_inertial,
+    parameter_infos,
+)
 from .model_vars import ModelVars
 from .variables import (
     _ALPHA,
@@ -87,8 +93,10 @@ class Layout(ModelVars):
         affine: any :class:`AffineModel` of ``doc`` (gives body and DOF indices, base values).
         infos: the free parameters, in order (length ``n``).
         hulls: link hull per fitted body (None = no CoM constraint).
-        ties: ``{leader: [(member, factor), ...]}``: joint parameters set to ``factor ·
-            leader`` (:mod:`bondid.optim.tied`); they share the leader's entry of ``z``.
+        ties: ``{leader: [(member, factor), ...]}``: parameters set to ``factor · leader``
+            (:mod:`bondid.optim.tied`). A tied joint parameter shares its leader's entry of
+            ``z``; a tied inertial component gets its body's block (its body stays physically
+            consistent by construction) and an equality constraint to its leader's value.
     """
 
     def __init__(
@@ -104,7 +112,10 @@ class Layout(ModelVars):
         self.base_pi = affine.pi.copy()
         self.base_k = affine.stiffness.copy()
         self.base_d = affine.damping.copy()
-        self.blocks = self._body_blocks(doc, affine, hulls)
+        ties = ties or {}
+        names = [i.name for i in self.infos]
+        inertial = {k: v for k, v in ties.items() if self.infos[names.index(k)].is_inertial}
+        self.blocks = self._body_blocks(doc, affine, hulls, inertial)
         self.joints: list[JointVar] = []
         self.gains: list[GainVar] = []
         self.mixes: list[MixVar] = []
@@ -128,27 +139,40 @@ class Layout(ModelVars):
                 continue
             offset += 1
         self.size = offset
-        self._tie_members(affine, ties or {})
+        self._tie_members(affine, {k: v for k, v in ties.items() if k not in inertial})
         self._model_vars_of(affine)
 
     def _body_blocks(
-        self, doc: UrdfDocument, affine: AffineModel, hulls: dict[str, Hull | None]
+        self,
+        doc: UrdfDocument,
+        affine: AffineModel,
+        hulls: dict[str, Hull | None],
+        ties: dict[str, list[tuple[str, float]]],
     ) -> list[BodyBlock]:
-        """One :class:`BodyBlock` per link with a free inertial parameter, in order."""
+        """One :class:`BodyBlock` per link with a free or tied inertial parameter, in order."""
         blocks: dict[str, BodyBlock] = {}
+
+        def block(link: str) -> BodyBlock:
+            if link not in blocks:
+                blocks[link] = _new_block(doc, affine, link, hulls.get(link))
+                blocks[link].offset = 10 * (len(blocks) - 1)
+            return blocks[link]
+
         for j, info in enumerate(self.infos):
-            if not info.is_inertial:
-                continue
-            if info.owner not in blocks:
-                blocks[info.owner] = _new_block(doc, affine, info.owner, hulls.get(info.owner))
-                blocks[info.owner].offset = 10 * (len(blocks) - 1)
-            blocks[info.owner].free[_component(info)] = j
+            if info.is_inertial:
+                block(info.owner).free[_component(info)] = j
+        all_infos = {p.name: p for p in parameter_infos(doc)}
+        names = [i.name for i in self.infos]
+        for leader, members in ties.items():
+            for member, factor in members:
+                info = all_infos[member]
+                block(info.owner).tied[_component(info)] = (names.index(leader), factor)
         for blk in blocks.values():
             m, c, I_c = link_inertial(doc, blk.link)
             urdf = {"mass": m}
             urdf.update({f"com.{a}": float(c[k]) for k, a in enumerate(COM_AXES)})
             urdf.update({f"inertia.{n}": float(I_c[_IJ[n]]) for n in INERTIA_COMPONENTS})
-            blk.fixed = {k: v for k, v in urdf.items() if k not in blk.free}
+            blk.fixed = {k: v for k, v in urdf.items() if k not in blk.free and k not in blk.tied}
         return list(blocks.values())
 
     def _tie_members(self, affine: AffineModel, ties: dict[str, list[tuple[str, float]]]) -> None:
@@ -175,14 +199,17 @@ class Layout(ModelVars):
         z = np.zeros(self.size)
         for blk in self.blocks:
             m, c, I_c = link_inertial(doc, blk.link)
-            for comp, j in blk.free.items():
+            starts = {comp: float(p0[j]) for comp, j in blk.free.items()}
+            # a tied member starts at its leader's start (a random start moves both)
+            starts.update({comp: f * float(p0[j]) for comp, (j, f) in blk.tied.items()})
+            for comp, v in starts.items():
                 if comp == "mass":
-                    m = float(p0[j])
+                    m = v
                 elif comp.startswith("com."):
-                    c[COM_AXES.index(comp[4:])] = p0[j]
+                    c[COM_AXES.index(comp[4:])] = v
                 else:
                     r, s = _IJ[comp[8:]]
-                    I_c[r, s] = I_c[s, r] = p0[j]
+                    I_c[r, s] = I_c[s, r] = v
             pi = pi_from_urdf(m, c, I_c)
             if not is_feasible(pi, blk.hull):
                 pi = project_feasible(pi, blk.hull, name=blk.link)
@@ -201,7 +228,7 @@ class Layout(ModelVars):
             zeta[1:4] = theta[1:4] + theta[0]
             zeta[4:7] = theta[4:7] * np.exp(theta[0])
             z[blk.offset : blk.offset + 10] = (zeta - blk.shift) / blk.scale
-            if not any(k.startswith("inertia.") for k in blk.free):
+            if not any(k.startswith("inertia.") for k in [*blk.free, *blk.tied]):
                 blk.fixed_v = z[blk.offset + 1 : blk.offset + 7].copy()
         for jv in self.joints:
             if jv.leader >= 0:
@@ -277,7 +304,7 @@ class Layout(ModelVars):
                 lbz[ia] = 0.5 * np.log(lo) if lo > 0 else -np.inf
                 ubz[ia] = 0.5 * np.log(hi) if np.isfinite(hi) else np.inf
                 labels.append((self.infos[j].name, ia))
-            else:
+            elif "mass" not in blk.tied:  # a tied mass: held by its tie's equality
                 lbz[ia] = ubz[ia] = 0.5 * np.log(blk.fixed["mass"])
             for k, a in enumerate(COM_AXES):
                 it = blk.offset + _T + k
@@ -287,7 +314,7 @@ class Layout(ModelVars):
                     lbz[it] = (lower[j] - blk.shift[_T + k]) / blk.scale[_T + k]
                     ubz[it] = (upper[j] - blk.shift[_T + k]) / blk.scale[_T + k]
                     labels.append((self.infos[j].name, it))
-                else:
+                elif comp not in blk.tied:
                     lbz[it] = ubz[it] = blk.fixed[comp] / blk.scale[_T + k]
             if blk.fixed_v is not None:
                 sl = slice(blk.offset + 1, blk.offset + 7)

@@ -32,7 +32,7 @@ from ..cost.problem import CostOptions, FrfProblem
 from ..data.measurement import FrfData
 from ..exceptions import ConfigError, ParameterError
 from ..model.document import UrdfDocument
-from ..model.parameters import ParameterInfo, get_parameters, set_parameter
+from ..model.parameters import ParameterInfo, get_parameters, parameter_infos, set_parameter
 from .constraints import Constraints, layout_constraints
 from .evaluator import Evaluator, ExtraRows
 from .free_columns import movable
@@ -151,7 +151,9 @@ class FitProblem:
             outside = [self.names[i] for i in np.flatnonzero(clipped != p0)]
             self.notes.append(f"start outside the bounds, clipped: {', '.join(outside)}")
         self.initial = clipped
-        links = sorted({i.owner for i in infos if i.is_inertial})
+        owners = {p.name: p.owner for p in parameter_infos(doc) if p.is_inertial}
+        tied = {owners[m] for ms in ties.values() for m, _ in ms if m in owners}
+        links = sorted({i.owner for i in infos if i.is_inertial} | tied)
         missing = [k for k in links if k not in hulls]
         self._hulls = dict(hulls)
         self._hulls.update(link_hulls(doc, missing) if use_hull else dict.fromkeys(missing))
@@ -323,9 +325,9 @@ class FitProblem:
         """A copy of the model with the named values ``x`` ``(n,)`` (and their tied members)."""
         out = self.doc.copy()
         for name, v in zip(self.names, np.asarray(x, dtype=float), strict=True):
-            set_parameter(out, name, max(float(v), 0.0) if name.endswith(_NONNEG) else float(v))
-            for member, factor in self.ties.get(name, ()):
-                set_parameter(out, member, max(factor * float(v), 0.0))
+            for member, factor in [(name, 1.0), *self.ties.get(name, ())]:
+                w = factor * float(v)
+                set_parameter(out, member, max(w, 0.0) if member.endswith(_NONNEG) else w)
         return out
 
     def parameter_map(self) -> TiedParameters:

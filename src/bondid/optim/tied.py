@@ -1,9 +1,10 @@
 """Named parameters with ties, and the model document at a fit's solution.
 
-A *tie* drives joint parameters that are not fitted on their own by a free one:
+A *tie* drives parameters that are not fitted on their own by a free one:
 ``{leader: [(member, factor), ...]}`` sets ``member = factor · leader`` (e.g. one shear
-stiffness for every segment of a lumped chain a diagnosis candidate adds). Leaders and members
-are joint ``stiffness`` or ``damping`` parameters. Ties declared in the model (``--tie``, a
+stiffness for every segment of a lumped chain a diagnosis candidate adds). Leader and members
+are of one kind (:data:`bondid.model.ties.TIEABLE`): joint ``stiffness`` or ``damping``, or a
+link's ``mass``, CoM component or inertia component. Ties declared in the model (``--tie``, a
 study's ``[ties]``: :mod:`bondid.model.ties`) join the ones a caller gives
 (:func:`check_ties`), so every fit of the model keeps them.
 """
@@ -34,21 +35,26 @@ def check_ties(
 
     Raises:
         ConfigError: a leader not among ``names``, a member that is free or tied twice, a
-            parameter that is not a joint stiffness/damping, or a factor that is not finite
-            and > 0.
+            parameter of a kind that cannot be tied or of another kind than its leader, or a
+            factor that is not finite and > 0.
         ModelError: two members of a tie the model declares are both free.
     """
-    kinds = {p.name: p.kind for p in parameter_infos(doc)}
+    # the kind and, for a CoM or inertia component, the component: what a tie must share
+    kinds = {
+        p.name: f"{p.kind}.{p.component}" if p.kind in ("com", "inertia") else p.kind
+        for p in parameter_infos(doc)
+    }
     out: dict[str, list[tuple[str, float]]] = {}
     seen: set[str] = set()
     for leader, members in {**leader_ties(model_ties(doc), names), **ties}.items():
         if leader not in names:
             raise ConfigError(f"tie {leader!r}: the leader must be one of the free parameters")
         for name in [leader, *(m for m, _ in members)]:
-            if kinds.get(name) not in _TIEABLE:
+            if str(kinds.get(name)).split(".")[0] not in _TIEABLE or kinds[name] != kinds[leader]:
                 raise ConfigError(
-                    f"tie {leader!r}: {name!r} is not a joint stiffness or damping of "
-                    f"{doc.source or '<URDF>'}; only those can be tied"
+                    f"tie {leader!r}: {name!r} is not a parameter of"
+                    f" {doc.source or '<URDF>'} of the leader's kind"
+                    f" ({kinds.get(leader)}); a tie holds one kind of {', '.join(_TIEABLE)}"
                 )
         for member, factor in members:
             if member in names or member in seen:

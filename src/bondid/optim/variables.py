@@ -43,6 +43,9 @@ class BodyBlock:
     hull: Hull | None
     free: dict[str, int] = field(default_factory=dict)  # component -> index in names
     fixed: dict[str, float] = field(default_factory=dict)  # component -> URDF value
+    # component -> (its leader's index in names, factor): a tied member, held equal to
+    # factor · the leader's value by an equality constraint (:mod:`.constraints`)
+    tied: dict[str, tuple[int, float]] = field(default_factory=dict)
     fixed_v: np.ndarray | None = None  # z of δ, σ when no inertia component is free
 
     def zeta(self, z: np.ndarray) -> np.ndarray:
