@@ -31,11 +31,10 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..data.measurement import channel_mask
+from ..range_ends import range_end
 from .effects import available
-from .effects.base import Candidate, NewParameter
+from .effects.base import Candidate
 
-#: a parameter is at a bound when it lies within this share of its range's (log) width of it
-BOUND_SHARE = 0.005
 #: frequencies [Hz] at which a modifier's factor is compared across channels (any spread
 #: of values: a factor common to every channel is common at every frequency)
 PROBE_HZ = (3.0, 30.0, 300.0, 3000.0)
@@ -72,24 +71,13 @@ class Caveat:
         return asdict(self)
 
 
-def _position(p: NewParameter, value: float) -> float:
-    """Where ``value`` lies in ``p``'s range: 0 at the lower bound, 1 at the upper one (on a
-    log scale for a positive parameter, the scale its refit moves it on)."""
-    lo, hi = p.lower, p.upper
-    if not p.signed and lo > 0 and value > 0:
-        lo, hi, value = math.log(lo), math.log(hi), math.log(value)
-    return (value - lo) / (hi - lo) if hi > lo else 0.5
-
-
 def at_bound(cand: Candidate, values: Sequence[float]) -> list[Caveat]:
     """The parameters of ``cand`` at ``values`` (SI, in the candidate's order) that sit on a
     bound of their range, one caveat each."""
     out = []
     for p, v in zip(cand.parameters, values, strict=True):
-        if not math.isfinite(v) or p.upper <= p.lower:
-            continue
-        t = _position(p, float(v))
-        side = "lower" if t <= BOUND_SHARE else "upper" if t >= 1.0 - BOUND_SHARE else None
+        # on a log scale for a positive parameter, the scale its refit moves it on
+        side = range_end(float(v), p.lower, p.upper, log=not p.signed)
         if side is None:
             continue
         unit = "" if p.unit in ("", "1") else f" {p.unit}"

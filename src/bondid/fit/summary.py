@@ -15,6 +15,7 @@ from typing import Any
 
 from ..cli import EXIT_FAILED, EXIT_OK
 from ..optim.stall import STALLED, still_falling
+from ..range_ends import range_end
 from ..setup.damping import damping_line
 from .headline import headline_lines, std_footer
 
@@ -115,7 +116,8 @@ def parameter_table(result: Any) -> list[str]:
         ch = f"{100 * (b - a) / abs(a):+.2f} %" if a != 0 else f"{b - a:+.3g}"
         lower, upper = getattr(result, "lower", None), getattr(result, "upper", None)
         ends = () if lower is None or upper is None else (float(lower[i]), float(upper[i]))
-        bound = any(math.isfinite(v) and abs(b - v) <= 1e-6 * max(abs(v), 1e-12) for v in ends)
+        # log scale for a positive range (masses, springs), linear for a CoM or a mix
+        bound = bool(ends) and range_end(b, *ends, log=True) is not None
         n_bound += bound
         mark = "  [bound]" if bound else ""
         lines.append(f"{n:<{w}}  {_fmt(a):>12}  {_fmt(b):>12}  {ch:>9}  {_fmt(sd):>10}{mark}")

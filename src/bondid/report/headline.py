@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from ..jsonsafe import number
+from ..range_ends import range_end
 from .html import fmt
 
 #: a final db_rms up to this factor times the noise level counts as "at the noise level"
@@ -54,15 +55,12 @@ def records(v: Any) -> list[Mapping[str, Any]]:
 
 
 def at_bound(p: Mapping[str, Any]) -> bool:
-    """True when a parameter entry's ``fitted`` equals its finite ``lower`` or ``upper``
-    (to a relative 1e-6)."""
-    x = _num(p, "fitted")
-    if x is None:
+    """True when a parameter entry's ``fitted`` lies at an end of its finite range
+    (``lower``, ``upper``; :func:`bondid.range_ends.range_end`)."""
+    x, lo, hi = _num(p, "fitted"), _num(p, "lower"), _num(p, "upper")
+    if x is None or lo is None or hi is None:
         return False
-    for b in (_num(p, "lower"), _num(p, "upper")):
-        if b is not None and abs(x - b) <= 1e-6 * max(abs(b), 1e-12):
-            return True
-    return False
+    return range_end(x, lo, hi, log=True) is not None
 
 
 @dataclass
