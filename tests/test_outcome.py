@@ -74,7 +74,8 @@ def test_without_a_noise_level_nothing_is_claimed_either_way():
 def test_a_final_model_at_the_level_of_all_data_explains():
     """Kept effects above the held-out level, but the final model refitted on all data is at
     their noise level (within the package's one ratio, 1.10): explained, saying both
-    figures; just above that ratio the answer stays partly explained."""
+    figures; just above that ratio the answer stays partly explained. Without a kept effect
+    the held-out test alone decides."""
     from bondid.optim.noise import AT_LEVEL
 
     t = scoring.tests(2.0, 3.0, 2, NOISE)
@@ -84,6 +85,9 @@ def test_a_final_model_at_the_level_of_all_data_explains():
     assert out.as_dict()["final_over_noise"] == pytest.approx(0.999 * AT_LEVEL)
     assert outcome(3.0, 2.0, [t], NOISE, final_ratio=1.001 * AT_LEVEL).kind == PARTLY
     assert outcome(3.0, 2.0, [t], NOISE, final_ratio=None).kind == PARTLY
-    # without effects: the parameter refit itself, refitted on all data
+    # without effects the held-out test alone decides: a parameter refit above the held-out
+    # level stays unexplained, and the text gives the all-data figure
     bare = outcome(2.5, 2.5, [], NOISE, final_ratio=1.0)
-    assert bare.kind == EXPLAINED and "parameter refit" in bare.text
+    assert bare.kind == UNEXPLAINED and "1.00x of that data's noise level" in bare.text
+    assert outcome(2.5, 2.5, [], NOISE, final_ratio=1.5).kind == UNEXPLAINED
+    assert "small" not in outcome(2.5, 2.5, [], NOISE, final_ratio=1.5).text

@@ -20,10 +20,14 @@ removes (:data:`CONFIRMED_SHARE`): an effect that leaves most of the excess in p
 on the model's held-out score: the test that decides whether a step can accept anything
 decides whether anything is left. The search's models are fitted on the training bands only;
 the final model is the same model refitted on all the data (:mod:`.final_fit`), with no
-points held out. When that refit reaches the noise level of all the data
-(:data:`bondid.optim.noise.AT_LEVEL`, the one ratio "at the noise level" of the package)
-where the search's model did not — a basin the training bands alone did not lead to, e.g. a
-pivot — nothing the data show is left either: the answer is *explained*, and says so.
+points held out. When that refit, with the kept effects, reaches the noise level of all the
+data (:data:`bondid.optim.noise.AT_LEVEL`, the one ratio "at the noise level" of the
+package) where the search's model did not — a basin the training bands alone did not lead
+to, e.g. a pivot — nothing the data show is left either: the answer is *explained*, and says
+so. Without a kept effect there is no new model to find such a basin: the parameter refit
+above the held-out level is what the rule would have accepted an effect against, so the
+answer is *unexplained* even when the refit on all data comes within that looser ratio of
+the all-data noise estimate (the text says so: what is missing is then small).
 """
 
 from __future__ import annotations
@@ -122,10 +126,10 @@ def outcome(
         removed = (refit_score**2 - final_score**2) / (refit_score**2 - L**2)
     left = scoring.above_level(final_score, noise)
     fin = math.nan if final_ratio is None else float(final_ratio)
-    if left and math.isfinite(fin) and fin <= AT_LEVEL:
-        what = "the model with the kept effect(s)" if kept_tests else "the parameter refit"
-        text = (f"explained: refitted on all data, {what} is at the noise level ({fin:.2f}x;"
-                f" on the held-out bands the search's fit was at {over:.2f}x)")  # fmt: skip
+    if left and kept_tests and math.isfinite(fin) and fin <= AT_LEVEL:
+        text = (f"explained: refitted on all data, the model with the kept effect(s) is at the"
+                f" noise level ({fin:.2f}x; on the held-out bands the search's fit was at"
+                f" {over:.2f}x)")  # fmt: skip
         return Outcome(EXPLAINED, text, over, over0, removed, grades, fin)
     if not left:
         if kept_tests:
@@ -141,7 +145,11 @@ def outcome(
                 f" the noise, the model stays at {over:.2f}x the held-out noise level; the rest"
                 f" is something no candidate explains (see the remainder)")  # fmt: skip
         return Outcome(PARTLY, text, over, over0, removed, grades, fin)
+    small = ""
+    if math.isfinite(fin) and fin <= AT_LEVEL:
+        small = (f"; refitted on all data the parameters come within {fin:.2f}x of that"
+                 f" data's noise level, so what is missing is small")  # fmt: skip
     text = (f"unexplained: the parameter refit is at {over0:.2f}x the held-out noise level and"
             f" no candidate passes the rule; something is missing that none of the candidates"
-            f" explains (see the remainder)")  # fmt: skip
+            f" explains (see the remainder){small}")  # fmt: skip
     return Outcome(UNEXPLAINED, text, over, over0, removed, grades, fin)
