@@ -204,3 +204,26 @@ def test_measuring_through_the_observation_keeps_the_first_cases_files(tmp_path)
                      case.effects)  # fmt: skip
     for a, b in zip(old, new, strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+def test_a_bending_links_remainder_is_expected_where_its_hinges_drive_the_machine():
+    """The clamped first mode sets the arm's hinges; in the assembled machine the modes the
+    hinges drive lie elsewhere, and a remainder is scored against those: one band around
+    each mode whose most energetic DOF is a hinge."""
+    from benchmark.truth import hinge_modes
+
+    from bondid.modes.analysis import modal_analysis
+
+    truth, base, e = _pair("polar/flk/mob")
+    modes = modal_analysis(build_affine_model(truth).linear_model()).vibration_modes()
+    bending = sorted(m.f_hz for m in modes if m.dominant_dof.startswith("arm_truth_hinge"))
+    assert len(bending) == 4 and hinge_modes(truth, "arm") == pytest.approx(bending)
+    # the clamped first mode is not where the machine's hinge modes are
+    assert min(bending) > 1.4 * e.spec["f"]
+    expected = expected_remainder(e, truth)
+    assert [r.kind for r in expected] == ["missing_mode"] * 4
+    assert [r.band_hz for r in expected] == [(0.7 * f, 1.4 * f) for f in hinge_modes(truth, "arm")]
+    # without the truth model: the band around the clamped mode, as before
+    (r0,) = expected_remainder(e)
+    assert r0.band_hz == pytest.approx((0.7 * e.spec["f"], 1.4 * e.spec["f"]))
+    assert hinge_modes(base, "arm") == []

@@ -149,13 +149,25 @@ def run_case(case: Case, s: Settings) -> dict[str, Any]:
             dest = s.keep / case.name
             shutil.rmtree(dest, ignore_errors=True)
             shutil.copytree(folder, dest)
-    return {**row, **score(case, diag, row["db_truth"]), **open_score(case, diag, s.effects)}
+    return {**row, **score(case, diag, row["db_truth"]),
+            **open_score(case, diag, s.effects, truth)}  # fmt: skip
 
 
-def open_score(case: Case, diag: dict[str, Any], effects: str | None) -> dict[str, Any]:
+def case_truth(case: Case) -> UrdfDocument:
+    """The truth machine of ``case`` (the design's model perturbed and given its effects,
+    as its data were made from)."""
+    from .designs import design
+    from .truth import truth_model
+
+    return truth_model(UrdfDocument.load(design(case.design).path), case.effects, case.seed)
+
+
+def open_score(
+    case: Case, diag: dict[str, Any], effects: str | None, truth: UrdfDocument | None = None
+) -> dict[str, Any]:
     """The open-world figures of a case (:mod:`.open_scoring`): the answer, whether a case
     whose cause no candidate can name stayed honest, whether the remainder's description
-    points where its cause lives."""
+    points where its cause lives (``truth``: the case's truth machine, built when needed)."""
     from .open_scoring import honest, remainder_ok
     from .truth import expected_remainder
 
@@ -164,7 +176,9 @@ def open_score(case: Case, diag: dict[str, Any], effects: str | None) -> dict[st
         e.library is None or (offered is not None and e.library not in offered)
         for e in case.effects
     )
-    expected = [r for e in case.effects for r in expected_remainder(e)]
+    if truth is None and any(e.effect == "flexible_link" for e in case.effects):
+        truth = case_truth(case)
+    expected = [r for e in case.effects for r in expected_remainder(e, truth)]
     return {
         "outcome": (diag.get("verdict") or {}).get("outcome"),
         "left_out": left_out,

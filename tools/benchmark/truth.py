@@ -214,10 +214,29 @@ def add_soft_mounts(doc: UrdfDocument, f: float) -> UrdfDocument:
     return out
 
 
-def expected_remainder(e: TruthEffect) -> tuple[Remainder, ...]:
+def hinge_modes(truth: UrdfDocument, link: str) -> list[float]:
+    """The frequencies [Hz] of the truth machine's modes (neutral pose) whose most energetic
+    DOF is one of ``link``'s bending hinges (:mod:`.truth_structures`), lowest first.
+    ``spec["f"]`` sets the first mode of what the link carries with its root clamped; in the
+    assembled machine the modes the hinges drive lie elsewhere (up to several times higher
+    on the benchmark's designs), and a missing mode of the remainder there is the bending
+    link's."""
+    from bondid.linear import build_affine_model
+    from bondid.modes.analysis import modal_analysis
+
+    modes = modal_analysis(build_affine_model(truth).linear_model()).vibration_modes()
+    return [m.f_hz for m in modes if m.dominant_dof.startswith(f"{link}_truth_hinge")]
+
+
+def expected_remainder(e: TruthEffect, truth: UrdfDocument | None = None) -> tuple[Remainder, ...]:
     """What a right description of ``e``'s remainder points at (the most telling first; one
-    of them is enough)."""
+    of them is enough); ``truth``: the truth model, for a bending link (:func:`hinge_modes`:
+    one band around each mode its hinges drive)."""
     spec, loc = e.spec, e.location
+    if e.effect == "flexible_link" and truth is not None:
+        bending = hinge_modes(truth, loc)
+        if bending:
+            return tuple(Remainder("missing_mode", band_hz=(0.7 * f, 1.4 * f)) for f in bending)
     if e.effect == "sensor_dynamics":
         band = (0.7 * spec["f"], 1.4 * spec["f"])
         return (Remainder("output_row", rows=(loc,), band_hz=band),
