@@ -93,6 +93,13 @@ class ParameterInfo:
     def is_inertial(self) -> bool:
         return self.kind in ("mass", "com", "inertia")
 
+    @property
+    def component_key(self) -> str:
+        """What the parameter is of its owner: ``mass``, ``com.x``, ``inertia.iyy``; for
+        any other parameter its kind (``stiffness``, ``damping``, ...). Parameters of one
+        key are alike: a fit's body blocks are keyed by it, and a tie's members share it."""
+        return f"{self.kind}.{self.component}" if self.kind in ("com", "inertia") else self.kind
+
 
 def _joint_units(kind: str) -> tuple[str, str]:
     if kind == "prismatic":

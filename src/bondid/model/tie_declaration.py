@@ -38,8 +38,8 @@ def declare_tie(doc: UrdfDocument, name: str, items: Iterable[str], where: str) 
     kinds = {infos[n].kind for n in members}
     # a CoM or inertia tie holds one component: x of one body equal to y of another is not
     # what identical parts share
-    components = {infos[n].component for n in members if infos[n].is_inertial}
-    if len(members) < 2 or not kinds <= set(TIEABLE) or len(kinds) != 1 or len(components) > 1:
+    keys = {infos[n].component_key for n in members}
+    if len(members) < 2 or not kinds <= set(TIEABLE) or len(keys) != 1:
         raise ParameterError(
             f"{where}: tie {name!r} holds {', '.join(members)}; valid: two or more"
             f" parameters of one kind ({', '.join(TIEABLE)}), and of one component for a"

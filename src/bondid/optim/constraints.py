@@ -129,9 +129,8 @@ def _tie_rows(layout: Layout, blk: BodyBlock, zsym: Any) -> list[tuple[Any, floa
     for comp, (j, factor) in blk.tied.items():
         info = layout.infos[j]
         lead = next(b for b in layout.blocks if b.link == info.owner)
-        lead_comp = "mass" if info.kind == "mass" else f"{info.kind}.{info.component}"
         mine = _component_expr(blk, zsym[blk.offset : blk.offset + 10], comp)
-        theirs = _component_expr(lead, zsym[lead.offset : lead.offset + 10], lead_comp)
+        theirs = _component_expr(lead, zsym[lead.offset : lead.offset + 10], info.component_key)
         if comp == "mass":
             expr, target = mine - theirs, 0.5 * float(np.log(factor))
         else:

@@ -65,11 +65,6 @@ from .variables import (
 )
 
 
-def _component(info: ParameterInfo) -> str:
-    """``mass``, ``com.x``… or ``inertia.ixx``… of an inertial parameter."""
-    return "mass" if info.kind == "mass" else f"{info.kind}.{info.component}"
-
-
 def _new_block(doc: UrdfDocument, affine: AffineModel, link: str, hull: Hull | None) -> BodyBlock:
     """A body's block with its length scale ``L``: half the hull's bounding-box diagonal, else
     the radius of gyration, else 0.1 m (the δ shift and σ scale are set by ``start``)."""
@@ -113,9 +108,9 @@ class Layout(ModelVars):
         self.base_k = affine.stiffness.copy()
         self.base_d = affine.damping.copy()
         ties = ties or {}
-        names = [i.name for i in self.infos]
-        inertial = {k: v for k, v in ties.items() if self.infos[names.index(k)].is_inertial}
-        self.blocks = self._body_blocks(doc, affine, hulls, inertial)
+        index = {info.name: j for j, info in enumerate(self.infos)}
+        inertial = {k: v for k, v in ties.items() if self.infos[index[k]].is_inertial}
+        self.blocks = self._body_blocks(doc, affine, hulls, index, inertial)
         self.joints: list[JointVar] = []
         self.gains: list[GainVar] = []
         self.mixes: list[MixVar] = []
@@ -147,9 +142,11 @@ class Layout(ModelVars):
         doc: UrdfDocument,
         affine: AffineModel,
         hulls: dict[str, Hull | None],
+        index: dict[str, int],
         ties: dict[str, list[tuple[str, float]]],
     ) -> list[BodyBlock]:
-        """One :class:`BodyBlock` per link with a free or tied inertial parameter, in order."""
+        """One :class:`BodyBlock` per link with a free or tied inertial parameter, in order
+        (``index``: each free name's position; ``ties``: the inertial ones)."""
         blocks: dict[str, BodyBlock] = {}
 
         def block(link: str) -> BodyBlock:
@@ -160,13 +157,12 @@ class Layout(ModelVars):
 
         for j, info in enumerate(self.infos):
             if info.is_inertial:
-                block(info.owner).free[_component(info)] = j
+                block(info.owner).free[info.component_key] = j
         all_infos = {p.name: p for p in parameter_infos(doc)}
-        names = [i.name for i in self.infos]
         for leader, members in ties.items():
             for member, factor in members:
                 info = all_infos[member]
-                block(info.owner).tied[_component(info)] = (names.index(leader), factor)
+                block(info.owner).tied[info.component_key] = (index[leader], factor)
         for blk in blocks.values():
             m, c, I_c = link_inertial(doc, blk.link)
             urdf = {"mass": m}

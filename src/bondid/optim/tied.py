@@ -39,22 +39,20 @@ def check_ties(
             factor that is not finite and > 0.
         ModelError: two members of a tie the model declares are both free.
     """
-    # the kind and, for a CoM or inertia component, the component: what a tie must share
-    kinds = {
-        p.name: f"{p.kind}.{p.component}" if p.kind in ("com", "inertia") else p.kind
-        for p in parameter_infos(doc)
-    }
+    infos = {p.name: p for p in parameter_infos(doc)}
     out: dict[str, list[tuple[str, float]]] = {}
     seen: set[str] = set()
     for leader, members in {**leader_ties(model_ties(doc), names), **ties}.items():
         if leader not in names:
             raise ConfigError(f"tie {leader!r}: the leader must be one of the free parameters")
+        key = infos[leader].component_key if leader in infos else None
         for name in [leader, *(m for m, _ in members)]:
-            if str(kinds.get(name)).split(".")[0] not in _TIEABLE or kinds[name] != kinds[leader]:
+            p = infos.get(name)
+            if p is None or p.kind not in _TIEABLE or p.component_key != key:
                 raise ConfigError(
                     f"tie {leader!r}: {name!r} is not a parameter of"
-                    f" {doc.source or '<URDF>'} of the leader's kind"
-                    f" ({kinds.get(leader)}); a tie holds one kind of {', '.join(_TIEABLE)}"
+                    f" {doc.source or '<URDF>'} of the leader's kind ({key}); a tie holds"
+                    f" one kind of {', '.join(_TIEABLE)}"
                 )
         for member, factor in members:
             if member in names or member in seen:
