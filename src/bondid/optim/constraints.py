@@ -58,11 +58,12 @@ def layout_constraints(
     import casadi
 
     rows: list[tuple[Any, float, float, str]] = []
+    exprs = _BodyExprs(zsym)
     for blk in layout.blocks:
         zb = zsym[blk.offset : blk.offset + 10]
         if blk.fixed_v is None:
-            rows += _inertia_rows(layout, blk, zb, lower, upper)
-        rows += _tie_rows(layout, blk, zsym)
+            rows += _inertia_rows(layout, blk, exprs.inertia(blk), lower, upper)
+        rows += _tie_rows(layout, blk, exprs)
         if blk.hull is not None and any(k.startswith("com.") for k in [*blk.free, *blk.tied]):
             t = blk.scale[_T] * zb[_T : _T + 3]  # shift of t is 0
             for A_row, b_row in zip(blk.hull.A, blk.hull.b, strict=True):
@@ -75,10 +76,10 @@ def layout_constraints(
 
 
 def _inertia_rows(
-    layout: Layout, blk: BodyBlock, zb: Any, lower: np.ndarray, upper: np.ndarray
+    layout: Layout, blk: BodyBlock, I_c: Any, lower: np.ndarray, upper: np.ndarray
 ) -> list[tuple[Any, float, float, str]]:
-    """``(I_c,k(θ)/s_I, lower, upper, label)`` of a body's fixed and bounded components."""
-    I_c = _inertia_expr(blk, zb)
+    """``(I_c,k(θ)/s_I, lower, upper, label)`` of a body's fixed and bounded components
+    (``I_c``: the body's inertia expression, :meth:`_BodyExprs.inertia`)."""
     s_i = blk.inertia_scale
     rows = []
     for comp in INERTIA_COMPONENTS:
@@ -97,40 +98,53 @@ def _inertia_rows(
     return rows
 
 
-def _inertia_expr(blk: BodyBlock, zb: Any) -> Any:
-    """The body's inertia about its CoM ``I_c(θ)`` (3×3 CasADi expression) at ``zb``."""
-    import casadi
+class _BodyExprs:
+    """The bodies' expressions at ``zsym``, each built once: a body's inertia enters its own
+    rows and the tie row of every member tied to it."""
 
-    ze = casadi.DM(blk.shift) + casadi.DM(blk.scale) * zb
-    V: Any = casadi.SX.zeros(3, 3) if isinstance(zb, casadi.SX) else casadi.MX.zeros(3, 3)
-    for k in range(3):
-        V[k, k] = casadi.exp(ze[_DIAG[k]])
-    for idx, r, c in _OFF:
-        V[r, c] = ze[idx]
-    S = V @ V.T  # second moment about the CoM
-    return casadi.trace(S) * casadi.DM.eye(3) - S
+    def __init__(self, zsym: Any) -> None:
+        self.zsym = zsym
+        self._inertia: dict[str, Any] = {}
+
+    def inertia(self, blk: BodyBlock) -> Any:
+        """The body's inertia about its CoM ``I_c(θ)`` (3×3 CasADi expression)."""
+        if blk.link not in self._inertia:
+            import casadi
+
+            zb = self.zsym[blk.offset : blk.offset + 10]
+            ze = casadi.DM(blk.shift) + casadi.DM(blk.scale) * zb
+            V: Any = casadi.SX.zeros(3, 3) if isinstance(zb, casadi.SX) else casadi.MX.zeros(3, 3)
+            for k in range(3):
+                V[k, k] = casadi.exp(ze[_DIAG[k]])
+            for idx, r, c in _OFF:
+                V[r, c] = ze[idx]
+            S = V @ V.T  # second moment about the CoM
+            self._inertia[blk.link] = casadi.trace(S) * casadi.DM.eye(3) - S
+        return self._inertia[blk.link]
+
+    def component(self, blk: BodyBlock, comp: str) -> Any:
+        """A body's ``comp`` (``mass`` as α, ``com.x`` as t_x, ``inertia.ixx``…), in the
+        units the tie rows compare: α for a mass, metres, kg·m²."""
+        zb = self.zsym[blk.offset : blk.offset + 10]
+        if comp == "mass":
+            return blk.shift[_ALPHA] + blk.scale[_ALPHA] * zb[_ALPHA]
+        if comp.startswith("com."):
+            k = COM_AXES.index(comp[4:])
+            return blk.scale[_T + k] * zb[_T + k]  # shift of t is 0
+        r, c = _IJ[comp[8:]]
+        return self.inertia(blk)[r, c]
 
 
-def _component_expr(blk: BodyBlock, zb: Any, comp: str) -> Any:
-    """A body's ``comp`` (``mass`` as α, ``com.x`` as t_x, ``inertia.ixx``…) at ``zb``, in
-    the units the tie rows compare: α for a mass, metres, kg·m²."""
-    if comp == "mass":
-        return blk.shift[_ALPHA] + blk.scale[_ALPHA] * zb[_ALPHA]
-    if comp.startswith("com."):
-        k = COM_AXES.index(comp[4:])
-        return blk.scale[_T + k] * zb[_T + k]  # shift of t is 0
-    r, c = _IJ[comp[8:]]
-    return _inertia_expr(blk, zb)[r, c]
-
-
-def _tie_rows(layout: Layout, blk: BodyBlock, zsym: Any) -> list[tuple[Any, float, float, str]]:
+def _tie_rows(
+    layout: Layout, blk: BodyBlock, exprs: _BodyExprs
+) -> list[tuple[Any, float, float, str]]:
     """The equality rows of ``blk``'s tied inertial components, each scaled to O(1)."""
     rows = []
     for comp, (j, factor) in blk.tied.items():
         info = layout.infos[j]
         lead = next(b for b in layout.blocks if b.link == info.owner)
-        mine = _component_expr(blk, zsym[blk.offset : blk.offset + 10], comp)
-        theirs = _component_expr(lead, zsym[lead.offset : lead.offset + 10], info.component_key)
+        mine = exprs.component(blk, comp)
+        theirs = exprs.component(lead, info.component_key)
         if comp == "mass":
             expr, target = mine - theirs, 0.5 * float(np.log(factor))
         else:
