@@ -96,7 +96,8 @@ def screening_starts(models: Models, places: Places) -> list[StartSpec]:
     elastic centre, or in where a parameter starts, e.g. a pivot's shift) gets one start,
     from the candidate's best new values when it has the same parameters (its own start
     values of the signed ones where they differ; else its own best scan start), and takes
-    its place among the others by its figure. The nominal origin of the best start stays
+    its place among the others by its figure, taken, as a placed start's, once the nominal
+    parameters have relaxed around it. The nominal origin of the best start stays
     second (see :mod:`.starts`).
     """
     own_option = models.options[0]
@@ -124,7 +125,7 @@ def _variant_start(
     models: Models, k: int, option: Candidate, own: list[StartSpec], places: Places
 ) -> list[StartSpec]:
     """The one start of variant ``k`` (see :func:`screening_starts`)."""
-    from .starts import NEW_ITER, spec_of
+    from .starts import NEW_ITER, predicted_cost, relaxed
 
     refit = models[k].refit
     cand = models.options[0]
@@ -141,7 +142,12 @@ def _variant_start(
         if p.signed and p.initial != q.initial:
             new[i] = p.initial
     state, _ = refit.solve_new(refit.with_new(refit.state0, new), NEW_ITER)
-    return [spec_of(refit, f"{best.label}, {option.description}", state, k)]
+    # ranked like a placed start, once the nominal parameters have relaxed around it: from
+    # the parameter refit's bent values one linearised step ranks a pivot start by how the
+    # bent model happens to sit, not by the basin the start lies in
+    figure = predicted_cost(refit, relaxed(refit, state))
+    label = f"{best.label}, {option.description}"
+    return [StartSpec(label, state.x.copy(), state.theta.copy(), figure, k)]
 
 
 def _starts(task: Task, models: Models) -> Iterator[Start]:

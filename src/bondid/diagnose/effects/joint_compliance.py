@@ -11,10 +11,15 @@ known, so the pivot is a parameter. The joint is inserted at the interface's bea
 (the mean of its existing parasitic pivots; the child's CoM when it has none) and its pivot
 freed across the axis (:func:`bondid.model.pivot.free_pivot`: two shifts, ``pivot_u`` and
 ``pivot_v`` [m/rad], that enter the linearised model exactly). The pivot's cost landscape has
-walls (a shift moves the new mode's residues through zero), so the candidate carries variants
+walls (a shift moves the new mode's residues through zero) and the basin of the right pivot is
+narrow: on a link of a few centimetres' section a refit started 5 mm off the pivot in both
+directions across the axis finds it, one started 10 mm off does not. A guide seldom pivots on
+a line through its bearing centre, so the candidate carries variants
 (:attr:`~.base.Candidate.variants`, each a start of its own for the same model) whose pivot
-starts elsewhere: one direction across the axis at a time at the child frame's origin, the
-child's CoM and the two faces of its collision hull (:func:`pivot_options`).
+starts on a :data:`PIVOT_GRID` × :data:`PIVOT_GRID` grid over the cross-section of the child's
+collision hull across the axis (without a hull: the child frame's origin and CoM, in every
+combination; :func:`pivot_options`). The screening ranks them after the nominal parameters
+have relaxed around each (:func:`bondid.diagnose.starts.relaxed`) and the refit tries the best.
 New parameters: the joint's stiffness and damping (and the two pivot shifts). The start puts
 its mode at 300 Hz with 3 % damping (from the DOF's effective inertia); the starting-point
 scan moves it from 15 Hz to 12 kHz keeping the damping ratio.
@@ -41,6 +46,10 @@ ZETA = 0.03
 SCAN_HZ = tuple(float(f) for f in np.geomspace(15.0, 12000.0, 70))
 
 
+#: pivot starts per direction across the axis, spread over the child's hull: a spacing of a
+#: sixth of the hull's width puts one start within the few millimetres of a hand-sized
+#: link's pivot that its refit needs
+PIVOT_GRID = 7
 #: pivots closer than this to one already listed are not tried again [m]
 PIVOT_TOL = 0.003
 #: how far a free pivot may move from the bearing centre of a child without geometry [m]
@@ -51,24 +60,27 @@ def pivot_options(
     doc: UrdfDocument, itf: Interface, axis: np.ndarray, box: Box | bool | None = True
 ) -> list[np.ndarray]:
     """Pivots (child frame, m) to try for a rotational DOF about ``axis`` at ``itf``: the
-    bearing centre first (:meth:`~.topology.Interface.pivot`), then, for each of the two
-    coordinate directions across the axis, that coordinate moved to the child frame's origin,
-    the child's CoM and the extremes of its collision hull (the others kept). ``box``: the
-    child's hull box (:func:`~.topology.link_box`; None: no hull), True: found here."""
+    bearing centre first (:meth:`~.topology.Interface.pivot`), then both coordinates across
+    the axis on a :data:`PIVOT_GRID` grid spanning the child's collision hull box (without a
+    hull: each at the bearing centre's, the child frame's origin's and the child's CoM's
+    value), the coordinate along the axis kept. ``box``: the child's hull box
+    (:func:`~.topology.link_box`; None: no hull), True: found here."""
     centre = np.asarray(itf.pivot(doc), float)
-    lk = doc.link(itf.child)
-    levels = [np.zeros(3)]
-    if lk.inertial is not None:
-        levels.append(rotation_and_translation(lk.inertial.origin)[1])
     if box is True:
         box = link_box(doc, itf.child)
+    u, v = np.flatnonzero(np.abs(axis) < 0.5)[:2]
     if box:
-        levels += [np.asarray(box[0], float), np.asarray(box[1], float)]
+        lo, hi = np.asarray(box[0], float), np.asarray(box[1], float)
+        spans = [np.linspace(lo[d], hi[d], PIVOT_GRID) for d in (u, v)]
+    else:
+        lk = doc.link(itf.child)
+        com = None if lk.inertial is None else rotation_and_translation(lk.inertial.origin)[1]
+        spans = [np.array([centre[d], 0.0, *([] if com is None else [com[d]])]) for d in (u, v)]
     out = [centre]
-    for d in np.flatnonzero(np.abs(axis) < 0.5):
-        for level in levels:
+    for a in spans[0]:
+        for b in spans[1]:
             p = centre.copy()
-            p[d] = level[d]
+            p[u], p[v] = a, b
             if all(np.linalg.norm(p - q) > PIVOT_TOL for q in out):
                 out.append(p)
     return out
