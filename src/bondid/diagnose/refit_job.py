@@ -125,7 +125,7 @@ def _variant_start(
     models: Models, k: int, option: Candidate, own: list[StartSpec], places: Places
 ) -> list[StartSpec]:
     """The one start of variant ``k`` (see :func:`screening_starts`)."""
-    from .starts import NEW_ITER, predicted_cost, relaxed
+    from .starts import NEW_ITER, spec_of
 
     refit = models[k].refit
     cand = models.options[0]
@@ -145,9 +145,7 @@ def _variant_start(
     # ranked like a placed start, once the nominal parameters have relaxed around it: from
     # the parameter refit's bent values one linearised step ranks a pivot start by how the
     # bent model happens to sit, not by the basin the start lies in
-    figure = predicted_cost(refit, relaxed(refit, state))
-    label = f"{best.label}, {option.description}"
-    return [StartSpec(label, state.x.copy(), state.theta.copy(), figure, k)]
+    return [spec_of(refit, f"{best.label}, {option.description}", state, k, relax=True)]
 
 
 def _starts(task: Task, models: Models) -> Iterator[Start]:

@@ -254,10 +254,12 @@ def _matched(
     return [spec_of(refit, "modes matched", refit.with_new(refit.state0, new), variant)]
 
 
-def spec_of(refit: Refit, label: str, state: State, variant: int) -> StartSpec:
-    """The start of ``state`` with its figure."""
-    return StartSpec(label, state.x.copy(), state.theta.copy(), predicted_cost(refit, state),
-                     variant)  # fmt: skip
+def spec_of(refit: Refit, label: str, state: State, variant: int, relax: bool = False) -> StartSpec:
+    """The start of ``state`` with its figure; ``relax``: the figure taken once the nominal
+    parameters have relaxed around it (:func:`relaxed`), the refit still starting at
+    ``state``."""
+    figure = predicted_cost(refit, relaxed(refit, state) if relax else state)
+    return StartSpec(label, state.x.copy(), state.theta.copy(), figure, variant)
 
 
 def best_figure(starts: Sequence[StartSpec]) -> float:
