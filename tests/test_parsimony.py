@@ -8,10 +8,10 @@ from __future__ import annotations
 import numpy as np
 
 from bondid.diagnose import scoring
+from bondid.diagnose.decide import verdict_order
 from bondid.diagnose.effects import available
 from bondid.diagnose.job import JobResult
 from bondid.diagnose.parsimony import entries, prefer_simpler
-from bondid.diagnose.search import verdict_order
 
 CHANNELS = ("rot", "ext", "lift")
 #: the held-out noise reference of the measured case (module docstring of parsimony.py)

@@ -1,4 +1,4 @@
-"""The verdict's strength test (bondid.diagnose.scoring.strength_z, search.verdict_order): the
+"""The verdict's strength test (bondid.diagnose.scoring.strength_z, decide.verdict_order): the
 Wald statistic of an absent effect against draws of noise of known level, its rules on the
 parameters it reads, and the order in which a step tests its refits."""
 
@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from bondid.diagnose import scoring
+from bondid.diagnose.decide import verdict_order
 from bondid.diagnose.effects.base import Candidate, NewParameter
 from bondid.diagnose.job import JobResult
-from bondid.diagnose.search import verdict_order
 from bondid.optim.result import parameter_statistics
 
 #: draws of the noise

@@ -90,7 +90,9 @@ class Outcome:
 def grade(test: dict[str, Any]) -> str:
     """``"confirmed"`` or ``"tentative"`` for an accepted effect's rule figures ``test``
     (``"confirmed"`` when the rule ran without a noise level: no share to grade by)."""
-    share = test.get("excess_share")
+    # an effect accepted with the next one (:func:`.search.joint_step`) is graded by
+    # the share the two remove together
+    share = (test.get("joint") or test).get("excess_share")
     if share is None or not math.isfinite(float(share)):
         return "confirmed"
     return "confirmed" if float(share) >= CONFIRMED_SHARE else "tentative"

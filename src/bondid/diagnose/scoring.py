@@ -271,8 +271,23 @@ RULE = (
     "(s0^2 - s1^2) >= min_excess_share (s0^2 - L^2); without a noise level: s1 lower by "
     "rel_margin of s0 and by abs_margin_db; the best candidate is the best-scoring one whose "
     "strength the data determine: value/std >= z for at least one of its strength parameters "
-    "(stiffness, delay, lag time); and the accepted refit lowers the weighted gap on all data"
+    "(stiffness, delay, lag time); and the accepted refit lowers the weighted gap on all data; "
+    "a best refit refused only for min_excess_share is accepted with the next step's winner "
+    "when that one passes the rule on top of it and the pair passes it against the same base "
+    "(p: both effects' parameters)"
 )
+
+
+def short_of_share(test: dict[str, Any]) -> bool:
+    """Was the refit of ``test`` (from :func:`tests`, with ``strength_z`` set) refused only
+    because it removes too small a share of the excess: the base above the noise level, the
+    gain significant, the strength determined, the gap on all data lower? Such an effect is
+    real but not alone: a second missing effect holds most of the excess."""
+    if test.get("rule") != "noise" or test.get("accepted") or test.get("gap_not_lower"):
+        return False
+    return bool(test["base_above_noise"] and test["lr"] > test["lr_threshold"]
+                and test["excess_share"] < MIN_EXCESS_SHARE
+                and test.get("strength_z", 0.0) >= Z)  # fmt: skip
 
 
 def refuse_unless_lower(test: dict[str, Any], gap_after: float, gap_before: float) -> None:
@@ -310,6 +325,11 @@ def reason(test: dict[str, Any], candidate_score: float, baseline_score: float) 
     elif test["excess_share"] < MIN_EXCESS_SHARE:
         parts.append(f"removes {test['excess_share']:.0%} of the excess over the noise (needs"
                      f" >= {MIN_EXCESS_SHARE:.0%})")  # fmt: skip
+    pair = test.get("joint")
+    if test.get("accepted") and pair:
+        parts.append(f"accepted with {pair['with']}, the next step's effect: together they"
+                     f" remove {pair['excess_share']:.0%} of it (LR {pair['lr']:.1f} >"
+                     f" {pair['lr_threshold']:.1f})")  # fmt: skip
     return "; ".join(parts)
 
 

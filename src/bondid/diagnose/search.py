@@ -25,7 +25,9 @@ accepted so far) and runs three stages:
    over the noise, and it lowers the gap on all data.
 
 An accepted effect becomes the next step's base (its parameters stay free in every later
-refit) until nothing is accepted or :attr:`Context.max_effects` are; a step whose base is
+refit) until nothing is accepted or :attr:`Context.max_effects` are. A best refit refused
+only for the share of the excess it removes is taken as the base of one more step, and the
+two are accepted together when the pair passes the rule (:func:`joint_step`). A step whose base is
 already at the held-out noise level is not run (no candidate could pass the rule's first
 condition), except the first, whose candidates are screened for the report.
 """
@@ -40,10 +42,11 @@ from typing import Any
 from ..cost.problem import CostOptions
 from ..data.measurement import FrfData
 from ..model.document import UrdfDocument
+from . import decide as rule
 from . import scoring
+from .decide import at_level_test
 from .effects import Candidate
 from .job import JobResult, Task
-from .parsimony import prefer_simpler
 from .pool import Pool, as_completed
 from .refit import Nominal
 from .refit_job import run_refit
@@ -126,58 +129,18 @@ class Step:
 Progress = Callable[[str], None]
 
 
+def decide(
+    ctx: Context, base: JobResult, base_score: float, results: list[JobResult]
+) -> tuple[list[JobResult], list[float], dict[str, Any], JobResult | None]:
+    """:func:`.decide.decide` with ``ctx``'s noise reference and channels."""
+    channels = (ctx.train[0].outputs, ctx.train[0].inputs)
+    return rule.decide(ctx.noise, channels, base, base_score, results)
+
+
 def _open(ctx: Context, base: JobResult) -> list[Candidate]:
     """Candidates not yet accepted at their place (an effect is added once per place)."""
     taken = {c.label for c in base.chain}
     return [c for c in ctx.candidates if c.label not in taken]
-
-
-def verdict_order(results: Sequence[JobResult], scores: Sequence[float]) -> list[int]:
-    """Indices of ``results`` (held-out ``scores`` [dB], same order): the refits whose effect
-    strength the data determine (:func:`.scoring.determined`) best score first, then the
-    others best first."""
-    ranked = scoring.rank(scores)
-    order = [i for i in ranked if scoring.determined(results[i])]
-    return order + [i for i in ranked if i not in order]
-
-
-def decide(
-    ctx: Context, base: JobResult, base_score: float, results: list[JobResult]
-) -> tuple[list[JobResult], list[float], dict[str, Any], JobResult | None]:
-    """The rule on a step's refits: (results and scores in the step's order, the test, the
-    winner or None)."""
-    scores = [scoring.score(r.heldout_rms, r.n_train, r.n_new) if not r.error else math.inf
-              for r in results]  # fmt: skip
-    outs, ins = ctx.train[0].outputs, ctx.train[0].inputs
-    order, displaced = prefer_simpler(results, scores, verdict_order(results, scores),
-                                      ctx.noise, outs, ins)  # fmt: skip
-    ordered, ordered_scores = [results[i] for i in order], [scores[i] for i in order]
-    if not ordered:
-        return ordered, ordered_scores, {"accepted": False, "rule": "none",
-                                         "why": "no candidate could be refitted"}, None  # fmt: skip
-    best = ordered[0]
-    z = scoring.strength_z(best)
-    if z < scoring.Z:
-        test: dict[str, Any] = {
-            "accepted": False,
-            "rule": "none",
-            "why": "no refit determines its effect's strength (value/std < z)",
-        }
-    else:
-        # p of the test: this step's own candidate parameters
-        test = scoring.tests(ordered_scores[0], base_score, best.n_own, ctx.noise)
-        scoring.refuse_unless_lower(test, best.db_rms, base.db_rms)
-        if displaced is not None:
-            d = results[displaced]
-            test["preferred_over"] = {
-                "effect": d.effect,
-                "location": d.location,
-                "score": scores[displaced],
-                "n_parameters": d.n_own,
-            }
-    test["strength_z"] = z
-    winner = best if test.get("accepted") else None
-    return ordered, ordered_scores, test, winner
 
 
 def _screen_all(ctx: Context, pool: Pool, index: int, base: JobResult,
@@ -350,32 +313,54 @@ def search(ctx: Context, pool: Pool, baseline: JobResult,
     base = replace(baseline, chain=())
     base_score = scoring.base_score(base)
     steps: list[Step] = []
-    for index in range(ctx.max_effects):
+    while len(steps) < ctx.max_effects:
+        index = len(steps)
         if index and not scoring.may_accept(base_score, ctx.noise):
             steps.append(Step(index, base, base_score, [],
                               test=at_level_test(base_score, ctx.noise, False)))  # fmt: skip
             break
         step = run_step(ctx, pool, index, base, base_score, say)
         steps.append(step)
+        if step.winner is None:
+            second = joint_step(ctx, pool, step, say)
+            if second is None:
+                break
+            steps.append(second)
+            step = second
         if step.winner is None or not _open(ctx, step.winner):
             break
         base, base_score = step.winner, step.scores[0]
     return steps
 
 
-def at_level_test(
-    base_score: float, noise: scoring.NoiseReference | None, screened: bool
-) -> dict[str, Any]:
-    """The refused test of a step whose base (held-out score ``base_score`` [dB]) is at the
-    noise level: nothing refitted; ``screened``: the candidates were screened (the first
-    step's are, for the report; a later step is not run at all)."""
-    ratio = base_score / noise.level_db if scoring.usable(noise) else math.nan
-    done = ("so no candidate was refitted (the screening's figures are reported)"
-            if screened else "so the step was not run")  # fmt: skip
-    why = (f"the base is at the held-out noise level ({ratio:.3f}x): no candidate can pass "
-           f"the rule's first condition, {done}")  # fmt: skip
-    return {"accepted": False, "rule": "none", "why": why, "screened": screened,
-            "base_over_noise": ratio, "base_above_noise": False}  # fmt: skip
+def joint_step(ctx: Context, pool: Pool, step: Step, say: Progress) -> Step | None:
+    """The step after ``step`` taken on top of ``step``'s best refit when the rule refused
+    that refit only for the share of the excess it removes (:func:`.scoring.short_of_share`):
+    with two effects missing, each alone leaves most of the excess in place. The pair is
+    accepted, ``step``'s refit as its winner (changed in place) and the returned step's as
+    its own, when the second passes the rule on top of the first and the two together pass
+    it against ``step``'s base (their parameters counted together); else None and ``step``
+    is left as it was."""
+    if not (step.results and scoring.short_of_share(step.test)):
+        return None
+    if len(step.base.chain) + 2 > ctx.max_effects:
+        return None
+    first, first_score = step.results[0], step.scores[0]
+    if not _open(ctx, first):
+        return None
+    say(f"step {step.index + 2}: on top of {first.label}, short of the share on its own")
+    second = run_step(ctx, pool, step.index + 1, first, first_score, say)
+    if second.winner is None:
+        return None
+    pair = scoring.tests(second.scores[0], step.base_score, first.n_own + second.winner.n_own,
+                         ctx.noise)  # fmt: skip
+    scoring.refuse_unless_lower(pair, second.winner.db_rms, step.base.db_rms)
+    if not pair.get("accepted"):
+        return None
+    step.winner = first
+    step.test = {**step.test, "accepted": True,
+                 "joint": {**pair, "with": second.winner.label}}  # fmt: skip
+    return second
 
 
 def accepted(steps: Sequence[Step]) -> list[JobResult]:

@@ -91,7 +91,7 @@ def summary(diag: Diagnosis, content: dict[str, Any]) -> str:
 
 def _screened_only(first: Sequence[dict[str, Any]], content: dict[str, Any]) -> list[str]:
     """The candidate lines of a first step that refitted none (its base at the held-out noise
-    level, :func:`.search.at_level_test`): the best five by the screening's training figure
+    level, :func:`.decide.at_level_test`): the best five by the screening's training figure
     [dB], beside the parameter refit's own training figure."""
     train = (content.get("refit") or {}).get("train_weighted_rms")
     out = [
