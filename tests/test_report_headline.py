@@ -87,3 +87,32 @@ def test_verdict_outcome_and_remainder_rendered(tmp_path: Path):
     assert any("x.y" in m and "b.csv" in m for m in muted)
     # units column and the std footnote
     assert '<td class="l">N/m</td>' in page and "not determined by these data" in page
+
+
+def test_several_kept_effects_lead_the_card_together(tmp_path: Path):
+    # two effects kept: the card names both and the gap after both, not the first's share
+    diag = {
+        "verdict": {"effect": "actuator_lag", "location": "rot", "gap_closed": 0.1,
+                    "outcome": "explained"},
+        "effects": [
+            {"effect": "actuator_lag", "location": "rot", "db_rms_after": 3.1},
+            {"effect": "joint_compliance", "location": "arm->fork:ty", "db_rms_after": 0.8},
+        ],
+        "gap": {"db_rms": 3.2},
+    }  # fmt: skip
+    d = diagnosis_headline(diag)
+    assert d is not None and d.effects == [("actuator_lag", "rot"),
+                                           ("joint_compliance", "arm->fork:ty")]  # fmt: skip
+    assert d.gap_after == 0.8 and d.gap_closed == 1.0 - 0.8 / 3.2
+    res = tmp_path / "r"
+    res.mkdir()
+    (res / "diagnosis.json").write_text(json.dumps(diag))
+    page, _ = build_report_html(res, res)
+    card = page[page.index('id="diagnosis-headline"') :]
+    card = card[: card.index("</div>")]
+    assert "Explained: actuator_lag at rot + joint_compliance at arm-&gt;fork:ty" in card
+    assert "Together the effects close <b>75.0 %</b>" in card and "3.2 dB → 0.8 dB" in card
+    # one effect: as before
+    one = dict(diag, effects=diag["effects"][:1])
+    d = diagnosis_headline(one)
+    assert d is not None and d.gap_closed == 0.1 and d.effects == [("actuator_lag", "rot")]

@@ -183,6 +183,8 @@ class DiagnosisHeadline:
     worst_bands: list[tuple[float, float, float]]
     remainder: list[tuple[str, str]]
     over_noise: float | None = None
+    #: every kept effect ``(effect, location)`` in the order added (the verdict's first)
+    effects: list[tuple[str, str | None]] = field(default_factory=list)
 
 
 def diagnosis_headline(diag: Any) -> DiagnosisHeadline | None:
@@ -203,6 +205,11 @@ def diagnosis_headline(diag: Any) -> DiagnosisHeadline | None:
     after = _num(where, "db_rms") if where is not gap else None
     if after is None and before is not None and closed is not None and effect is not None:
         after = before * (1 - closed)
+    kept = [e for e in records(diag.get("effects")) if e.get("effect")]
+    last = _num(kept[-1], "db_rms_after") if len(kept) > 1 else None
+    if last is not None and before:
+        # several effects: the answer is the model with all of them, not the first alone
+        after, closed = last, 1.0 - last / before
     stages = mapping(diag.get("stages"))
     nominal = _num(stages.get("nominal"), "db_rms") if isinstance(stages, Mapping) else None
     return DiagnosisHeadline(
@@ -223,7 +230,13 @@ def diagnosis_headline(diag: Any) -> DiagnosisHeadline | None:
             for r in _remainder_findings(diag.get("remainder") or v.get("remainder"))
         ],
         over_noise=number(_first_step(diag).get("base_over_noise")),
+        effects=[_effect_location(e) for e in kept],
     )
+
+
+def _effect_location(e: Mapping[str, Any]) -> tuple[str, str | None]:
+    """``(effect, location)`` of one entry of ``diagnosis.json``'s ``effects``."""
+    return str(e["effect"]), None if e.get("location") is None else str(e["location"])
 
 
 def _remainder_findings(rem: Any) -> list[Mapping[str, Any]]:
