@@ -1,5 +1,5 @@
 """Stage 3 of a search step (:mod:`.search`): the rule of :mod:`.scoring` on the step's
-refits (:func:`decide`), and the refused test of a step whose base is already at the noise
+refits (:func:`apply_rule`), and the refused test of a step whose base is already at the noise
 level (:func:`at_level_test`)."""
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ def verdict_order(results: Sequence[JobResult], scores: Sequence[float]) -> list
     return order + [i for i in ranked if i not in order]
 
 
-def decide(
+def apply_rule(
     noise: scoring.NoiseReference | None,
     channels: tuple[Sequence[str], Sequence[str]],
     base: JobResult,

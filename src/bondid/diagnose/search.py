@@ -27,9 +27,9 @@ accepted so far) and runs three stages:
 An accepted effect becomes the next step's base (its parameters stay free in every later
 refit) until nothing is accepted or :attr:`Context.max_effects` are. A best refit refused
 only for the share of the excess it removes is taken as the base of one more step, and the
-two are accepted together when the pair passes the rule (:func:`joint_step`). A step whose base is
-already at the held-out noise level is not run (no candidate could pass the rule's first
-condition), except the first, whose candidates are screened for the report.
+two are accepted together when the pair passes the rule (:func:`joint_step`). A step whose
+base is already at the held-out noise level is not run (no candidate could pass the rule's
+first condition), except the first, whose candidates are screened for the report.
 """
 
 from __future__ import annotations
@@ -42,9 +42,8 @@ from typing import Any
 from ..cost.problem import CostOptions
 from ..data.measurement import FrfData
 from ..model.document import UrdfDocument
-from . import decide as rule
 from . import scoring
-from .decide import at_level_test
+from .decide import apply_rule, at_level_test
 from .effects import Candidate
 from .job import JobResult, Task
 from .pool import Pool, as_completed
@@ -132,9 +131,9 @@ Progress = Callable[[str], None]
 def decide(
     ctx: Context, base: JobResult, base_score: float, results: list[JobResult]
 ) -> tuple[list[JobResult], list[float], dict[str, Any], JobResult | None]:
-    """:func:`.decide.decide` with ``ctx``'s noise reference and channels."""
+    """:func:`.decide.apply_rule` with ``ctx``'s noise reference and channels."""
     channels = (ctx.train[0].outputs, ctx.train[0].inputs)
-    return rule.decide(ctx.noise, channels, base, base_score, results)
+    return apply_rule(ctx.noise, channels, base, base_score, results)
 
 
 def _open(ctx: Context, base: JobResult) -> list[Candidate]:
