@@ -105,3 +105,33 @@ def test_a_placed_start_relaxes_the_nominal_parameters_around_its_held_spring(do
     np.testing.assert_array_equal(refit.new_values(out), refit.new_values(placed))
     assert not np.array_equal(out.x[: refit.n_nominal], placed.x[: refit.n_nominal])
     assert refit.cost(out) <= refit.cost(placed) * (1 + 1e-9)
+
+
+def test_a_scan_start_at_an_end_of_the_grid_is_tried_after_every_other(doc):
+    """On data of the model itself a stiffer spring is always a little better, so the scan's
+    lowest cost lies at the stiff end of its grid: that start is marked an edge start and
+    comes after every start that is not, although its figure is the lowest; the others keep
+    the figure order, the nominal origin of the best of them second."""
+    from models import noisy_bonder_data
+
+    from bondid.cost.problem import CostOptions
+    from bondid.diagnose.augmented import build
+    from bondid.diagnose.effects import get_effect
+    from bondid.diagnose.refit import nominal_space
+    from bondid.diagnose.starts import Places, candidate_starts
+
+    c = next(c for c in get_effect("joint_compliance").candidates(doc)
+             if c.location == "x_stage->y_stage:tz")  # fmt: skip
+    data = noisy_bonder_data(doc, n=60)
+    space = nominal_space(doc, ["x_stage.mass", "y_stage.mass"], 4000.0)
+    refit = build(doc.to_string(), space, data, CostOptions(), (), c).refit
+    starts = candidate_starts(refit, c, Places((), (1234.0,), space.centre))
+    top = max(c.scan_grid)
+    edge = [s for s in starts if s.edge]
+    assert [s.label for s in edge] == [f"scan ×{top:.3g}"]
+    inner = [s for s in starts if not s.edge]
+    assert all(a is b for a, b in zip(starts, inner, strict=False))
+    assert edge[0].figure < inner[0].figure
+    assert inner[1].label == f"{inner[0].label} from the nominal model"
+    figures = [s.figure for s in inner if math.isfinite(s.figure)]
+    assert figures == sorted(figures)

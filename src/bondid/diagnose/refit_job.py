@@ -38,7 +38,15 @@ from .effects import Candidate, get_effect
 from .job import AttemptNote, JobResult, Task
 from .pool import cancelled
 from .refit import Refit, State
-from .starts import FAILURES, HELD_ITER, Places, StartSpec, candidate_starts, held_schedule
+from .starts import (
+    FAILURES,
+    HELD_ITER,
+    Places,
+    StartSpec,
+    candidate_starts,
+    held_schedule,
+    rank,
+)
 
 #: the parameter refit's band continuation: bands and IPOPT iterations per band
 FALLBACK_BANDS = 4
@@ -112,12 +120,12 @@ def screening_starts(models: Models, places: Places) -> list[StartSpec]:
         except FAILURES:
             continue
     if not own:
-        return sorted(extra, key=lambda s: s.figure)
-    lead = min([own[0], *extra], key=lambda s: s.figure)
+        return sorted(extra, key=rank)
+    lead = min([own[0], *extra], key=rank)
     second = [s for s in own[1:2] if not math.isfinite(s.figure)] if lead is own[0] else []
     taken = [lead, *second]
     rest = [s for s in [*own, *extra] if not any(s is t for t in taken)]
-    rest.sort(key=lambda s: (not math.isfinite(s.figure), s.figure))
+    rest.sort(key=rank)
     return [*taken, *rest]
 
 
@@ -145,7 +153,9 @@ def _variant_start(
     # ranked like a placed start, once the nominal parameters have relaxed around it: from
     # the parameter refit's bent values one linearised step ranks a pivot start by how the
     # bent model happens to sit, not by the basin the start lies in
-    return [spec_of(refit, f"{best.label}, {option.description}", state, k, relax=True)]
+    return [
+        spec_of(refit, f"{best.label}, {option.description}", state, k, relax=True, edge=best.edge)
+    ]
 
 
 def _starts(task: Task, models: Models) -> Iterator[Start]:

@@ -138,7 +138,8 @@ def candidate_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
     """``candidates`` of diagnosis.json: per search step (``step``, 1 = the verdict's), the
     refitted candidates by held-out score, then the others by screening figure; each with its
     screening figure (``screening_db``: the predicted training RMS [dB] of its best start),
-    its screened starts (``screening_starts``: label and figure [dB]) and ``refitted``."""
+    its screened starts (``screening_starts``: label, figure [dB] and ``edge``, a scan start
+    at an end of the scan's grid, tried last) and ``refitted``."""
     out: list[dict[str, Any]] = []
     for step in diag.steps:
         by_label = {r.label: (r, sc) for r, sc in zip(step.results, step.scores, strict=True)}
@@ -151,7 +152,8 @@ def candidate_entries(diag: Diagnosis, before: float) -> list[dict[str, Any]]:
                 "screening_db": s.db,
                 "screening_starts": [
                     {"label": st.label,
-                     "figure_db": math.sqrt(st.figure) if math.isfinite(st.figure) else None}
+                     "figure_db": math.sqrt(st.figure) if math.isfinite(st.figure) else None,
+                     "edge": st.edge}
                     for st in s.starts
                 ],
                 "screening_wall_s": s.wall_s, "refitted": s.label in by_label,

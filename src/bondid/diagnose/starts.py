@@ -84,6 +84,8 @@ class StartSpec:
         theta: the FRF modifier's parameters ``(n_θ,)`` (empty without one).
         figure: the predicted training objective (:func:`predicted_cost`).
         variant: which of the candidate's options (0: the candidate, k: its k-th variant).
+        edge: a scan start at an end of the scan's grid, where the scan was cut off rather
+            than at a minimum (:func:`_scales`): tried after every other start.
     """
 
     label: str
@@ -91,6 +93,7 @@ class StartSpec:
     theta: np.ndarray
     figure: float
     variant: int = 0
+    edge: bool = False
 
 
 @dataclass(frozen=True)
@@ -157,12 +160,22 @@ def relaxed(refit: Refit, state: State) -> State:
     return refit.solve_only(state, held[0].names, RELAX_ITER)[0]
 
 
-def _scales(refit: Refit, cand: Candidate, places: Places) -> list[tuple[str, float, bool]]:
-    """(label, scale of the ``scan = 1`` parameters, placed at a measured mode) of the scan's
-    minima and the placed modes, scan first."""
-    out: list[tuple[str, float, bool]] = []
+def _scales(refit: Refit, cand: Candidate, places: Places) -> list[tuple[str, float, bool, bool]]:
+    """(label, scale of the ``scan = 1`` parameters, placed at a measured mode, at an edge)
+    of the scan's minima and the placed modes, scan first.
+
+    The lowest cost at an end of the grid is no minimum: the cost still falls there, and
+    the grid spans the range where the candidate can show in the data. At the end where
+    the effect vanishes (a spring too stiff for any mode in the band, a delay too short for
+    any phase the data resolve) the start is the parameter refit itself, from which the new
+    parameters have next to no gradient to follow; at the other, the effect is as strong
+    as the candidate allows. Either way a minimum inside the range or a mode placed at a
+    measured one says more about where the answer lies, so an edge start is marked and
+    tried after those (:func:`rank`), whatever its figure.
+    """
+    out: list[tuple[str, float, bool, bool]] = []
     if not cand.scan_grid:
-        return [("start values", 1.0, False)]
+        return [("start values", 1.0, False, False)]
     exps = np.array([p.scan for p in cand.parameters], float)
     grid, _ = scan_grid(cand, places.missing)
     g = np.asarray(grid, float)
@@ -173,8 +186,9 @@ def _scales(refit: Refit, cand: Candidate, places: Places) -> list[tuple[str, fl
     for i in sorted(minima, key=lambda i: costs[i]):
         if len(out) == N_SCAN:
             break
-        if all(abs(math.log(g[i] / s)) >= math.log(1.5) for _, s, _ in out):
-            out.append((f"scan ×{g[i]:.3g}", float(g[i]), False))
+        if all(abs(math.log(g[i] / s)) >= math.log(1.5) for _, s, _, _ in out):
+            edge = int(i) in (0, len(g) - 1)
+            out.append((f"scan ×{g[i]:.3g}", float(g[i]), False, edge))
     if cand.ref_hz and any(p.scan > 0 for p in cand.parameters):
         lo, hi = min(cand.scan_grid), max(cand.scan_grid)
         placed = 0
@@ -183,8 +197,14 @@ def _scales(refit: Refit, cand: Candidate, places: Places) -> list[tuple[str, fl
             if placed == N_PLACED or not lo <= s <= hi:
                 continue
             placed += 1
-            out.append((f"mode at {f:.4g} Hz", float(s), True))
-    return out or [("start values", 1.0, False)]
+            out.append((f"mode at {f:.4g} Hz", float(s), True, False))
+    return out or [("start values", 1.0, False, False)]
+
+
+def rank(s: StartSpec) -> tuple[bool, bool, float]:
+    """The order starts are tried in: edge starts last (:func:`_scales`), then by figure (a
+    start without a figure after those with one)."""
+    return (s.edge, not math.isfinite(s.figure), s.figure)
 
 
 def candidate_starts(
@@ -200,7 +220,7 @@ def candidate_starts(
     v0 = refit.new_values(refit.state0)
     out: list[StartSpec] = []
     seen: list[np.ndarray] = []
-    for label, s, placed in _scales(refit, cand, places):
+    for label, s, placed, edge in _scales(refit, cand, places):
         state = refit.with_new(refit.state0, v0 * s**exps)
         try:
             if not placed:
@@ -216,11 +236,11 @@ def candidate_starts(
         except FAILURES:
             continue
         seen.append(new)
-        out.append(StartSpec(label, state.x.copy(), state.theta.copy(), figure, variant))
+        out.append(StartSpec(label, state.x.copy(), state.theta.copy(), figure, variant, edge))
     matched = _matched(refit, cand, places, full, variant)
     out += matched
     out = [s for s in out if math.isfinite(s.figure)]
-    out.sort(key=lambda s: s.figure)
+    out.sort(key=rank)
     if places.nominal is not None and out:
         # second in line whatever its figure: one LM step from the nominal model, far from
         # the data, predicts nothing useful, and the start is there for the case where the
@@ -229,7 +249,7 @@ def candidate_starts(
         x = best.x.copy()
         x[: refit.n_nominal] = places.nominal
         label = f"{best.label} from the nominal model"
-        out.insert(1, StartSpec(label, x, best.theta.copy(), math.nan, variant))
+        out.insert(1, StartSpec(label, x, best.theta.copy(), math.nan, variant, best.edge))
     return out
 
 
@@ -254,12 +274,19 @@ def _matched(
     return [spec_of(refit, "modes matched", refit.with_new(refit.state0, new), variant)]
 
 
-def spec_of(refit: Refit, label: str, state: State, variant: int, relax: bool = False) -> StartSpec:
+def spec_of(
+    refit: Refit,
+    label: str,
+    state: State,
+    variant: int,
+    relax: bool = False,
+    edge: bool = False,
+) -> StartSpec:
     """The start of ``state`` with its figure; ``relax``: the figure taken once the nominal
     parameters have relaxed around it (:func:`relaxed`), the refit still starting at
-    ``state``."""
+    ``state``; ``edge``: see :class:`StartSpec`."""
     figure = predicted_cost(refit, relaxed(refit, state) if relax else state)
-    return StartSpec(label, state.x.copy(), state.theta.copy(), figure, variant)
+    return StartSpec(label, state.x.copy(), state.theta.copy(), figure, variant, edge)
 
 
 def best_figure(starts: Sequence[StartSpec]) -> float:
