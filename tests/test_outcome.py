@@ -91,3 +91,20 @@ def test_a_final_model_at_the_level_of_all_data_explains():
     assert bare.kind == UNEXPLAINED and "1.00x of that data's noise level" in bare.text
     assert outcome(2.5, 2.5, [], NOISE, final_ratio=1.5).kind == UNEXPLAINED
     assert "small" not in outcome(2.5, 2.5, [], NOISE, final_ratio=1.5).text
+
+
+def test_the_all_data_figure_does_not_explain_a_tentative_effect():
+    """A kept effect that removes less than CONFIRMED_SHARE of the held-out excess (3.0 ->
+    2.6 dB over a 1 dB level: 28 %) stays partly explained even when the final model on all
+    data is within the all-data noise ratio; the text gives both figures. Above the share,
+    the all-data figure explains."""
+    t = scoring.tests(2.6, 3.0, 2, NOISE)
+    out = outcome(3.0, 2.6, [t], NOISE, final_ratio=1.0)
+    assert out.excess_removed == pytest.approx((9.0 - 2.6**2) / 8.0)
+    assert out.excess_removed < CONFIRMED_SHARE
+    assert out.kind == PARTLY and "2.60x" in out.text and "1.00x" in out.text
+    assert "looser" in out.text
+    # just over the share removed: the all-data figure explains
+    half = math.sqrt(9.0 - 1.02 * CONFIRMED_SHARE * 8.0)
+    t2 = scoring.tests(half, 3.0, 2, NOISE)
+    assert outcome(3.0, half, [t2], NOISE, final_ratio=1.0).kind == EXPLAINED

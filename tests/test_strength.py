@@ -99,3 +99,35 @@ def test_a_step_tests_the_best_determined_refit_first() -> None:
     # 1.1 (determined) is tested before the better-scoring 1.0 (undetermined)
     assert verdict_order(results, scores) == [2, 0, 3, 1]
     assert verdict_order([undetermined], [1.0]) == [0]
+
+
+def test_conditional_std_is_the_std_of_a_fit_with_the_given_parameters_held() -> None:
+    """Peer check on a linear least-squares problem: the std of parameter 0 with parameter 2
+    held (:func:`conditional_std` from the full fit's std and correlation) is the std
+    :func:`parameter_statistics` gives when column 2 is left out of the fit, once both use
+    the same residual variance; never above the marginal std; two uncorrelated parameters
+    keep their std."""
+    from bondid.optim.result import conditional_std
+
+    rng = np.random.default_rng(7)
+    N = 400
+    a = rng.normal(size=N)
+    # columns 0 and 2 nearly collinear (a mass and a spring at one mode), 1 independent
+    J = np.column_stack([a, rng.normal(size=N), 0.9 * a + 0.2 * rng.normal(size=N)])
+    r = 0.1 * rng.normal(size=N)
+    std, corr = parameter_statistics(J, r)
+    held, _ = parameter_statistics(J[:, :2], r)
+    # parameter_statistics divides r·r by N − n: bring the two-column fit to the same variance
+    same = held[0] * math.sqrt((N - 2) / (N - 3))
+    assert conditional_std(std, corr, 0, [2]) == pytest.approx(same, rel=1e-9)
+    assert conditional_std(std, corr, 0, [2]) < 0.5 * std[0]
+    assert conditional_std(std, corr, 0, []) == std[0]
+    assert conditional_std(std, corr, 1, [0]) == pytest.approx(std[1], rel=0.05)
+
+
+def test_strength_z_reads_the_std_with_the_candidates_own_parameters_held() -> None:
+    """A refit that gives ``own_std`` is tested on it; without it, on the marginal std."""
+    r = _result([1.0, 2.0, 10.0], [0.1, 1.0, 5.0])
+    assert scoring.strength_z(r) == pytest.approx(2.0)
+    r.own_std = np.array([1.0, 1.0])
+    assert scoring.strength_z(r) == pytest.approx(10.0)

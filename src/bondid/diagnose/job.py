@@ -114,6 +114,9 @@ class JobResult:
         variant: the variant kept, in words ("" for the candidate itself).
         end: where the kept attempt ended, as a start a later refit of the same candidate
             continues from (None for a failed refit).
+        own_std: std (SI) of each of the candidate's own parameters with its other own
+            structural ones held ``(n_own,)`` (:meth:`.refit.Refit.own_strength_std`; empty
+            without a candidate): what the strength test divides by.
     """
 
     label: str
@@ -143,6 +146,7 @@ class JobResult:
     stopped: str = ""
     variant: str = ""
     end: StartSpec | None = None
+    own_std: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @classmethod
     def failed(cls, task: Task, error: str, wall_s: float) -> JobResult:

@@ -24,10 +24,14 @@ points held out. When that refit, with the kept effects, reaches the noise level
 data (:data:`bondid.optim.noise.AT_LEVEL`, the one ratio "at the noise level" of the
 package) where the search's model did not — a basin the training bands alone did not lead
 to, e.g. a pivot — nothing the data show is left either: the answer is *explained*, and says
-so. Without a kept effect there is no new model to find such a basin: the parameter refit
-above the held-out level is what the rule would have accepted an effect against, so the
-answer is *unexplained* even when the refit on all data comes within that looser ratio of
-the all-data noise estimate (the text says so: what is missing is then small).
+so, provided the kept effects remove at least :data:`CONFIRMED_SHARE` of the held-out
+excess (the all-data estimate is the looser test, and a tentative effect that leaves most of
+the held-out excess in place is not made an explanation by it: *partly explained*, the text
+giving both figures). Without a kept effect there is no new model to find such a basin:
+the parameter refit above the held-out level is what the rule would have accepted an effect
+against, so the answer is *unexplained* even when the refit on all data comes within that
+looser ratio of the all-data noise estimate (the text says so: what is missing is then
+small).
 """
 
 from __future__ import annotations
@@ -128,7 +132,12 @@ def outcome(
         removed = (refit_score**2 - final_score**2) / (refit_score**2 - L**2)
     left = scoring.above_level(final_score, noise)
     fin = math.nan if final_ratio is None else float(final_ratio)
-    if left and kept_tests and math.isfinite(fin) and fin <= AT_LEVEL:
+    # the all-data figure stands for the held-out one only where the kept effects do most
+    # of the work there: the all-data noise estimate is the looser test (a parameter refit
+    # well above the held-out level can come within it), so an effect that leaves most of
+    # the held-out excess in place is not made an explanation by it
+    confirmed = math.isfinite(removed) and removed >= CONFIRMED_SHARE
+    if left and kept_tests and math.isfinite(fin) and fin <= AT_LEVEL and confirmed:
         text = (f"explained: refitted on all data, the model with the kept effect(s) is at the"
                 f" noise level ({fin:.2f}x; on the held-out bands the search's fit was at"
                 f" {over:.2f}x)")  # fmt: skip
@@ -146,6 +155,9 @@ def outcome(
         text = (f"partly explained: the kept effect(s) remove {removed:.0%} of the excess over"
                 f" the noise, the model stays at {over:.2f}x the held-out noise level; the rest"
                 f" is something no candidate explains (see the remainder)")  # fmt: skip
+        if math.isfinite(fin) and fin <= AT_LEVEL:
+            text += (f"; refitted on all data the model comes within {fin:.2f}x of that"
+                     f" data's noise level, a looser test than the held-out one")  # fmt: skip
         return Outcome(PARTLY, text, over, over0, removed, grades, fin)
     small = ""
     if math.isfinite(fin) and fin <= AT_LEVEL:

@@ -37,6 +37,7 @@ from ..exceptions import ComputationError
 from ..fit.defaults import DEFAULT_WIDTH
 from ..model.document import UrdfDocument
 from ..optim.problem import FitProblem
+from ..optim.result import conditional_std
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..optim.prior import NominalPrior
@@ -370,6 +371,25 @@ class Refit:
             else:
                 out.append(float(fit.std[fit.names.index(v.leader)]) / v.factor)
         return np.array(out)
+
+    def own_strength_std(self, fit: FitResult, std_theta: np.ndarray) -> np.ndarray:
+        """Std (SI) of each of the candidate's own parameters with its other own structural
+        parameters held at their fitted values, the nominal ones and the earlier effects'
+        free ``(n_own,)``; the marginal std (:meth:`new_std`) where that cannot be taken (a
+        modifier's θ, a held member, an unidentified parameter). What the strength test
+        divides by (:func:`.scoring.strength_z`, whose docstring says why).
+        """
+        marginal = self.new_std(fit, std_theta)[len(self.new) - len(self.own) :]
+        idx = [fit.names.index(v.leader) if v.leader is not None and not v.held else -1
+               for v in self.own]  # fmt: skip
+        out = marginal.copy()
+        std, corr = np.asarray(fit.std, float), np.asarray(fit.correlation, float)
+        for k, (v, i) in enumerate(zip(self.own, idx, strict=True)):
+            if i < 0 or not (np.isfinite(std[i]) and std[i] > 0):
+                continue
+            given = [j for j in idx if j >= 0 and j != i and np.isfinite(std[j]) and std[j] > 0]
+            out[k] = conditional_std(std, corr, i, given) / v.factor
+        return out
 
     def state_theta(self, fit: FitResult) -> np.ndarray:
         if self.modifier is None:

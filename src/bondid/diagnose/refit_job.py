@@ -293,6 +293,7 @@ def finish(task: Task, models: Models, outcome: Outcome, t0: float) -> JobResult
         names=aug.names,
         values=np.r_[fit.fitted[: aug.n_nominal], new_vals],
         std=np.r_[fit.std[: aug.n_nominal], refit.new_std(fit, std_theta)],
+        own_std=refit.own_strength_std(fit, std_theta) if option is not None else np.zeros(0),
         n_new=len(refit.new),
         train_rms=float(np.sqrt(r @ r)),
         heldout_rms=math.nan if held is None else float(np.sqrt(held.cost)),

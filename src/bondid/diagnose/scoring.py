@@ -40,7 +40,10 @@
   above is taken on the best-scoring refit whose *strength* the data determine, i.e. at least
   one of its strength parameters (``NewParameter.strength``: a stiffness, a delay, a lag
   time) has ``value/std ≥ Z``, the std from the refit's Jacobian with every nominal parameter
-  free (:func:`bondid.optim.result.parameter_statistics`). For a delay this is the Wald test of
+  free (:func:`bondid.optim.result.parameter_statistics`) and, for a structural candidate,
+  its other own parameters held (:meth:`.refit.Refit.own_strength_std`: a lumped base's
+  masses and springs, a pivot's shift and its spring trade among themselves, which says
+  nothing about whether the effect is there). For a delay this is the Wald test of
   ``τ = 0`` (the absent effect); for a stiffness ``k`` the compliance ``1/k`` has the same
   relative std to first order, so it is the Wald test of a zero compliance. A refit that
   lowers the held-out score while its strength stays undetermined trades the new parameter
@@ -114,7 +117,9 @@ def score(heldout_rms: float, n_train: int, n_new: int) -> float:
 
 def strength_z(result: Any) -> float:
     """The Wald statistic of a refit's effect (module docstring): the largest ``value/std``
-    over its candidate's strength parameters (the last ``n_own`` of ``result.values``);
+    over its candidate's strength parameters (the last ``n_own`` of ``result.values``; the
+    std with the candidate's other own structural parameters held, ``result.own_std``, where
+    the refit gives it, else the marginal ``result.std``);
     0 for a strength parameter the data do not identify at all (NaN std), ``inf`` when the
     refit has no candidate or its candidate no strength parameter (nothing to test)."""
     cand = getattr(result, "candidate", None)
@@ -123,7 +128,10 @@ def strength_z(result: Any) -> float:
         return math.inf
     params = cand.parameters[-n_own:]
     values = np.asarray(result.values, float)[-n_own:]
-    std = np.asarray(result.std, float)[-n_own:] if len(result.std) >= n_own else None
+    own = np.asarray(getattr(result, "own_std", ()), float)
+    std: np.ndarray | None = own
+    if len(own) != n_own:
+        std = np.asarray(result.std, float)[-n_own:] if len(result.std) >= n_own else None
     zs = []
     for k, p in enumerate(params):
         if not p.strength:

@@ -18,6 +18,8 @@ reported as if the bound were absent).
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -69,6 +71,24 @@ def parameter_statistics(
         corr[np.ix_(ok, ok)] = sub / np.outer(sd, sd)
     corr[ok, ok] = 1.0
     return std, corr
+
+
+def conditional_std(std: np.ndarray, corr: np.ndarray, i: int, given: Sequence[int]) -> float:
+    """Std of parameter ``i`` with the parameters ``given`` held at their values (the others
+    free), from the marginal ``std`` ``(n,)`` and ``corr`` ``(n, n)`` of
+    :func:`parameter_statistics`: ``√(Σᵢᵢ − Σᵢ_G Σ_GG⁺ Σ_Gᵢ)`` (the Gaussian conditional, a
+    pseudo-inverse where the given ones are collinear); never above the marginal std."""
+    s_i = float(std[i])
+    g = [int(j) for j in given if int(j) != i]
+    if not g or not math.isfinite(s_i):
+        return s_i
+    sg = np.asarray(std, float)[g]
+    c_ig = np.asarray(corr, float)[i, g] * s_i * sg
+    c_gg = np.asarray(corr, float)[np.ix_(g, g)] * np.outer(sg, sg)
+    if not (np.all(np.isfinite(c_ig)) and np.all(np.isfinite(c_gg))):
+        return s_i
+    var = s_i**2 - float(c_ig @ np.linalg.pinv(c_gg, rcond=1e-10, hermitian=True) @ c_ig)
+    return math.sqrt(min(max(var, 0.0), s_i**2))
 
 
 @dataclass
